@@ -1,0 +1,169 @@
+"""Conversation groups: F-formation spawning and the members' motion under the social forces (eqs. 8-10).
+
+Model (ref "Social force field model", with the departures noted in ``SocialParams``):
+
+* The members stand on the o-space circle (centre ``o``, radius ``s``) facing its centre.
+* A robot coming within ``s + join_margin`` of the centre joins progressively (weight ``w`` in [0, 1]): the
+  conversation centre moves toward it by ``w/(n+1)`` of the way, as it would if the robot were one more
+  member, and the radius grows to that of ``n + 1`` participants. Members then re-form around the new centre:
+  they step back and apart, which opens a place for the newcomer. Repulsion from the robot (eq. 8) acts
+  whenever it is inside a member's personal zone, joined or not.
+* Each member moves by ``F = w_c n(F_c) + w_e g n(F_e) + w_r n(F_r)`` (``n`` a soft normalisation, ``g`` the
+  ref's equality gate), applied as ``force_newton * n(F)`` to a 1 kg body with linear drag, integrated exactly
+  over one control step (speed capped at ``max_speed``).
+* Members face the conversation centre. The paper's orientations ``d_e + d_c`` point at the neighbours'
+  centroid, which is the same for symmetric groups but would turn an L-shaped or side-by-side pair toward each
+  other and break the formation; ``field_at`` still returns them.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..params import FORMATIONS, SocialParams
+from . import forces
+
+
+def member_spacing(social: SocialParams, radius: float) -> float:
+    """Angle (rad) between neighbours ``min_member_gap`` apart on a circle of ``radius``."""
+    return 2.0 * math.asin(min(1.0, social.min_member_gap / (2.0 * radius)))
+
+
+def formation_angles(formation: str, n: int, social: SocialParams) -> np.ndarray:
+    """Members' angles (rad) around the o-space centre, before a random rotation.
+
+    circular: evenly spaced; vis_a_vis: two facing clusters; l_shape: each member 90 deg further along
+    (2 members make an L, 3 a U); side_by_side: adjacent members at the closest comfortable spacing.
+    """
+    if formation not in FORMATIONS:
+        raise ValueError(f"formation {formation!r}: expected one of {FORMATIONS}")
+    if not 2 <= n <= 5:
+        raise ValueError(f"group size {n}: expected 2 to 5 members")
+    radius = social.ospace_radius_for(n)
+    delta = member_spacing(social, radius)
+    if formation == "circular":
+        return 2.0 * math.pi * np.arange(n) / n
+    if formation == "side_by_side":
+        return delta * np.arange(n)
+    if formation == "l_shape":
+        return min(max(math.pi / 2, delta), 2.0 * math.pi / n) * np.arange(n)
+    a, b = (n + 1) // 2, n // 2  # vis_a_vis
+    side_a = (np.arange(a) - (a - 1) / 2.0) * delta
+    side_b = math.pi + (np.arange(b) - (b - 1) / 2.0) * delta
+    return np.concatenate([side_a, side_b])
+
+
+def widest_gap(angles: np.ndarray, toward: float | None = None, tie_deg: float = 10.0) -> tuple[float, float]:
+    """Mid-angle and size (rad) of the widest angular gap between members.
+
+    Gaps within ``tie_deg`` of the widest are ties; ``toward`` (an angle) picks the tie whose middle is closest
+    to it (e.g. the robot's side of a vis-a-vis pair).
+    """
+    a = np.sort(np.mod(angles, 2.0 * math.pi))
+    gaps = np.diff(np.concatenate([a, a[:1] + 2.0 * math.pi]))
+    mids = a + gaps / 2.0
+    best = gaps.max()
+    ties = np.flatnonzero(gaps >= best - math.radians(tie_deg))
+    if toward is not None and len(ties) > 1:
+        err = np.abs(np.angle(np.exp(1j * (mids[ties] - toward))))
+        i = ties[int(np.argmin(err))]
+    else:
+        i = ties[int(np.argmax(gaps[ties]))]
+    return float(np.mod(mids[i], 2.0 * math.pi)), float(gaps[i])
+
+
+class Group:
+    """State and dynamics of one conversation group of ``n`` members (arrays, metres, radians)."""
+
+    def __init__(self, social: SocialParams, centre: np.ndarray, angles: np.ndarray) -> None:
+        self.social = social
+        self.n = len(angles)
+        self.base_radius = social.ospace_radius_for(self.n)
+        self.joined_radius = max(self.base_radius, social.ospace_radius_for(self.n + 1))
+        self.centre0 = np.asarray(centre, dtype=float).copy()
+        self.pos = self.centre0 + self.base_radius * np.stack([np.cos(angles), np.sin(angles)], axis=1)
+        self.vel = np.zeros((self.n, 2))
+        self.yaw = np.mod(np.asarray(angles, dtype=float) + math.pi, 2.0 * math.pi)
+        self.centre = self.centre0.copy()
+        self.radius = self.base_radius
+        self.join_weight = 0.0
+        self.force = np.zeros((self.n, 2))  # total SFFM force on each member (pre-normalisation sum)
+        self.repulsion = np.zeros((self.n, 2))  # its repulsion part
+        k = self.n + 1
+        self._mask_members = np.ones((k, k), dtype=bool)
+        self._mask_members[:, -1] = False  # robot not a participant (repulsion ignores this mask)
+        self._mask_joined = np.ones((k, k), dtype=bool)
+
+    # -- the conversation centre as seen with a (possibly) joining robot --------------------------------
+    def update_centre(self, robot_xy: np.ndarray) -> None:
+        """Set ``join_weight``, ``centre`` and ``radius`` for a robot at ``robot_xy``."""
+        s = self.social
+        d = math.hypot(robot_xy[0] - self.centre0[0], robot_xy[1] - self.centre0[1])
+        w = (self.base_radius + s.join_margin - d) / s.join_margin
+        w = min(1.0, max(0.0, w))
+        self.join_weight = w
+        self.centre = self.centre0 + (w / (self.n + 1)) * (robot_xy - self.centre0)
+        self.radius = self.base_radius + w * (self.joined_radius - self.base_radius)
+
+    def field_at(self, agents: np.ndarray, joined: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Raw SFFM forces for all agents (members then robot): cohesion, equality, repulsion, orientation."""
+        s = self.social
+        mask = self._mask_joined if joined else self._mask_members
+        pair = forces.pairwise(agents)
+        f_r = forces.repulsion(agents, s.personal_radius, pair=pair)
+        f_e, d_e = forces.equality(agents, s.social_radius, mask, pair)
+        f_c, d_c = forces.cohesion(agents, self.centre, self.radius, s.social_radius, s.public_radius, mask,
+                                   pair)
+        return f_c, f_e, f_r, d_e + d_c
+
+    def step(self, robot_xy: np.ndarray, dt: float) -> None:
+        """Advance the members by ``dt`` seconds given the robot's position."""
+        s = self.social
+        self.update_centre(robot_xy)
+        agents = np.concatenate([self.pos, robot_xy[None, :2]])
+        joined = self.join_weight >= 0.5
+        f_c, f_e, f_r, _ = self.field_at(agents, joined)
+        f_c, f_e, f_r = f_c[:-1], f_e[:-1], f_r[:-1]
+        rel = self.pos - self.centre
+        ring_err = np.abs(np.hypot(rel[:, 0], rel[:, 1]) - self.radius)
+        gate = np.minimum(np.maximum((ring_err - s.equality_deadband) / s.equality_deadband, 0.0), 1.0)
+        sat = s.saturation
+        total = (s.weight_cohesion * forces.soft_normalize(f_c, sat)
+                 + s.weight_equality * gate[:, None] * forces.soft_normalize(f_e, sat)
+                 + s.weight_repulsion * forces.soft_normalize(f_r, sat))
+        self.force = f_c + gate[:, None] * f_e + f_r
+        self.repulsion = f_r
+        acc = s.force_newton / s.mass * forces.soft_normalize(total, 1.0)
+        # exact solution of dv/dt = acc - drag v with acc held over dt
+        k = s.drag
+        v_inf = acc / k
+        decay = math.exp(-k * dt)
+        v0 = self.vel
+        vel = v_inf + (v0 - v_inf) * decay
+        speed = np.hypot(vel[:, 0], vel[:, 1])
+        self.vel = vel * np.minimum(1.0, s.max_speed / np.maximum(speed, 1e-9))[:, None]
+        self.pos = self.pos + 0.5 * (v0 + self.vel) * dt
+        # turn toward the conversation centre at a bounded rate
+        to_o = self.centre - self.pos
+        want = np.arctan2(to_o[:, 1], to_o[:, 0])
+        has = np.hypot(to_o[:, 0], to_o[:, 1]) > 1e-9
+        err = np.mod(want - self.yaw + math.pi, 2.0 * math.pi) - math.pi
+        lim = s.max_turn_rate * dt
+        turn = np.minimum(np.maximum(err, -lim), lim)
+        self.yaw = np.mod(self.yaw + np.where(has, turn, 0.0), 2.0 * math.pi)
+
+    def member_angles(self) -> np.ndarray:
+        """Members' angles around the current conversation centre (rad)."""
+        d = self.pos - self.centre
+        return np.arctan2(d[:, 1], d[:, 0])
+
+    def free_slot(self, robot_xy: np.ndarray | None = None) -> np.ndarray:
+        """The free slot: the middle of the widest gap between members, on the current o-space circle."""
+        toward = None
+        if robot_xy is not None:
+            d = robot_xy - self.centre
+            toward = math.atan2(d[1], d[0])
+        mid, _ = widest_gap(self.member_angles(), toward)
+        return self.centre + self.radius * np.array([math.cos(mid), math.sin(mid)])

@@ -1,0 +1,70 @@
+"""Named scenarios: which groups are spawned and where the robot starts (issue: approaching task).
+
+``default`` is the paper's 2-member vis-a-vis group with the robot starting anywhere around it. Each other
+name fixes a formation (sizes 2-5 where the formation allows), ``behind`` starts the robot behind a member,
+``FORMATION-N`` fixes both (e.g. ``circular-4``), a comma-separated list mixes names uniformly, and ``mixed``
+samples every formation, size and start.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from ..params import FORMATIONS
+
+STARTS = ("any", "behind")
+
+
+@dataclasses.dataclass(frozen=True)
+class Scenario:
+    """A family of episodes: group sizes, formations and where the robot starts."""
+
+    name: str
+    sizes: tuple[int, ...]
+    formations: tuple[str, ...]
+    start: str = "any"
+
+    def sample(self, rng: np.random.Generator) -> tuple[int, str, str]:
+        """(group size, formation, start) for one episode."""
+        return int(rng.choice(self.sizes)), str(rng.choice(self.formations)), self.start
+
+
+BASE_SCENARIOS: dict[str, Scenario] = {
+    "default": Scenario("default", (2,), ("vis_a_vis",)),
+    "vis_a_vis": Scenario("vis_a_vis", (2, 3, 4, 5), ("vis_a_vis",)),
+    "l_shape": Scenario("l_shape", (2, 3, 4), ("l_shape",)),
+    "side_by_side": Scenario("side_by_side", (2, 3, 4), ("side_by_side",)),
+    "circular": Scenario("circular", (3, 4, 5), ("circular",)),
+    "behind": Scenario("behind", (2, 3), ("vis_a_vis", "l_shape", "side_by_side"), "behind"),
+}
+MIXED = ("vis_a_vis", "l_shape", "side_by_side", "circular", "behind")
+SCENARIO_NAMES = (*BASE_SCENARIOS, "mixed", "FORMATION-N", "a,b,...")
+
+
+def _one(name: str) -> list[Scenario]:
+    if name in BASE_SCENARIOS:
+        return [BASE_SCENARIOS[name]]
+    if name == "mixed":
+        return [BASE_SCENARIOS[m] for m in MIXED]
+    form, _, size = name.rpartition("-")
+    if form in FORMATIONS and size.isdigit() and 2 <= int(size) <= 5:
+        return [Scenario(name, (int(size),), (form,))]
+    raise ValueError(f"scenario {name!r}: expected one of {list(BASE_SCENARIOS)}, 'mixed', FORMATION-N with "
+                     f"FORMATION in {list(FORMATIONS)} and N in 2..5, or a comma-separated list of these")
+
+
+class ScenarioMix:
+    """Samples uniformly among the scenarios named in ``spec``."""
+
+    def __init__(self, spec: str) -> None:
+        if not isinstance(spec, str) or not spec.strip():
+            raise ValueError(f"scenario {spec!r}: expected a non-empty name")
+        self.spec = spec
+        self.members = [sc for part in spec.split(",") for sc in _one(part.strip())]
+
+    def sample(self, rng: np.random.Generator) -> tuple[int, str, str]:
+        """(group size, formation, start) for one episode."""
+        sc = self.members[int(rng.integers(len(self.members)))] if len(self.members) > 1 else self.members[0]
+        return sc.sample(rng)
