@@ -31,12 +31,17 @@ def perspective(hfov_deg: float, width: int, height: int, near: float = NEAR, fa
 
 def projection_from_intrinsics(fx: float, fy: float, cx: float, cy: float, width: int, height: int,
                                near: float = NEAR, far: float = FAR) -> list[float]:
-    """OpenGL projection equivalent to a pinhole camera (pixel centres at integer coordinates, y down)."""
+    """OpenGL projection equivalent to a pinhole camera (OpenCV: pixel centres at integer coords, y down).
+
+    Offsets are for PyBullet's TinyRenderer, measured (tests/test_calib_camera.py): it samples column ``i``
+    at window x = ``i`` (not ``i + 0.5``) and flips rows as ``H - 1 - row``, so the textbook ``cx + 0.5``
+    and ``cy + 0.5`` become ``cx`` and ``cy + 1``; a world point then lands on the OpenCV pixel.
+    """
     m = np.zeros((4, 4))
     m[0, 0] = 2.0 * fx / width
     m[1, 1] = 2.0 * fy / height
-    m[0, 2] = 1.0 - 2.0 * (cx + 0.5) / width
-    m[1, 2] = 2.0 * (cy + 0.5) / height - 1.0
+    m[0, 2] = 1.0 - 2.0 * cx / width
+    m[1, 2] = 2.0 * (cy + 1.0) / height - 1.0
     m[2, 2] = -(far + near) / (far - near)
     m[2, 3] = -2.0 * far * near / (far - near)
     m[3, 2] = -1.0

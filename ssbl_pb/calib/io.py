@@ -1,0 +1,70 @@
+"""Small file helpers shared by the calibration tools: atomic writes and a bad-input exception.
+
+Every output is written to a temporary file in the destination folder and renamed over the target, so a crash
+or a bad input never leaves a half-written file behind.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from ..params import ConfigError
+
+
+class CalibrationError(ConfigError):
+    """Bad calibration input (a file, a field, too few usable samples); the message names the file."""
+
+
+def atomic_write(path: str | Path, writer: Callable[[Path], None]) -> Path:
+    """Call ``writer(tmp_path)`` and rename the result to ``path`` (same folder, same suffix)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix, dir=path.parent)
+    os.close(fd)
+    tmp_path = Path(tmp)
+    try:
+        writer(tmp_path)
+        os.replace(tmp_path, path)
+    finally:
+        if tmp_path.exists():
+            tmp_path.unlink()
+    return path
+
+
+def write_text(path: str | Path, text: str) -> Path:
+    """Write ``text`` atomically."""
+    return atomic_write(path, lambda p: p.write_text(text))
+
+
+def write_yaml(path: str | Path, data: dict[str, Any], header: str = "") -> Path:
+    """Write a mapping as block-style YAML atomically, with an optional ``#`` comment header."""
+    body = yaml.safe_dump(data, sort_keys=False, default_flow_style=None)
+    head = "".join(f"# {line}\n" for line in header.splitlines()) if header else ""
+    return write_text(path, head + body)
+
+
+def write_image(path: str | Path, image: Any) -> Path:
+    """Write an image (numpy array, BGR or grey) atomically with OpenCV."""
+    import cv2
+
+    def _w(p: Path) -> None:
+        if not cv2.imwrite(str(p), image):
+            raise CalibrationError(f"{path}: OpenCV could not write the image")
+
+    return atomic_write(path, _w)
+
+
+def save_figure(path: str | Path, fig: Any, dpi: int = 110) -> Path:
+    """Save a matplotlib figure atomically and close it."""
+    import matplotlib.pyplot as plt
+
+    try:
+        return atomic_write(path, lambda p: fig.savefig(p, dpi=dpi, bbox_inches="tight"))
+    finally:
+        plt.close(fig)
