@@ -1,0 +1,1 @@
+"""Simulation: PyBullet world, social force field model, rewards, the Gymnasium env and baselines."""

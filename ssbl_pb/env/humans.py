@@ -59,19 +59,42 @@ def widest_gap(angles: np.ndarray, toward: float | None = None, tie_deg: float =
     """Mid-angle and size (rad) of the widest angular gap between members.
 
     Gaps within ``tie_deg`` of the widest are ties; ``toward`` (an angle) picks the tie whose middle is closest
-    to it (e.g. the robot's side of a vis-a-vis pair).
+    to it (e.g. the robot's side of a vis-a-vis pair). Plain Python: groups have at most 5 members.
     """
-    a = np.sort(np.mod(angles, 2.0 * math.pi))
-    gaps = np.diff(np.concatenate([a, a[:1] + 2.0 * math.pi]))
-    mids = a + gaps / 2.0
-    best = gaps.max()
-    ties = np.flatnonzero(gaps >= best - math.radians(tie_deg))
-    if toward is not None and len(ties) > 1:
-        err = np.abs(np.angle(np.exp(1j * (mids[ties] - toward))))
-        i = ties[int(np.argmin(err))]
-    else:
-        i = ties[int(np.argmax(gaps[ties]))]
-    return float(np.mod(mids[i], 2.0 * math.pi)), float(gaps[i])
+    two_pi = 2.0 * math.pi
+    a = sorted(float(x) % two_pi for x in angles)
+    gaps = [a[i + 1] - a[i] for i in range(len(a) - 1)] + [a[0] + two_pi - a[-1]]
+    best = max(gaps)
+    tie = best - math.radians(tie_deg)
+    pick, pick_err = -1, math.inf
+    for i, g in enumerate(gaps):
+        if g < tie:
+            continue
+        mid = a[i] + g / 2.0
+        if toward is None:
+            err = -g  # the widest among ties
+        else:
+            err = abs(math.remainder(mid - toward, two_pi))
+        if err < pick_err:
+            pick, pick_err = i, err
+    return (a[pick] + gaps[pick] / 2.0) % two_pi, gaps[pick]
+
+
+def combined_force(f_c: np.ndarray, f_e: np.ndarray, f_r: np.ndarray, gate: np.ndarray | float,
+                   social: SocialParams) -> np.ndarray:
+    """The SFFM's motion force ``w_c n(F_c) + w_e g n(F_e) + w_r n(F_r)`` (ref), ``n`` a soft normalisation."""
+    sat = social.saturation
+    g = np.asarray(gate, dtype=float)
+    g = g[..., None] if g.ndim else g
+    return (social.weight_cohesion * forces.soft_normalize(f_c, sat)
+            + social.weight_equality * g * forces.soft_normalize(f_e, sat)
+            + social.weight_repulsion * forces.soft_normalize(f_r, sat))
+
+
+def equality_gate(ring_error: np.ndarray, social: SocialParams) -> np.ndarray:
+    """The ref's gate: equality acts only off the o-space ring (ramped over one dead band)."""
+    db = social.equality_deadband
+    return np.minimum(np.maximum((np.abs(ring_error) - db) / db, 0.0), 1.0)
 
 
 class Group:
@@ -91,6 +114,7 @@ class Group:
         self.join_weight = 0.0
         self.force = np.zeros((self.n, 2))  # total SFFM force on each member (pre-normalisation sum)
         self.repulsion = np.zeros((self.n, 2))  # its repulsion part
+        self.robot_force = np.zeros(2)  # the same field evaluated at the robot (used by rewards R1/R2)
         k = self.n + 1
         self._mask_members = np.ones((k, k), dtype=bool)
         self._mask_members[:, -1] = False  # robot not a participant (repulsion ignores this mask)
@@ -125,14 +149,11 @@ class Group:
         agents = np.concatenate([self.pos, robot_xy[None, :2]])
         joined = self.join_weight >= 0.5
         f_c, f_e, f_r, _ = self.field_at(agents, joined)
+        self.robot_force = f_c[-1] + f_e[-1] + f_r[-1]
         f_c, f_e, f_r = f_c[:-1], f_e[:-1], f_r[:-1]
         rel = self.pos - self.centre
-        ring_err = np.abs(np.hypot(rel[:, 0], rel[:, 1]) - self.radius)
-        gate = np.minimum(np.maximum((ring_err - s.equality_deadband) / s.equality_deadband, 0.0), 1.0)
-        sat = s.saturation
-        total = (s.weight_cohesion * forces.soft_normalize(f_c, sat)
-                 + s.weight_equality * gate[:, None] * forces.soft_normalize(f_e, sat)
-                 + s.weight_repulsion * forces.soft_normalize(f_r, sat))
+        gate = equality_gate(np.hypot(rel[:, 0], rel[:, 1]) - self.radius, s)
+        total = combined_force(f_c, f_e, f_r, gate, s)
         self.force = f_c + gate[:, None] * f_e + f_r
         self.repulsion = f_r
         acc = s.force_newton / s.mass * forces.soft_normalize(total, 1.0)

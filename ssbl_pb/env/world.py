@@ -174,13 +174,16 @@ class World:
     def wall_clearance(self) -> np.ndarray:
         """Distance (m) from the footprint's nearest corner to each wall's inner face (+x, -x, +y, -y)."""
         sx, sy = self.params.room_size
-        corners = box_corners(self.base.pose, (self.robot_params.length / 2, self.robot_params.width / 2))
-        return np.array([sx / 2 - corners[:, 0].max(), corners[:, 0].min() + sx / 2,
-                         sy / 2 - corners[:, 1].max(), corners[:, 1].min() + sy / 2])
+        x, y, yaw = self.base.pose
+        hl, hw = self.robot_params.length / 2, self.robot_params.width / 2
+        c, s = abs(math.cos(yaw)), abs(math.sin(yaw))
+        ex, ey = hl * c + hw * s, hl * s + hw * c  # the footprint's half-extent along x and y
+        return np.array([sx / 2 - x - ex, x - ex + sx / 2, sy / 2 - y - ey, y - ey + sy / 2])
 
-    def collisions(self) -> list[Collision]:
-        """Robot-human and robot-wall contacts right now."""
-        out = [Collision("human", int(i)) for i in np.flatnonzero(self.human_clearance() <= 0.0)]
+    def collisions(self, clearance: np.ndarray | None = None) -> list[Collision]:
+        """Robot-human and robot-wall contacts right now (``clearance``: a ``human_clearance()`` already made)."""
+        clearance = self.human_clearance() if clearance is None else clearance
+        out = [Collision("human", int(i)) for i in np.flatnonzero(clearance <= 0.0)]
         out += [Collision("wall", int(i)) for i in np.flatnonzero(self.wall_clearance() <= 0.0)]
         return out
 

@@ -1,0 +1,181 @@
+"""The approaching task as a Gymnasium env (the core, with the Vector observation).
+
+``gymnasium.make("ssbl_pb/ApproachGroup-v0", obs_mode=..., scenario=...)`` builds it (see ``make_env``);
+camera observation modes are wrappers of this one env (``wrappers``).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from ..params import RobotParams, SocialParams, WorldParams, from_dict
+from . import observation as ob
+from .reward import TERMS, RewardWeights, reward_terms, total_reward
+from .scenarios import ScenarioMix
+from .task import TaskParams
+from .world import World
+
+
+def _params(cls: type, value: Any, name: str) -> Any:
+    if value is None:
+        return cls()
+    if isinstance(value, cls):
+        return value
+    if isinstance(value, dict):
+        return from_dict(cls, value, name)
+    raise TypeError(f"{name}: expected a {cls.__name__} or a dict, got {type(value).__name__}")
+
+
+class ApproachGroupEnv(gym.Env):
+    """Pepper approaches a conversation group and joins it at the free slot."""
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 10}
+
+    def __init__(
+        self,
+        scenario: str = "default",
+        world: WorldParams | dict | None = None,
+        robot: RobotParams | dict | None = None,
+        social: SocialParams | dict | None = None,
+        reward: RewardWeights | dict | None = None,
+        task: TaskParams | dict | None = None,
+        render_mode: str | None = None,
+        render_width: int = 480,
+        record: bool = False,
+    ) -> None:
+        """``record`` keeps every step's state in ``trajectory`` (metrics, plots; on when rendering)."""
+        self.scenario = ScenarioMix(scenario)
+        self.world_params = _params(WorldParams, world, "world")
+        self.robot_params = _params(RobotParams, robot, "robot")
+        self.social = _params(SocialParams, social, "social")
+        self.weights = _params(RewardWeights, reward, "reward")
+        self.task = _params(TaskParams, task, "task")
+        if render_mode not in (None, "rgb_array"):
+            raise ValueError(f"render_mode {render_mode!r}: expected None or 'rgb_array'")
+        self.render_mode = render_mode
+        self.render_width = render_width
+        self.record = record or render_mode is not None
+        self.world = World(self.world_params, self.robot_params, self.social)
+        # the room must hold the largest group the scenario may spawn
+        biggest = max(max(sc.sizes) for sc in self.scenario.members)
+        WorldParams(**{**self.world_params.__dict__, "n_humans": biggest}).check_fits(self.social)
+        n_act = 3 if self.task.turn else 2
+        self.action_space = gym.spaces.Box(-1.0, 1.0, shape=(n_act,), dtype=np.float32)
+        self.observation_space = gym.spaces.Box(-ob.OBS_LIMIT, ob.OBS_LIMIT, shape=(ob.OBS_SIZE,),
+                                                dtype=np.float32)
+        self.dt = self.world_params.dt
+        self._steps = 0
+        self._prev_action = np.zeros(n_act)
+        self._sums: dict[str, float] = {}
+        self._slot = np.zeros(2)
+        self.trajectory: list[dict[str, Any]] = []
+        self._top_cam = None
+
+    # -- helpers ------------------------------------------------------------------------------------------
+    def _walls(self) -> np.ndarray:
+        sx, sy = self.world_params.room_size
+        x, y = self.world.robot_pose[:2]
+        return np.array([sx / 2 - x, x + sx / 2, sy / 2 - y, y + sy / 2])
+
+    def slot(self) -> np.ndarray:
+        """The free slot now (world frame, metres; updated once per step)."""
+        return self._slot
+
+    def _obs(self) -> np.ndarray:
+        w, g = self.world, self.world.group
+        return ob.vector_observation(w.robot_pose, w.base.vel, g.pos, g.vel, g.centre, g.radius, self._slot,
+                                     self._walls(), self.robot_params.max_speed, self.robot_params.max_yaw_rate)
+
+    def heading_error(self) -> float:
+        """Angle (rad) from the robot's heading to the conversation centre."""
+        d = self.world.group.centre - self.world.robot_pose[:2]
+        return math.remainder(math.atan2(d[1], d[0]) - self.world.robot_pose[2], 2.0 * math.pi)
+
+    def _snapshot(self) -> dict[str, Any]:
+        g = self.world.group
+        return {"t": self.world.t, "robot": self.world.robot_pose.copy(), "robot_vel": self.world.base.vel.copy(),
+                "members": g.pos.copy(), "members_yaw": g.yaw.copy(), "centre": g.centre.copy(),
+                "radius": g.radius, "slot": self._slot.copy(), "clearance": self.world.human_clearance()}
+
+    # -- Gymnasium API ------------------------------------------------------------------------------------
+    def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
+        super().reset(seed=seed)
+        n, formation, start = self.scenario.sample(self.np_random)
+        self.world.reset(self.np_random, n_humans=n, formation=formation, start=start)
+        self._steps = 0
+        self._prev_action = np.zeros(self.action_space.shape)
+        self._sums = {k: 0.0 for k in (*TERMS, "reward")}
+        self._slot = self.world.group.free_slot(self.world.robot_pose[:2])
+        self.trajectory = [self._snapshot()] if self.record else []
+        info = {"n_humans": n, "formation": formation, "start": start}
+        return self._obs(), info
+
+    def command(self, action: np.ndarray) -> np.ndarray:
+        """Body-frame base command (forward, left, turn) for a normalised action."""
+        a = np.minimum(np.maximum(np.asarray(action, dtype=float), -1.0), 1.0)
+        rp = self.robot_params
+        if self.task.turn:
+            turn = a[2] * rp.max_yaw_rate
+        else:
+            turn = min(max(self.task.heading_gain * self.heading_error(), -rp.max_yaw_rate), rp.max_yaw_rate)
+        return np.array([a[0] * rp.max_speed, a[1] * rp.max_speed, turn])
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
+        w, g = self.world, self.world.group
+        a = np.minimum(np.maximum(np.asarray(action, dtype=float).reshape(self.action_space.shape), -1.0), 1.0)
+        robot_before, members_before = w.robot_pose[:2].copy(), g.pos.copy()
+        slot_before = math.hypot(*(self._slot - robot_before))
+        w.step(self.command(a))
+        self._steps += 1
+        self._slot = g.free_slot(w.robot_pose[:2])
+        slot_after = math.hypot(*(self._slot - w.robot_pose[:2]))
+        clearance = w.human_clearance()
+        collided = bool(w.collisions(clearance))
+        violation = collided or bool(clearance.min() < self.task.intimate_zone)
+        speed = math.hypot(*w.base.vel[:2])
+        success = (not violation and slot_after < self.task.slot_tolerance and speed < self.task.stop_speed
+                   and abs(self.heading_error()) < math.radians(self.task.heading_tolerance_deg))
+        terms = reward_terms(g.robot_force, w.robot_pose[:2] - robot_before, g.force, g.pos - members_before,
+                             g.repulsion, self.dt, a, self._prev_action, slot_before, slot_after, success,
+                             violation)
+        r = total_reward(terms, self.weights)
+        self._prev_action = a
+        for k, v in terms.items():
+            self._sums[k] += v
+        self._sums["reward"] += r
+        if self.record:
+            self.trajectory.append(self._snapshot())
+        terminated = success or violation
+        truncated = not terminated and self._steps >= self.task.max_steps
+        info: dict[str, Any] = {"terms": terms, "success": success, "collision": collided,
+                                "violation": violation, "slot_distance": slot_after}
+        if terminated or truncated:
+            info["episode_terms"] = dict(self._sums)
+            info["is_success"] = success  # SB3's convention for success-rate logging
+        return self._obs(), r, terminated, truncated, info
+
+    def render(self) -> np.ndarray | None:
+        if self.render_mode != "rgb_array":
+            return None
+        from .drawing import draw_overlay
+
+        if self._top_cam is None:
+            self._top_cam = self.world.top_down_camera(self.render_width)
+        img = self.world.render_top_down(self._top_cam)
+        return draw_overlay(img, self._top_cam, self.trajectory, self.social, self.task)
+
+    def close(self) -> None:
+        self.world.close()
+
+
+def make_env(obs_mode: str = "vector", camera_width: int = 84, camera_height: int = 84, **kwargs: Any) -> gym.Env:
+    """Entry point of ``ssbl_pb/ApproachGroup-v0``: the core env wrapped for ``obs_mode``."""
+    from .wrappers import OBS_MODES, wrap_obs_mode
+
+    if obs_mode not in OBS_MODES:
+        raise ValueError(f"obs_mode {obs_mode!r}: expected one of {OBS_MODES}")
+    return wrap_obs_mode(ApproachGroupEnv(**kwargs), obs_mode, camera_width, camera_height)

@@ -1,0 +1,83 @@
+"""The Vector observation (paper III-B "Vector" mode): one layout shared by the simulator and the robot.
+
+Everything is relative to the robot and expressed in its body frame (x forward, y left), so the same vector can
+be built from the simulator's state or from the tracker's output on the real robot. Layout (``OBS_SIZE`` = 39):
+
+====  =========================================================  =========
+idx   value                                                      scale
+====  =========================================================  =========
+0-1   free slot position                                         / 5 m
+2-3   conversation centre position                               / 5 m
+4     o-space radius                                             / 5 m
+5-6   robot velocity (forward, left)                             / max speed
+7     robot turn rate                                            / max turn rate
+8-9   robot heading in the room (cos, sin)                       1
+10-13 distance to the walls (+x, -x, +y, -y, room frame)         / 5 m
+14-38 up to 5 members, nearest first: position (2), velocity     / 5 m, / 1 m/s
+      (2), present flag (1); absent members are zeros
+====  =========================================================  =========
+
+The original divides by half its 20 m arena (ref "Vector observation"); our default room is 10 m, so 5 m.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+MAX_MEMBERS = 5
+MEMBER_FIELDS = 5
+OBS_SIZE = 14 + MAX_MEMBERS * MEMBER_FIELDS
+POS_SCALE = 5.0
+OBS_LIMIT = 10.0
+
+
+def vector_observation(
+    robot_pose: np.ndarray,
+    robot_vel: np.ndarray,
+    members_pos: np.ndarray,
+    members_vel: np.ndarray,
+    centre: np.ndarray,
+    radius: float,
+    slot: np.ndarray,
+    walls: np.ndarray,
+    max_speed: float,
+    max_yaw_rate: float,
+) -> np.ndarray:
+    """Build the observation; ``robot_vel`` is the world-frame (vx, vy, wz), positions are world-frame metres."""
+    x, y, yaw = float(robot_pose[0]), float(robot_pose[1]), float(robot_pose[2])
+    c, s = math.cos(yaw), math.sin(yaw)
+    to_body = np.array([[c, -s], [s, c]])  # row vectors @ to_body rotate world -> body
+    here = np.array([x, y])
+    members_pos = np.asarray(members_pos, dtype=float).reshape(-1, 2)
+    k = min(len(members_pos), MAX_MEMBERS)
+    vecs = np.empty((3 + 2 * k, 2))
+    vecs[0] = slot - here
+    vecs[1] = centre - here
+    vecs[2] = robot_vel[:2]
+    rel = members_pos - here
+    order = np.argsort(rel[:, 0] ** 2 + rel[:, 1] ** 2, kind="stable")[:k]
+    vecs[3:3 + k] = rel[order]
+    vecs[3 + k:] = np.asarray(members_vel, dtype=float).reshape(-1, 2)[order]
+    body = vecs @ to_body
+    obs = np.zeros(OBS_SIZE, dtype=np.float32)
+    obs[0:4] = body[0:2].ravel() / POS_SCALE
+    obs[4] = radius / POS_SCALE
+    obs[5:7] = body[2] / max_speed
+    obs[7] = robot_vel[2] / max_yaw_rate
+    obs[8:10] = (c, s)
+    obs[10:14] = np.asarray(walls) / POS_SCALE
+    block = np.zeros((MAX_MEMBERS, MEMBER_FIELDS))
+    block[:k, 0:2] = body[3:3 + k] / POS_SCALE
+    block[:k, 2:4] = body[3 + k:]
+    block[:k, 4] = 1.0
+    obs[14:] = block.ravel()
+    return np.clip(obs, -OBS_LIMIT, OBS_LIMIT, out=obs)
+
+
+def decode_members(obs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Present members' body-frame positions (m) and velocities (m/s) from an observation."""
+    block = np.asarray(obs[14:], dtype=float).reshape(MAX_MEMBERS, MEMBER_FIELDS)
+    present = block[:, 4] > 0.5
+    return block[present, 0:2] * POS_SCALE, block[present, 2:4]

@@ -1,0 +1,114 @@
+"""Reward terms R1..R5 and effort (paper eqs. 11-15) as pure functions of one step's states.
+
+Per step of ``dt`` seconds, with the robot moving by ``du`` through the field ``F`` evaluated at its position at
+the start of the step and member j moving by ``du_j`` under its own total force ``F_j``:
+
+* R1 (eq. 11, group forming): ``F . du`` (the line-integral increment).
+* R2 (eq. 12, non-increasing energy): ``dt`` if the robot moves along the field (``v . F > 0``, the original
+  code's test) else 0.
+* R3 (eq. 13, time): ``-dt``.
+* R4 (success bonus): 1 on the step that completes the approach.
+* R5 (eq. 14, altruism): ``-sum_j F_j . du_j`` plus the original's repulsion term ``-sum_j |F_rep,j| dt``
+  weighted by ``w_rep`` (how much the robot pushes the members).
+* effort: ``-|v|^2 dt`` and smoothness ``-|a_t - a_{t-1}|^2`` on the normalised action (ours, see below).
+
+Total (eq. 15): ``w_e (w1 R1 + w2 R2 + w3 R3) + w4 R4 + w_a (w5 R5 + w_rep R5_rep) + w_effort E + w_smooth S
++ w_slot P - penalty``. The success bonus stands outside ``w_e`` as in the original code, which adds +1 on
+success on top of the weighted per-step reward (eq. 15 writes it inside; with ``w_e = 0.0035`` it would be
+negligible). ``P`` is the progress toward the free slot (ours) and ``penalty`` applies on a collision or an
+intrusion into a member's intimate zone.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from ..params import _check, _nonneg
+
+TERMS = ("r1_group_forming", "r2_non_increasing", "r3_time", "r4_success", "r5_altruism", "r5_repulsion",
+         "effort", "smoothness", "slot_progress", "violation")
+
+
+@dataclasses.dataclass(frozen=True)
+class RewardWeights:
+    """Weights of eq. 15 and our additions; ``reference()`` gives the original code's values.
+
+    The original (PepperAgent.CalculateReward, shared/reference/peppersocial.md) uses per-step values
+    ``w_e = 0.0035, w_a = 0.9965``, ego ``0.012 v.F + 3.6 [v.F > 0] - 0.16 |v|^2 - 2.0``, alt
+    ``-0.012 F_i.v_i - |F_rep,i|/3.8`` and +1 on success. Written per second of our 0.1 s step (our terms
+    carry ``dt``) that is ``w1 = 0.12, w2 = 36, w3 = 20, w5 = 0.12, w_rep = 2.63`` and an effort weight of
+    ``0.0035 * 1.6`` (effort is part of ego in the original).
+    With those, moving along the field earns more per step (+3.6) than time costs (-2.0), so wandering for
+    300 steps (+1.7) pays better than arriving (+1): fine for the original's "reach 1 m of the centre" rule,
+    not for joining at the free slot. Our defaults keep every term and its sign but make time cost more than
+    moving along the field earns, make success worth more than any shaping, add progress toward the free slot
+    (potential-based, so it does not change the optimum) and a smoothness cost (the paper's hypothesis is a
+    robot that accelerates and decelerates gently), and penalise collisions and intimate-zone intrusions.
+    """
+
+    w1: float = 0.05  # R1 group forming
+    w2: float = 0.1  # R2 moving along the field (per second)
+    w3: float = 0.3  # R3 time (per second)
+    w4: float = 2.0  # R4 success bonus
+    w5: float = 0.5  # R5 altruism (members' line integrals)
+    w_rep: float = 1.0  # R5's repulsion part (per second of |F_rep|)
+    w_e: float = 1.0  # egoism weight
+    w_a: float = 1.0  # altruism weight
+    w_effort: float = 0.1  # -|v|^2 dt
+    w_smooth: float = 0.05  # -|a_t - a_{t-1}|^2 (normalised actions)
+    w_slot: float = 1.0  # progress toward the free slot (per metre)
+    violation_penalty: float = 1.0  # collision or intimate-zone intrusion (ends the episode)
+
+    def __post_init__(self) -> None:
+        for f in dataclasses.fields(self):
+            v = getattr(self, f.name)
+            _check(isinstance(v, int | float), "reward", f.name, v, "a number")
+        _nonneg("reward", self, *[f.name for f in dataclasses.fields(self)])
+
+    @classmethod
+    def reference(cls, dt: float = 0.1) -> RewardWeights:
+        """The original Unity code's weights, rescaled to per-second terms at control period ``dt``."""
+        return cls(w1=0.012 / dt, w2=3.6 / dt, w3=2.0 / dt, w4=1.0, w5=0.012 / dt, w_rep=1 / 3.8 / dt,
+                   w_e=0.0035, w_a=0.9965, w_effort=0.0035 * 0.16 / dt, w_smooth=0.0, w_slot=0.0, violation_penalty=0.0)
+
+
+def reward_terms(
+    robot_force: np.ndarray,
+    robot_du: np.ndarray,
+    member_forces: np.ndarray,
+    member_du: np.ndarray,
+    member_repulsion: np.ndarray,
+    dt: float,
+    action: np.ndarray,
+    prev_action: np.ndarray,
+    slot_dist_before: float,
+    slot_dist_after: float,
+    success: bool,
+    violation: bool,
+) -> dict[str, float]:
+    """Unweighted terms of one step (see the module docstring for each formula and its unit)."""
+    v = robot_du / dt
+    moving_along = float(np.dot(v, robot_force)) > 0.0
+    da = np.asarray(action, dtype=float) - np.asarray(prev_action, dtype=float)
+    return {
+        "r1_group_forming": float(np.dot(robot_force, robot_du)),
+        "r2_non_increasing": dt if moving_along else 0.0,
+        "r3_time": -dt,
+        "r4_success": 1.0 if success else 0.0,
+        "r5_altruism": -float(np.sum(member_forces * member_du)),
+        "r5_repulsion": -float(np.sum(np.hypot(member_repulsion[:, 0], member_repulsion[:, 1]))) * dt,
+        "effort": -float(np.dot(v, v)) * dt,
+        "smoothness": -float(np.dot(da, da)),
+        "slot_progress": slot_dist_before - slot_dist_after,
+        "violation": -1.0 if violation else 0.0,
+    }
+
+
+def total_reward(t: dict[str, float], w: RewardWeights) -> float:
+    """Eq. 15 with our additions."""
+    ego = w.w1 * t["r1_group_forming"] + w.w2 * t["r2_non_increasing"] + w.w3 * t["r3_time"]
+    return (w.w_e * ego + w.w4 * t["r4_success"] + w.w_a * (w.w5 * t["r5_altruism"] + w.w_rep * t["r5_repulsion"])
+            + w.w_effort * t["effort"] + w.w_smooth * t["smoothness"] + w.w_slot * t["slot_progress"]
+            + w.violation_penalty * t["violation"])

@@ -1,0 +1,38 @@
+"""Task parameters of the approaching task: episode length, the success rule and the zones used by metrics."""
+
+from __future__ import annotations
+
+import dataclasses
+
+from ..params import _check, _positive
+
+
+@dataclasses.dataclass(frozen=True)
+class TaskParams:
+    """Success means joining the group properly, not merely getting near it.
+
+    The robot must stand within ``slot_tolerance`` of the free slot (the middle of the widest gap between the
+    members, on the o-space circle, as the members stand now), face the conversation centre within
+    ``heading_tolerance_deg``, move slower than ``stop_speed``, and never have collided or entered a member's
+    intimate zone (either ends the episode as a failure). Tolerances (ours): 0.3 m is about a step and
+    a third of Pepper's footprint; 20 deg keeps the group centre well inside the camera's 56 deg view; 0.1 m/s
+    is under a third of the NAOqi default speed. Zone distances are between bodies (Pepper's footprint and the
+    member's 0.28 m circle), as Hall's proxemic distances are measured between people.
+    """
+
+    max_steps: int = 300  # ref: at most 300 decisions per episode (30 s at 10 Hz)
+    slot_tolerance: float = 0.3  # m
+    heading_tolerance_deg: float = 20.0
+    stop_speed: float = 0.1  # m/s
+    intimate_zone: float = 0.45  # m, Hall
+    personal_zone: float = 1.2  # m, Hall
+    social_zone: float = 3.6  # m, Hall; the field-of-view metric counts time within it
+    turn: bool = False  # action includes turning; by default the robot faces the group centre (ref)
+    heading_gain: float = 2.0  # 1/s, proportional turn toward the centre when ``turn`` is False
+
+    def __post_init__(self) -> None:
+        _check(isinstance(self.max_steps, int) and self.max_steps >= 1, "task", "max_steps", self.max_steps,
+               "an integer >= 1")
+        _positive("task", self, "slot_tolerance", "heading_tolerance_deg", "stop_speed", "intimate_zone",
+                  "personal_zone", "social_zone", "heading_gain")
+        _check(isinstance(self.turn, bool), "task", "turn", self.turn, "true or false")

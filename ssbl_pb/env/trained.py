@@ -1,0 +1,92 @@
+"""Loading trained SB3 models (PPO / RecurrentPPO) with their observation normalisation as ``Policy``s."""
+
+from __future__ import annotations
+
+import pickle
+import zipfile
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import yaml
+
+from ..policies import SHIPPED
+from .policies import Policy
+
+MODEL_FILES = ("best_model.zip", "model.zip")
+
+
+class ModelError(ValueError):
+    """A model file or run directory cannot be used; the message names the file and the problem."""
+
+
+def resolve_model(spec: str) -> tuple[Path, Path | None, dict[str, Any]]:
+    """(model zip, normalisation pickle or None, run config) for a shipped name, a run dir or a .zip path."""
+    path = SHIPPED.get(spec, Path(spec))
+    if spec in SHIPPED and not path.is_dir():
+        raise ModelError(f"shipped policy '{spec}' is missing: expected {path}/model.zip")
+    if path.is_dir():
+        found = [path / f for f in MODEL_FILES if (path / f).is_file()]
+        if not found:
+            raise ModelError(f"{path}: no model in this directory (expected one of {list(MODEL_FILES)})")
+        model = found[0]
+    else:
+        model = path
+        if not model.is_file():
+            raise ModelError(f"{model}: model file not found")
+    folder = model.parent
+    norm = folder / "vecnormalize.pkl"
+    cfg_file = folder / "config.yaml"
+    config = yaml.safe_load(cfg_file.read_text()) if cfg_file.is_file() else {}
+    return model, (norm if norm.is_file() else None), (config or {})
+
+
+class TrainedPolicy(Policy):
+    """An SB3 model behind the common ``predict`` signature; observations are normalised as in training."""
+
+    def __init__(self, model: Any, normalizer: Any = None, recurrent: bool = False) -> None:
+        self.model = model
+        self.normalizer = normalizer
+        self.recurrent = recurrent
+        self.observation_space = model.observation_space
+
+    def normalize(self, obs: Any) -> Any:
+        return obs if self.normalizer is None else self.normalizer.normalize_obs(obs)
+
+    def predict(self, observation: Any, state: Any = None, episode_start: Any = None,
+                deterministic: bool = True) -> tuple[np.ndarray, Any]:
+        obs = self.normalize(observation)
+        if self.recurrent:
+            return self.model.predict(obs, state=state, episode_start=episode_start, deterministic=deterministic)
+        action, _ = self.model.predict(obs, deterministic=deterministic)
+        return action, None
+
+
+def load_trained(spec: str, observation_space: gym.Space | None = None) -> TrainedPolicy:
+    """Load a trained model (shipped name, run directory or .zip); checks it fits ``observation_space``."""
+    model_path, norm_path, config = resolve_model(spec)
+    if not zipfile.is_zipfile(model_path):
+        raise ModelError(f"{model_path}: not a saved SB3 model (expected a .zip archive)")
+    recurrent = config.get("policy", "ff") == "lstm"
+    try:
+        if recurrent:
+            from sb3_contrib import RecurrentPPO as Algo
+        else:
+            from stable_baselines3 import PPO as Algo
+        model = Algo.load(str(model_path), device="cpu")
+    except Exception as exc:  # corrupt archive, wrong algorithm, ...
+        raise ModelError(f"{model_path}: cannot load the model ({type(exc).__name__}: {exc})") from exc
+    if observation_space is not None and model.observation_space != observation_space:
+        mode = config.get("obs_mode", "unknown")
+        raise ModelError(f"{model_path}: the model was trained for observations {model.observation_space} "
+                         f"(obs_mode '{mode}'), not {observation_space}")
+    normalizer = None
+    if norm_path is not None:
+        try:
+            with open(norm_path, "rb") as fh:
+                normalizer = pickle.load(fh)
+        except Exception as exc:
+            raise ModelError(f"{norm_path}: cannot read the normalisation statistics ({exc})") from exc
+        normalizer.training = False
+    return TrainedPolicy(model, normalizer, recurrent)

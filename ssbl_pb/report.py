@@ -1,0 +1,118 @@
+"""Summaries, files and plots of evaluation runs: per-episode CSV, summary JSON with 95 % CIs, paths plot."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+import tempfile
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from scipy import stats
+
+SUMMARY_ALIASES = {"success_rate": "success", "collision_rate": "collision", "violation_rate": "violation",
+                   "mean_return": "return"}
+
+
+def mean_ci(values: Sequence[float], level: float = 0.95) -> dict[str, float]:
+    """Mean and Student-t confidence interval of the finite values (NaNs, e.g. no success, are skipped)."""
+    v = np.asarray([x for x in values if x is not None and math.isfinite(x)], dtype=float)
+    n = len(v)
+    if n == 0:
+        return {"mean": float("nan"), "ci_low": float("nan"), "ci_high": float("nan"), "n": 0}
+    m = float(v.mean())
+    if n == 1 or np.all(v == v[0]):
+        return {"mean": m, "ci_low": m, "ci_high": m, "n": n}
+    half = float(stats.t.ppf(0.5 + level / 2, n - 1) * v.std(ddof=1) / math.sqrt(n))
+    return {"mean": m, "ci_low": m - half, "ci_high": m + half, "n": n}
+
+
+def summarize(rows: list[dict[str, float]], extra: dict[str, Any] | None = None) -> dict[str, Any]:
+    """Mean and 95 % CI of every metric; the headline keys (``success_rate``, ...) hold the means."""
+    keys = [k for k in rows[0] if k != "seed"]
+    per = {k: mean_ci([r[k] for r in rows]) for k in keys}
+    out: dict[str, Any] = dict(extra or {})
+    out["episodes"] = len(rows)
+    for alias, key in SUMMARY_ALIASES.items():
+        out[alias] = per[key]["mean"]
+    for key in ("personal_zone_time_s", "human_displacement_m", "mean_jerk", "arrival_speed",
+                "outside_fov_time_s", "time_to_success_s", "path_length_m"):
+        out[key] = per[key]["mean"]
+    out["metrics"] = per
+    return out
+
+
+def atomic_write_text(path: Path, text: str) -> None:
+    """Write a file so that readers see either the old file or the whole new one."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w") as fh:
+            fh.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def write_csv(path: Path, rows: list[dict[str, float]]) -> None:
+    """One row per episode, columns in the rows' key order."""
+    import io
+
+    buf = io.StringIO()
+    writer = csv.DictWriter(buf, fieldnames=list(rows[0]), lineterminator="\n")
+    writer.writeheader()
+    for r in rows:
+        writer.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
+    atomic_write_text(path, buf.getvalue())
+
+
+def write_json(path: Path, data: dict[str, Any]) -> None:
+    atomic_write_text(path, json.dumps(data, indent=2, sort_keys=False, default=float) + "\n")
+
+
+def plot_paths(path: Path, trajectories: list[list[dict[str, Any]]], titles: list[str], room: tuple[float, float],
+               cols: int = 3, personal: float = 1.2, human_radius: float = 0.28) -> None:
+    """Top-down paths of the robot (with speed colouring) and the members, one panel per episode."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.patches import Circle
+
+    n = len(trajectories)
+    rows = max(1, math.ceil(n / cols))
+    fig, axes = plt.subplots(rows, min(cols, n), figsize=(4 * min(cols, n), 4 * rows), squeeze=False)
+    for ax, traj, title in zip(axes.flat, trajectories, titles, strict=False):
+        robot = np.array([s["robot"][:2] for s in traj])
+        speed = np.array([math.hypot(*s["robot_vel"][:2]) for s in traj])
+        members = np.array([s["members"] for s in traj])
+        first, last = traj[0], traj[-1]
+        ax.add_patch(Circle(last["centre"], last["radius"], fill=False, ls="--", color="0.5"))
+        for j in range(members.shape[1]):
+            ax.plot(members[:, j, 0], members[:, j, 1], color="tab:blue", lw=1)
+            ax.add_patch(Circle(members[-1, j], human_radius, color="tab:blue", alpha=0.8))
+            ax.add_patch(Circle(members[-1, j], human_radius + personal, fill=False, color="tab:orange", lw=0.8))
+            yaw = last["members_yaw"][j]
+            ax.arrow(*members[-1, j], 0.4 * math.cos(yaw), 0.4 * math.sin(yaw), head_width=0.1, color="k")
+        sc = ax.scatter(robot[:, 0], robot[:, 1], c=speed, cmap="viridis", s=6, vmin=0, vmax=0.4)
+        ax.plot(*first["robot"][:2], "ks", ms=6)
+        ax.plot(*last["slot"], "rx", ms=9, mew=2)
+        lo = np.minimum(robot.min(0), members.reshape(-1, 2).min(0)) - 1.0
+        hi = np.maximum(robot.max(0), members.reshape(-1, 2).max(0)) + 1.0
+        c, half = (lo + hi) / 2, max(hi - lo) / 2
+        ax.set_xlim(c[0] - half, c[0] + half)
+        ax.set_ylim(c[1] - half, c[1] + half)
+        ax.set_aspect("equal")
+        ax.set_title(title, fontsize=9)
+    for ax in list(axes.flat)[n:]:
+        ax.axis("off")
+    fig.colorbar(sc, ax=axes, shrink=0.6, label="robot speed (m/s)")
+    tmp = Path(path).with_name(f".{Path(path).name}.tmp.png")
+    fig.savefig(tmp, dpi=110)
+    plt.close(fig)
+    os.replace(tmp, path)

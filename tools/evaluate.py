@@ -1,0 +1,51 @@
+#!/usr/bin/env python
+"""Evaluate a policy over seeded episodes: DIR/episodes.csv, DIR/summary.json, DIR/paths.png.
+
+Examples:
+    python tools/evaluate.py --policy sffm --episodes 200 --out results/eval_sffm
+    python tools/evaluate.py --policy vector --scenario mixed --episodes 200 --out results/eval_vector_mixed
+    python tools/evaluate.py --policy runs/ppo_vector --episodes 50 --out results/eval_run
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from ssbl_pb.cli import fail, progress_bar  # noqa: E402
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--policy", required=True,
+                    help="sffm | random | straight | vector (the shipped model) | PATH (.zip or run directory)")
+    ap.add_argument("--episodes", type=int, default=100, help="number of episodes (default 100)")
+    ap.add_argument("--seed", type=int, default=1000, help="seed of the first episode; episode i uses seed+i")
+    ap.add_argument("--obs-mode", default="vector", choices=["vector", "camera", "camera_speed"])
+    ap.add_argument("--scenario", default="default", help="default | mixed | behind | FORMATION[-N] | a,b,...")
+    ap.add_argument("--out", type=Path, required=True, help="output directory")
+    ap.add_argument("--workers", type=int, default=0, help="processes (default: all cores when episodes >= 40)")
+    ap.add_argument("--paths", type=int, default=6, help="episodes drawn in paths.png (default 6)")
+    args = ap.parse_args(argv)
+
+    from ssbl_pb.evaluation import Setup, UsageError, evaluate
+
+    workers = args.workers or ((os.cpu_count() or 1) if args.episodes >= 40 else 1)
+    setup = Setup(args.policy, args.obs_mode, args.scenario)
+    try:
+        with progress_bar(args.episodes, f"evaluate {args.policy}") as bar:
+            summary, _ = evaluate(setup, args.episodes, args.seed, args.out, workers, args.paths, bar)
+    except (UsageError, ValueError, FileNotFoundError) as exc:
+        return fail(exc)
+    print(f"success {summary['success_rate']:.1%}  collision {summary['collision_rate']:.1%}  "
+          f"return {summary['mean_return']:.3f}  personal-zone {summary['personal_zone_time_s']:.2f}s  "
+          f"-> {args.out}/summary.json")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
