@@ -30,6 +30,9 @@ def atomic_write(path: str | Path, writer: Callable[[Path], None]) -> Path:
     tmp_path = Path(tmp)
     try:
         writer(tmp_path)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp_path, 0o666 & ~umask)  # mkstemp makes 0600 files
         os.replace(tmp_path, path)
     finally:
         if tmp_path.exists():
@@ -42,9 +45,20 @@ def write_text(path: str | Path, text: str) -> Path:
     return atomic_write(path, lambda p: p.write_text(text))
 
 
+class _Dumper(yaml.SafeDumper):
+    """Block mappings, flow lists (as ROS camera_info files are written)."""
+
+
+def _list_flow(dumper: yaml.SafeDumper, data: list) -> yaml.Node:
+    return dumper.represent_sequence("tag:yaml.org,2002:seq", data, flow_style=True)
+
+
+_Dumper.add_representer(list, _list_flow)
+
+
 def write_yaml(path: str | Path, data: dict[str, Any], header: str = "") -> Path:
-    """Write a mapping as block-style YAML atomically, with an optional ``#`` comment header."""
-    body = yaml.safe_dump(data, sort_keys=False, default_flow_style=None)
+    """Write a mapping as block-style YAML (lists inline) atomically, with an optional ``#`` comment header."""
+    body = yaml.dump(data, Dumper=_Dumper, sort_keys=False, default_flow_style=False, width=100)
     head = "".join(f"# {line}\n" for line in header.splitlines()) if header else ""
     return write_text(path, head + body)
 
