@@ -14,7 +14,7 @@ import numpy as np
 
 from ..params import RobotParams, SocialParams, WorldParams, from_dict
 from . import observation as ob
-from .reward import TERMS, RewardWeights, reward_terms, total_reward
+from .reward import TERMS, RewardWeights, reward_terms, slot_potential, total_reward
 from .scenarios import ScenarioMix
 from .task import TaskParams
 from .world import World
@@ -128,7 +128,8 @@ class ApproachGroupEnv(gym.Env):
         w, g = self.world, self.world.group
         a = np.minimum(np.maximum(np.asarray(action, dtype=float).reshape(self.action_space.shape), -1.0), 1.0)
         robot_before, members_before = w.robot_pose[:2].copy(), g.pos.copy()
-        slot_before = math.hypot(*(self._slot - robot_before))
+        speed_before = math.hypot(*w.base.vel[:2])
+        potential_before = slot_potential(math.hypot(*(self._slot - robot_before)), speed_before)
         w.step(self.command(a))
         self._steps += 1
         self._slot = g.free_slot(w.robot_pose[:2])
@@ -140,8 +141,8 @@ class ApproachGroupEnv(gym.Env):
         success = (not violation and slot_after < self.task.slot_tolerance and speed < self.task.stop_speed
                    and abs(self.heading_error()) < math.radians(self.task.heading_tolerance_deg))
         terms = reward_terms(g.robot_force, w.robot_pose[:2] - robot_before, g.force, g.pos - members_before,
-                             g.repulsion, self.dt, a, self._prev_action, slot_before, slot_after, success,
-                             violation)
+                             g.repulsion, self.dt, a, self._prev_action, potential_before,
+                             slot_potential(slot_after, speed), success, violation)
         r = total_reward(terms, self.weights)
         self._prev_action = a
         for k, v in terms.items():

@@ -15,7 +15,7 @@ the start of the step and member j moving by ``du_j`` under its own total force 
 Total (eq. 15): ``w_e (w1 R1 + w2 R2 + w3 R3) + w4 R4 + w_a (w5 R5 + w_rep R5_rep) + w_effort E + w_smooth S
 + w_slot P - penalty``. The success bonus stands outside ``w_e`` as in the original code, which adds +1 on
 success on top of the weighted per-step reward (eq. 15 writes it inside; with ``w_e = 0.0035`` it would be
-negligible). ``P`` is the progress toward the free slot (ours) and ``penalty`` applies on a collision or an
+negligible). ``P`` is the change of ``slot_potential`` (progress toward the free slot and braking near it; ours) and ``penalty`` applies on a collision or an
 intrusion into a member's intimate zone.
 """
 
@@ -58,7 +58,7 @@ class RewardWeights:
     w_a: float = 1.0  # altruism weight
     w_effort: float = 0.1  # -|v|^2 dt
     w_smooth: float = 0.05  # -|a_t - a_{t-1}|^2 (normalised actions)
-    w_slot: float = 1.0  # progress toward the free slot (per metre)
+    w_slot: float = 1.0  # change of slot_potential (per metre of progress toward the free slot)
     violation_penalty: float = 1.0  # collision or intimate-zone intrusion (ends the episode)
 
     def __post_init__(self) -> None:
@@ -74,6 +74,13 @@ class RewardWeights:
                    w_e=0.0035, w_a=0.9965, w_effort=0.0035 * 0.16 / dt, w_smooth=0.0, w_slot=0.0, violation_penalty=0.0)
 
 
+def slot_potential(distance: float, speed: float, brake_gain: float = 2.0, brake_radius: float = 1.0) -> float:
+    """Potential of the robot's state for shaping (ours): minus the distance to the free slot, and minus its
+    speed (times ``brake_gain`` seconds) within ``brake_radius`` of the slot, so arriving slowly pays. Its
+    difference between steps is potential-based shaping (Ng et al. 1999): it does not change the optimum."""
+    return -(distance + brake_gain * speed * max(0.0, 1.0 - distance / brake_radius))
+
+
 def reward_terms(
     robot_force: np.ndarray,
     robot_du: np.ndarray,
@@ -83,8 +90,8 @@ def reward_terms(
     dt: float,
     action: np.ndarray,
     prev_action: np.ndarray,
-    slot_dist_before: float,
-    slot_dist_after: float,
+    potential_before: float,
+    potential_after: float,
     success: bool,
     violation: bool,
 ) -> dict[str, float]:
@@ -101,7 +108,7 @@ def reward_terms(
         "r5_repulsion": -float(np.sum(np.hypot(member_repulsion[:, 0], member_repulsion[:, 1]))) * dt,
         "effort": -float(np.dot(v, v)) * dt,
         "smoothness": -float(np.dot(da, da)),
-        "slot_progress": slot_dist_before - slot_dist_after,
+        "slot_progress": potential_after - potential_before,
         "violation": -1.0 if violation else 0.0,
     }
 

@@ -1,0 +1,146 @@
+"""SB3 callbacks: progress bar, episode log (learning curve), periodic evaluation with best model, checkpoints."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import time
+from collections import deque
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from stable_baselines3.common.callbacks import BaseCallback
+
+from ..env.rollout import run_episode
+from ..env.trained import TrainedPolicy
+from ..report import atomic_write_text
+
+
+class ProgressCallback(BaseCallback):
+    """tqdm bar with env steps/s and the success rate of the last 100 training episodes."""
+
+    def __init__(self, total: int) -> None:
+        super().__init__()
+        self.total = total
+        self.success: deque[float] = deque(maxlen=100)
+
+    def _on_training_start(self) -> None:
+        from tqdm import tqdm
+
+        self.bar = tqdm(total=self.total, initial=self.num_timesteps, unit="step", dynamic_ncols=True,
+                        desc="train", mininterval=1.0)
+        self.t0, self.n0 = time.perf_counter(), self.num_timesteps
+
+    def _on_step(self) -> bool:
+        for info, done in zip(self.locals["infos"], self.locals["dones"], strict=False):
+            if done and "is_success" in info:
+                self.success.append(float(info["is_success"]))
+        self.bar.update(self.num_timesteps - self.bar.n)
+        if self.n_calls % 50 == 0:
+            rate = (self.num_timesteps - self.n0) / max(time.perf_counter() - self.t0, 1e-9)
+            succ = f"{np.mean(self.success):.0%}" if self.success else "-"
+            self.bar.set_postfix_str(f"{rate:.0f} steps/s, success {succ}")
+        return True
+
+    def _on_training_end(self) -> None:
+        self.bar.close()
+
+
+class EpisodeLogCallback(BaseCallback):
+    """Appends (step, return, length, success) of every finished training episode to ``learning_curve.csv``."""
+
+    def __init__(self, path: Path) -> None:
+        super().__init__()
+        self.path = path
+
+    def _on_training_start(self) -> None:
+        new = not self.path.exists()
+        self.fh = open(self.path, "a", newline="")
+        self.writer = csv.writer(self.fh)
+        if new:
+            self.writer.writerow(["step", "return", "length", "success"])
+
+    def _on_step(self) -> bool:
+        for info in self.locals["infos"]:
+            ep = info.get("episode")
+            if ep is not None:
+                self.writer.writerow([self.num_timesteps, f"{ep['r']:.5f}", ep["l"], int(info.get("is_success", 0))])
+                self.fh.flush()
+        return True
+
+    def _on_training_end(self) -> None:
+        self.fh.close()
+
+
+class EvalCheckpointCallback(BaseCallback):
+    """Every ``eval_every`` steps: evaluate on fixed seeds (deterministic), keep the best model with its
+    normalisation in ``best/``; every ``checkpoint_every`` steps: a resumable checkpoint."""
+
+    def __init__(self, run_dir: Path, make_eval_env: Any, eval_every: int, eval_episodes: int, eval_seed: int,
+                 checkpoint_every: int, recurrent: bool) -> None:
+        super().__init__()
+        self.run_dir = run_dir
+        self.make_eval_env = make_eval_env
+        self.eval_every, self.eval_episodes, self.eval_seed = eval_every, eval_episodes, eval_seed
+        self.checkpoint_every = checkpoint_every
+        self.recurrent = recurrent
+        self.best = -math.inf
+        state = run_dir / "best" / "eval.json"
+        if state.exists():
+            self.best = json.loads(state.read_text())["score"]
+        self.last_eval = self.last_ckpt = None
+
+    def _on_training_start(self) -> None:
+        self.last_eval = self.num_timesteps // self.eval_every
+        self.last_ckpt = self.num_timesteps // self.checkpoint_every
+
+    def evaluate(self) -> dict[str, float]:
+        env = self.make_eval_env()
+        policy = TrainedPolicy(self.model, self.training_env, self.recurrent)
+        try:
+            res = [run_episode(env, policy, self.eval_seed + i, keep_trajectory=False).metrics
+                   for i in range(self.eval_episodes)]
+        finally:
+            env.close()
+        return {"step": self.num_timesteps, "success_rate": float(np.mean([r["success"] for r in res])),
+                "mean_return": float(np.mean([r["return"] for r in res]))}
+
+    def _on_step(self) -> bool:
+        if self.num_timesteps // self.eval_every > self.last_eval:
+            self.last_eval = self.num_timesteps // self.eval_every
+            ev = self.evaluate()
+            self.logger.record("eval/success_rate", ev["success_rate"])
+            self.logger.record("eval/mean_return", ev["mean_return"])
+            path = self.run_dir / "eval.csv"
+            new = not path.exists()
+            with open(path, "a") as fh:
+                if new:
+                    fh.write("step,success_rate,mean_return\n")
+                fh.write(f"{ev['step']},{ev['success_rate']:.4f},{ev['mean_return']:.5f}\n")
+            score = ev["success_rate"] + 1e-3 * ev["mean_return"]
+            if score > self.best:
+                self.best = score
+                self.save(self.run_dir / "best", ev | {"score": score})
+        if self.num_timesteps // self.checkpoint_every > self.last_ckpt:
+            self.last_ckpt = self.num_timesteps // self.checkpoint_every
+            self.checkpoint()
+        return True
+
+    def save(self, folder: Path, ev: dict[str, float]) -> None:
+        folder.mkdir(parents=True, exist_ok=True)
+        self.model.save(folder / "model.zip")
+        self.training_env.save(str(folder / "vecnormalize.pkl"))
+        cfg = self.run_dir / "config.yaml"
+        if cfg.exists():
+            atomic_write_text(folder / "config.yaml", cfg.read_text())
+        atomic_write_text(folder / "eval.json", json.dumps(ev, indent=2))
+
+    def checkpoint(self) -> None:
+        folder = self.run_dir / "checkpoints"
+        folder.mkdir(parents=True, exist_ok=True)
+        n = self.num_timesteps
+        self.model.save(folder / f"ckpt_{n:09d}.zip")
+        self.training_env.save(str(folder / f"ckpt_{n:09d}_vecnormalize.pkl"))
+        atomic_write_text(folder / "latest.json", json.dumps({"step": n, "model": f"ckpt_{n:09d}.zip"}))

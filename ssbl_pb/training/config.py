@@ -1,0 +1,136 @@
+"""Training configuration: a YAML file (``configs/*.yaml``) over dataclass defaults; unknown keys are rejected.
+
+Defaults start from the original code's PPO settings (shared/reference/peppersocial.md, "PPO") and depart
+where this 2-core CPU machine needs it:
+
+=================  ==================  ===========================================================
+setting            original            here, and why
+=================  ==================  ===========================================================
+learning rate      1e-4                3e-4: 10-minute budget instead of 3e6 steps
+batch / buffer     2048 / 10240        minibatch 256 / 8 envs x 256 steps = 2048 per update
+epochs             3                   5: fewer, cheaper environment steps per update
+hidden layers      3 x 512             2 x 128: CPU forward passes dominate the step cost
+gamma / lambda     0.99 / 0.95         same
+clip / entropy     0.2 / 1e-3          same
+obs normalisation  on                  on (VecNormalize; reward normalisation on too)
+LSTM               memory 256, seq 64  hidden 128 (``policy: lstm``)
+=================  ==================  ===========================================================
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from ..params import ConfigError, _check, from_dict, load_yaml
+
+OBS_MODES = ("vector", "camera", "camera_speed")
+ENCODERS = ("none", "cnn", "conv", "saev")
+AVAILABLE_ENCODERS = ("none", "cnn")  # conv / saev autoencoders are not built yet
+POLICIES = ("ff", "lstm")
+
+
+@dataclasses.dataclass(frozen=True)
+class PPOConfig:
+    learning_rate: float = 3e-4
+    n_steps: int = 256  # per env
+    batch_size: int = 256
+    n_epochs: int = 5
+    gamma: float = 0.99
+    gae_lambda: float = 0.95
+    clip_range: float = 0.2
+    ent_coef: float = 1e-3
+    vf_coef: float = 0.5
+    max_grad_norm: float = 0.5
+    net_arch: tuple[int, ...] = (128, 128)
+    lstm_hidden_size: int = 128
+    log_std_init: float = -0.5  # SB3 default 0 (std 1) saturates [-1, 1] actions and makes stopping rare
+
+    def __post_init__(self) -> None:
+        for name in ("learning_rate", "gamma", "gae_lambda", "clip_range"):
+            v = getattr(self, name)
+            _check(isinstance(v, int | float) and 0 < v <= 1, "ppo", name, v, "a number in (0, 1]")
+        for name in ("n_steps", "batch_size", "n_epochs", "lstm_hidden_size"):
+            v = getattr(self, name)
+            _check(isinstance(v, int) and v >= 1, "ppo", name, v, "an integer >= 1")
+        _check(all(isinstance(h, int) and h > 0 for h in self.net_arch), "ppo", "net_arch", self.net_arch,
+               "a list of positive layer sizes")
+
+
+@dataclasses.dataclass(frozen=True)
+class TrainConfig:
+    """One training run. ``env`` holds keyword arguments of the env (world/robot/social/task dicts)."""
+
+    name: str = "ppo_vector"
+    obs_mode: str = "vector"
+    encoder: str = "none"
+    policy: str = "ff"
+    scenario: str = "default"
+    n_envs: int = 8
+    vec_env: str = "dummy"  # dummy (one process) or subproc (one process per env)
+    total_steps: int = 300_000
+    seed: int = 0
+    device: str = "cpu"
+    torch_threads: int = 1
+    reward: dict[str, float] = dataclasses.field(default_factory=dict)
+    env: dict[str, Any] = dataclasses.field(default_factory=dict)
+    ppo: PPOConfig = dataclasses.field(default_factory=PPOConfig)
+    eval_every: int = 20_000
+    eval_episodes: int = 30
+    eval_seed: int = 100_000  # evaluation seeds are disjoint from training and from tools/evaluate's default
+    checkpoint_every: int = 50_000
+    baseline_episodes: int = 20  # episodes of the random and SFFM baselines drawn on the learning curve
+    camera_size: int = 84
+
+    def __post_init__(self) -> None:
+        _check(self.obs_mode in OBS_MODES, "config", "obs_mode", self.obs_mode, f"one of {OBS_MODES}")
+        _check(self.encoder in ENCODERS, "config", "encoder", self.encoder, f"one of {ENCODERS}")
+        if self.obs_mode == "vector":
+            _check(self.encoder == "none", "config", "encoder", self.encoder, "'none' for obs_mode vector")
+        else:
+            _check(self.encoder in AVAILABLE_ENCODERS and self.encoder != "none", "config", "encoder",
+                   self.encoder, f"an encoder that exists for obs_mode {self.obs_mode}: 'cnn' (end-to-end "
+                   f"NatureCNN); 'conv' and 'saev' need the autoencoder work first")
+        _check(self.policy in POLICIES, "config", "policy", self.policy, f"one of {POLICIES}")
+        _check(self.vec_env in ("dummy", "subproc"), "config", "vec_env", self.vec_env, "'dummy' or 'subproc'")
+        for name in ("n_envs", "total_steps", "eval_every", "eval_episodes", "checkpoint_every", "torch_threads"):
+            v = getattr(self, name)
+            _check(isinstance(v, int) and v >= 1, "config", name, v, "an integer >= 1")
+        _check(isinstance(self.seed, int), "config", "seed", self.seed, "an integer")
+        from ..env.reward import RewardWeights
+
+        from_dict(RewardWeights, self.reward, "config.reward")  # validates names and values early
+
+    @property
+    def steps_per_update(self) -> int:
+        return self.ppo.n_steps * self.n_envs
+
+
+def load_config(path: str | Path | None, overrides: dict[str, Any] | None = None) -> TrainConfig:
+    """Defaults, then the YAML file, then ``overrides`` (command-line flags); errors name the file and key."""
+    data: dict[str, Any] = load_yaml(path) if path else {}
+    for key, value in (overrides or {}).items():
+        if isinstance(value, dict):
+            data[key] = {**data.get(key, {}), **value}
+        else:
+            data[key] = value
+    where = f"{path}" if path else "config"
+    try:
+        return from_dict(TrainConfig, data, where)
+    except TypeError as exc:
+        raise ConfigError(f"{where}: {exc}") from exc
+
+
+def config_to_dict(cfg: TrainConfig) -> dict[str, Any]:
+    d = dataclasses.asdict(cfg)
+    d["ppo"]["net_arch"] = list(cfg.ppo.net_arch)
+    return d
+
+
+def save_config(cfg: TrainConfig, path: Path) -> None:
+    from ..report import atomic_write_text
+
+    atomic_write_text(path, yaml.safe_dump(config_to_dict(cfg), sort_keys=False))

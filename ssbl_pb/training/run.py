@@ -1,0 +1,211 @@
+"""Training runs: build the vectorised envs and the model, train with callbacks, resume from checkpoints.
+
+A run directory holds ``config.yaml``, ``model.zip`` + ``vecnormalize.pkl`` (final), ``best/`` (best evaluation,
+with its normalisation), ``checkpoints/``, ``learning_curve.csv/png``, ``eval.csv``, ``baselines.json``,
+``tb/`` (TensorBoard) and ``summary.json``.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..env.approach import make_env
+from ..params import ConfigError
+from ..report import atomic_write_text
+from .config import TrainConfig, load_config, save_config
+
+
+class RunError(ValueError):
+    """A run directory cannot be used (no checkpoint, corrupt files); the message names the path."""
+
+
+def _env_kwargs(cfg: TrainConfig) -> dict[str, Any]:
+    return {"obs_mode": cfg.obs_mode, "scenario": cfg.scenario, "reward": dict(cfg.reward),
+            "camera_width": cfg.camera_size, "camera_height": cfg.camera_size, **cfg.env}
+
+
+class EnvFactory:
+    """Picklable env constructor for SubprocVecEnv workers."""
+
+    def __init__(self, kwargs: dict[str, Any], monitor: bool = True) -> None:
+        self.kwargs, self.monitor = kwargs, monitor
+
+    def __call__(self) -> Any:
+        env = make_env(**self.kwargs)
+        if self.monitor:
+            from stable_baselines3.common.monitor import Monitor
+
+            env = Monitor(env, info_keywords=("is_success",))
+        return env
+
+
+def make_vec_env(cfg: TrainConfig, seed: int) -> Any:
+    """The training VecEnv (Dummy or Subproc), seeded, with VecNormalize."""
+    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
+
+    factory = EnvFactory(_env_kwargs(cfg))
+    fns = [factory] * cfg.n_envs
+    venv = SubprocVecEnv(fns, start_method="forkserver") if cfg.vec_env == "subproc" else DummyVecEnv(fns)
+    venv.seed(seed)
+    if cfg.obs_mode == "vector":
+        return VecNormalize(venv, norm_obs=True, norm_reward=True, gamma=cfg.ppo.gamma)
+    if cfg.obs_mode == "camera_speed":
+        return VecNormalize(venv, norm_obs=True, norm_obs_keys=["speed"], norm_reward=True, gamma=cfg.ppo.gamma)
+    return VecNormalize(venv, norm_obs=False, norm_reward=True, gamma=cfg.ppo.gamma)
+
+
+def _algo(cfg: TrainConfig) -> Any:
+    if cfg.policy == "lstm":
+        from sb3_contrib import RecurrentPPO
+
+        return RecurrentPPO
+    from stable_baselines3 import PPO
+
+    return PPO
+
+
+def build_model(cfg: TrainConfig, venv: Any, tb_dir: Path) -> Any:
+    p = cfg.ppo
+    kwargs: dict[str, Any] = {"net_arch": list(p.net_arch), "log_std_init": p.log_std_init}
+    if cfg.policy == "lstm":
+        kwargs["lstm_hidden_size"] = p.lstm_hidden_size
+        policy = {"vector": "MlpLstmPolicy", "camera": "CnnLstmPolicy", "camera_speed": "MultiInputLstmPolicy"}
+    else:
+        policy = {"vector": "MlpPolicy", "camera": "CnnPolicy", "camera_speed": "MultiInputPolicy"}
+    return _algo(cfg)(policy[cfg.obs_mode], venv, learning_rate=p.learning_rate, n_steps=p.n_steps,
+                      batch_size=p.batch_size, n_epochs=p.n_epochs, gamma=p.gamma, gae_lambda=p.gae_lambda,
+                      clip_range=p.clip_range, ent_coef=p.ent_coef, vf_coef=p.vf_coef,
+                      max_grad_norm=p.max_grad_norm, policy_kwargs=kwargs, seed=cfg.seed, device=cfg.device,
+                      tensorboard_log=str(tb_dir), verbose=0)
+
+
+def baseline_returns(cfg: TrainConfig) -> dict[str, float]:
+    """Mean episode return of the random and SFFM policies on the training task (same reward weights)."""
+    from ..env.policies import make_policy
+    from ..env.rollout import run_episode
+
+    kwargs = {**_env_kwargs(cfg), "obs_mode": "vector"}
+    out = {}
+    for name in ("random", "sffm"):
+        env = make_env(**kwargs)
+        core = env.unwrapped
+        pol = make_policy(name, core.robot_params, core.social, seed=cfg.seed)
+        rets = [run_episode(env, pol, cfg.eval_seed + 50_000 + i, keep_trajectory=False).metrics["return"]
+                for i in range(cfg.baseline_episodes)]
+        env.close()
+        out[name] = float(np.mean(rets))
+    return out
+
+
+def _callbacks(cfg: TrainConfig, run_dir: Path) -> list[Any]:
+    from .callbacks import EpisodeLogCallback, EvalCheckpointCallback, ProgressCallback
+
+    eval_kwargs = _env_kwargs(cfg)
+    return [ProgressCallback(cfg.total_steps), EpisodeLogCallback(run_dir / "learning_curve.csv"),
+            EvalCheckpointCallback(run_dir, EnvFactory(eval_kwargs, monitor=False), cfg.eval_every,
+                                   cfg.eval_episodes, cfg.eval_seed, cfg.checkpoint_every, cfg.policy == "lstm")]
+
+
+def _learn(cfg: TrainConfig, run_dir: Path, model: Any, venv: Any, resumed_from: int | None) -> dict[str, Any]:
+    from .curves import plot_learning_curve
+
+    start_steps, t0 = model.num_timesteps, time.perf_counter()
+    remaining = max(0, cfg.total_steps - model.num_timesteps)
+    try:
+        model.learn(remaining, callback=_callbacks(cfg, run_dir), reset_num_timesteps=False,
+                    tb_log_name="ppo")
+    finally:
+        venv.close()
+    wall = time.perf_counter() - t0
+    model.save(run_dir / "model.zip")
+    venv.save(str(run_dir / "vecnormalize.pkl"))
+    baselines = json.loads((run_dir / "baselines.json").read_text())
+    plot_learning_curve(run_dir, baselines)
+    best = run_dir / "best" / "eval.json"
+    summary = {"name": cfg.name, "steps": int(model.num_timesteps), "resumed_from": resumed_from,
+               "wall_time_s": round(wall, 1), "steps_per_s": round((model.num_timesteps - start_steps) / wall, 1),
+               "baselines": baselines, "best_eval": json.loads(best.read_text()) if best.exists() else None}
+    atomic_write_text(run_dir / "summary.json", json.dumps(summary, indent=2))
+    return summary
+
+
+def train(cfg: TrainConfig, run_dir: Path, overwrite: bool = False) -> dict[str, Any]:
+    """Start a new run in ``run_dir`` (refuses a directory that already holds a run unless ``overwrite``)."""
+    import torch
+
+    if (run_dir / "config.yaml").exists() and not overwrite:
+        raise RunError(f"{run_dir}: already holds a run; use --resume {run_dir} to continue it or choose "
+                       f"another --out")
+    run_dir.mkdir(parents=True, exist_ok=True)
+    torch.set_num_threads(cfg.torch_threads)
+    save_config(cfg, run_dir / "config.yaml")
+    atomic_write_text(run_dir / "baselines.json", json.dumps(baseline_returns(cfg), indent=2))
+    venv = make_vec_env(cfg, cfg.seed)
+    model = build_model(cfg, venv, run_dir / "tb")
+    return _learn(cfg, run_dir, model, venv, None)
+
+
+def latest_checkpoint(run_dir: Path) -> tuple[Path, Path, int]:
+    latest = run_dir / "checkpoints" / "latest.json"
+    if not latest.is_file():
+        raise RunError(f"{run_dir}: no checkpoint to resume from (expected {latest})")
+    try:
+        info = json.loads(latest.read_text())
+        model = run_dir / "checkpoints" / info["model"]
+        norm = model.with_name(model.stem + "_vecnormalize.pkl")
+        step = int(info["step"])
+    except (ValueError, KeyError) as exc:
+        raise RunError(f"{latest}: unreadable checkpoint index ({exc})") from exc
+    for f in (model, norm):
+        if not f.is_file():
+            raise RunError(f"{run_dir}: checkpoint file missing: {f}")
+    return model, norm, step
+
+
+def resume(run_dir: Path, total_steps: int | None = None) -> dict[str, Any]:
+    """Continue a run from its last checkpoint: step counter, optimiser state and normalisation intact."""
+    import torch
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    if not (run_dir / "config.yaml").is_file():
+        raise RunError(f"{run_dir}: not a run directory (no config.yaml)")
+    cfg = load_config(run_dir / "config.yaml", {"total_steps": total_steps} if total_steps else None)
+    model_path, norm_path, step = latest_checkpoint(run_dir)
+    torch.set_num_threads(cfg.torch_threads)
+    _truncate_log(run_dir / "learning_curve.csv", step)
+    _truncate_log(run_dir / "eval.csv", step)
+    venv = make_vec_env(cfg, cfg.seed + step)
+    try:
+        venv = VecNormalize.load(str(norm_path), venv.venv)
+        model = _algo(cfg).load(str(model_path), env=venv, device=cfg.device, tensorboard_log=str(run_dir / "tb"))
+    except Exception as exc:
+        venv.close()
+        raise RunError(f"{model_path}: cannot load the checkpoint ({type(exc).__name__}: {exc})") from exc
+    if model.num_timesteps != step:
+        raise RunError(f"{model_path}: holds {model.num_timesteps} steps, its index says {step}")
+    return _learn(cfg, run_dir, model, venv, step)
+
+
+def _truncate_log(path: Path, step: int) -> None:
+    """Drop log lines written after the checkpoint (they will be produced again)."""
+    if not path.exists():
+        return
+    lines = path.read_text().splitlines()
+    if not lines:
+        path.unlink()
+        return
+
+    def before(line: str) -> bool:
+        head = line.split(",")[0]
+        return head.isdigit() and int(head) <= step and len(line.split(",")) == len(lines[0].split(","))
+
+    keep = [lines[0]] + [ln for ln in lines[1:] if before(ln)]
+    atomic_write_text(path, "\n".join(keep) + "\n")
+
+
+__all__ = ["ConfigError", "RunError", "TrainConfig", "load_config", "resume", "train"]

@@ -1,0 +1,95 @@
+"""Baselines and the evaluation tool: behaviour, determinism, files, bad input."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ssbl_pb.env.approach import ApproachGroupEnv
+from ssbl_pb.env.policies import SFFMPolicy, StraightPolicy, make_policy
+from ssbl_pb.env.rollout import run_episode
+from ssbl_pb.evaluation import Setup, UsageError, evaluate
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_sffm_joins_the_default_group():
+    env = ApproachGroupEnv(record=True)
+    pol = make_policy("sffm")
+    wins = [run_episode(env, pol, 2000 + i).metrics["success"] for i in range(6)]
+    assert sum(wins) >= 5
+
+
+def test_sffm_force_points_toward_the_group_from_afar():
+    env = ApproachGroupEnv()
+    obs, _ = env.reset(seed=11)
+    f = SFFMPolicy().force(obs)
+    centre = obs[2:4]
+    assert np.dot(f, centre) > 0
+
+
+def test_straight_policy_brakes_near_the_slot():
+    pol = StraightPolicy()
+    far = np.zeros(39, dtype=np.float32)
+    far[0:2] = (1.0, 0.0)  # 5 m ahead
+    near = far.copy()
+    near[0:2] = (0.02, 0.0)  # 0.1 m ahead
+    assert pol.act(far)[0] == pytest.approx(1.0)
+    assert 0 < pol.act(near)[0] < 0.6
+
+
+def test_random_policy_fails():
+    env = ApproachGroupEnv(record=True)
+    pol = make_policy("random", seed=0)
+    assert sum(run_episode(env, pol, 3000 + i).metrics["success"] for i in range(3)) == 0
+
+
+def test_unknown_policy_name():
+    with pytest.raises(ValueError, match="policy 'magic'"):
+        make_policy("magic")
+
+
+def test_evaluate_same_seed_same_files(tmp_path):
+    a, b = tmp_path / "a", tmp_path / "b"
+    evaluate(Setup("straight"), 4, 7, a, workers=1, n_paths=2)
+    evaluate(Setup("straight"), 4, 7, b, workers=2, n_paths=2)
+    assert (a / "episodes.csv").read_text() == (b / "episodes.csv").read_text()
+    summary = json.loads((a / "summary.json").read_text())
+    for key in ("success_rate", "collision_rate", "mean_return", "personal_zone_time_s", "human_displacement_m",
+                "mean_jerk", "arrival_speed"):
+        assert key in summary
+    assert (a / "paths.png").stat().st_size > 1000
+    assert not list(a.glob(".staging*"))
+
+
+def run_cli(*args):
+    return subprocess.run([sys.executable, str(ROOT / "tools" / "evaluate.py"), *args], capture_output=True,
+                          text=True, timeout=120)
+
+
+@pytest.mark.parametrize("args,message", [
+    (["--policy", "magic"], "--policy 'magic'"),
+    (["--policy", "nope/model.zip"], "--policy 'nope/model.zip'"),
+    (["--policy", "sffm", "--episodes", "0"], "--episodes 0"),
+])
+def test_cli_bad_input(tmp_path, args, message):
+    out = tmp_path / "out"
+    res = run_cli(*args, "--out", str(out))
+    assert res.returncode == 2
+    assert message in res.stderr
+    assert not (out / "episodes.csv").exists()
+
+
+def test_cli_unwritable_out(tmp_path):
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    res = run_cli("--policy", "sffm", "--episodes", "1", "--out", str(blocker / "sub"))
+    assert res.returncode == 2 and "not a writable directory" in res.stderr
+
+
+def test_baseline_needs_vector_obs(tmp_path):
+    with pytest.raises(UsageError, match="--obs-mode vector"):
+        evaluate(Setup("sffm", obs_mode="camera"), 1, 0, tmp_path)

@@ -1,0 +1,141 @@
+"""The Gymnasium env: registration, check_env for the three modes, seeding, the success rule, scenarios."""
+
+import math
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+import ssbl_pb  # noqa: F401  (registers the env)
+from ssbl_pb.env.approach import ApproachGroupEnv
+from ssbl_pb.env.observation import OBS_SIZE, decode_members
+from ssbl_pb.env.scenarios import ScenarioMix
+
+
+@pytest.mark.parametrize("mode", ["vector", "camera", "camera_speed"])
+def test_check_env(mode):
+    env = gym.make("ssbl_pb/ApproachGroup-v0", obs_mode=mode)
+    check_env(env.unwrapped if mode == "vector" else env.env.env, skip_render_check=True)
+    obs, _ = env.reset(seed=0)
+    assert env.observation_space.contains(obs)
+    env.close()
+
+
+def rollout(env, seed, steps=40):
+    obs, _ = env.reset(seed=seed)
+    env.action_space.seed(seed)
+    out = [obs]
+    for _ in range(steps):
+        obs, r, te, tr, _ = env.step(env.action_space.sample())
+        out.append(np.append(obs, r))
+        if te or tr:
+            break
+    return out
+
+
+def test_seeded_reset_is_reproducible():
+    env = gym.make("ssbl_pb/ApproachGroup-v0", scenario="mixed")
+    a = rollout(env, 5)
+    rollout(env, 6)
+    b = rollout(env, 5)
+    assert len(a) == len(b) and all(np.array_equal(x, y) for x, y in zip(a, b, strict=True))
+    c = rollout(env, 7)
+    assert not np.array_equal(a[0], c[0])
+
+
+def place_at_slot(env: ApproachGroupEnv, offset=(0.0, 0.0), yaw_error=0.0, speed=0.0):
+    env.reset(seed=3)
+    w = env.world
+    # a robot standing in the o-space gap makes the group re-form around it: let it settle first
+    for _ in range(60):
+        slot = w.group.free_slot(w.robot_pose[:2])
+        to_c = w.group.centre - slot
+        w.base.reset(np.array([*slot, math.atan2(to_c[1], to_c[0])]))
+        w.group.step(w.robot_pose[:2], w.params.dt)
+    slot = w.group.free_slot(w.robot_pose[:2])
+    to_c = w.group.centre - slot
+    yaw = math.atan2(to_c[1], to_c[0]) + yaw_error
+    w.base.reset(np.array([slot[0] + offset[0], slot[1] + offset[1], yaw]))
+    w.base.vel = np.array([speed * math.cos(yaw), speed * math.sin(yaw), 0.0])
+    env._slot = w.group.free_slot(w.robot_pose[:2])
+    keep = speed / env.robot_params.max_speed
+    return env.step(np.array([keep, 0.0], dtype=np.float32))
+
+
+def test_success_at_the_slot_stopped_and_facing():
+    env = ApproachGroupEnv()
+    _, r, terminated, _, info = place_at_slot(env)
+    assert info["success"] and terminated and r > 1.0
+
+
+@pytest.mark.parametrize("kwargs", [{"offset": (0.45, 0.0)}, {"yaw_error": math.radians(40)}, {"speed": 0.3}])
+def test_no_success_off_slot_turned_away_or_moving(kwargs):
+    env = ApproachGroupEnv()
+    _, _, terminated, _, info = place_at_slot(env, **kwargs)
+    assert not info["success"] and not terminated
+
+
+def test_near_the_centre_is_not_success():
+    env = ApproachGroupEnv()
+    env.reset(seed=1)
+    w = env.world
+    c = w.group.centre0
+    member = w.group.pos[0]
+    # half-way between the centre and a member: within 1.3 m of the centre but not at the slot
+    p = c + 0.3 * (member - c) / np.linalg.norm(member - c)
+    w.base.reset(np.array([*p, 0.0]))
+    _, _, _, _, info = env.step(np.zeros(2, dtype=np.float32))
+    assert not info["success"]
+
+
+def test_intimate_zone_intrusion_ends_episode_as_failure():
+    env = ApproachGroupEnv()
+    env.reset(seed=2)
+    w = env.world
+    m = w.group.pos[0]
+    w.base.reset(np.array([m[0] - 0.9, m[1], 0.0]))  # footprint edge 0.66 m from the centre: clearance 0.38
+    _, r, terminated, _, info = env.step(np.zeros(2, dtype=np.float32))
+    assert info["violation"] and terminated and not info["success"]
+    assert info["episode_terms"]["violation"] == -1.0
+
+
+def test_truncation_at_max_steps():
+    env = ApproachGroupEnv(task={"max_steps": 5})
+    env.reset(seed=0)
+    flags = [env.step(np.zeros(2, dtype=np.float32))[3] for _ in range(5)]
+    assert flags == [False] * 4 + [True]
+
+
+def test_vector_observation_layout():
+    env = ApproachGroupEnv(scenario="circular-4")
+    obs, info = env.reset(seed=4)
+    assert obs.shape == (OBS_SIZE,) and info["n_humans"] == 4
+    members, _ = decode_members(obs)
+    assert len(members) == 4
+    # nearest first, in the body frame
+    d = np.hypot(*members.T)
+    assert np.all(np.diff(d) >= 0)
+    w = env.world
+    true = np.sort(np.hypot(*(w.group.pos - w.robot_pose[:2]).T))
+    assert d == pytest.approx(true, abs=1e-5)
+
+
+def test_scenarios_parse_and_sample():
+    rng = np.random.default_rng(0)
+    sizes = {ScenarioMix("mixed").sample(rng)[0] for _ in range(200)}
+    assert sizes == {2, 3, 4, 5}
+    assert ScenarioMix("circular-4").sample(rng) == (4, "circular", "any")
+    assert ScenarioMix("behind").sample(rng)[2] == "behind"
+    with pytest.raises(ValueError, match="scenario 'blob'"):
+        ScenarioMix("blob")
+
+
+def test_turn_option_adds_an_action():
+    env = gym.make("ssbl_pb/ApproachGroup-v0", task={"turn": True})
+    assert env.action_space.shape == (3,)
+
+
+def test_unknown_env_option_rejected():
+    with pytest.raises(ValueError, match="unknown key"):
+        ApproachGroupEnv(task={"max_step": 5})

@@ -1,0 +1,109 @@
+"""Training: a short smoke run, kill-and-resume, config validation, bad run directories and models."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from ssbl_pb.params import ConfigError
+from ssbl_pb.training.config import load_config
+
+ROOT = Path(__file__).resolve().parents[1]
+TRAIN = [sys.executable, str(ROOT / "tools" / "train_pb.py")]
+SMALL = ["--n-envs", "2", "--set", "ppo.n_steps=64", "--set", "ppo.batch_size=64", "--set", "ppo.n_epochs=1",
+         "--set", "ppo.net_arch=[32,32]", "--set", "eval_every=256", "--set", "eval_episodes=2",
+         "--set", "baseline_episodes=1", "--set", "checkpoint_every=256"]
+
+
+def test_smoke_run_writes_a_complete_run_dir(tmp_path):
+    out = tmp_path / "run"
+    res = subprocess.run([*TRAIN, "--total-steps", "512", "--out", str(out), *SMALL], capture_output=True,
+                         text=True, timeout=240)
+    assert res.returncode == 0, res.stderr[-2000:]
+    for f in ("config.yaml", "model.zip", "vecnormalize.pkl", "learning_curve.csv", "learning_curve.png",
+              "summary.json", "baselines.json", "eval.csv", "best/model.zip", "best/vecnormalize.pkl"):
+        assert (out / f).is_file(), f
+    assert json.loads((out / "summary.json").read_text())["steps"] == 512
+    assert list((out / "tb").iterdir())
+    # the run loads as a policy and acts
+    from ssbl_pb.env.approach import ApproachGroupEnv
+    from ssbl_pb.env.trained import load_trained
+
+    env = ApproachGroupEnv()
+    pol = load_trained(str(out), env.observation_space)
+    obs, _ = env.reset(seed=0)
+    action, _ = pol.predict(obs)
+    assert action.shape == (2,)
+    # a second start in the same directory is refused, nothing overwritten
+    before = (out / "model.zip").read_bytes()
+    res = subprocess.run([*TRAIN, "--total-steps", "512", "--out", str(out), *SMALL], capture_output=True,
+                         text=True, timeout=120)
+    assert res.returncode == 2 and "already holds a run" in res.stderr
+    assert (out / "model.zip").read_bytes() == before
+
+
+def test_kill_and_resume_continues_the_step_count(tmp_path):
+    out = tmp_path / "run"
+    total = 3072
+    proc = subprocess.Popen([*TRAIN, "--total-steps", str(total), "--out", str(out), *SMALL],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    latest = out / "checkpoints" / "latest.json"
+    deadline = time.time() + 180
+    while time.time() < deadline and not (latest.exists() and json.loads(latest.read_text())["step"] >= 1024):
+        time.sleep(0.2)
+    os.killpg(proc.pid, signal.SIGKILL)
+    proc.wait()
+    assert latest.exists(), "no checkpoint written before the kill"
+    step = json.loads(latest.read_text())["step"]
+    assert step < total
+    assert not (out / "summary.json").exists()
+    res = subprocess.run([*TRAIN, "--resume", str(out)], capture_output=True, text=True, timeout=240)
+    assert res.returncode == 0, res.stderr[-2000:]
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["resumed_from"] == step and summary["steps"] == total
+    steps = [int(line.split(",")[0]) for line in (out / "learning_curve.csv").read_text().splitlines()[1:]]
+    assert steps == sorted(steps) and steps[-1] > step
+
+
+def test_resume_without_checkpoint(tmp_path):
+    (tmp_path / "config.yaml").write_text("name: x\n")
+    res = subprocess.run([*TRAIN, "--resume", str(tmp_path)], capture_output=True, text=True, timeout=60)
+    assert res.returncode == 2 and "no checkpoint" in res.stderr
+
+
+def test_unknown_config_key_named(tmp_path):
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text("obs_mode: vector\nlearning_rat: 0.1\n")
+    with pytest.raises(ConfigError, match="learning_rat"):
+        load_config(cfg)
+    res = subprocess.run([*TRAIN, "--config", str(cfg), "--out", str(tmp_path / "o")], capture_output=True,
+                         text=True, timeout=60)
+    assert res.returncode == 2 and "learning_rat" in res.stderr
+    assert not (tmp_path / "o").exists()
+
+
+def test_camera_mode_needs_an_existing_encoder():
+    with pytest.raises(ConfigError, match="encoder"):
+        load_config(None, {"obs_mode": "camera"})
+    with pytest.raises(ConfigError, match="saev"):
+        load_config(None, {"obs_mode": "camera", "encoder": "saev"})
+    assert load_config(None, {"obs_mode": "camera", "encoder": "cnn"}).encoder == "cnn"
+
+
+def test_bad_reward_weight_named():
+    with pytest.raises(ConfigError, match="w_slott"):
+        load_config(None, {"reward": {"w_slott": 1.0}})
+
+
+def test_corrupt_model_file(tmp_path):
+    from ssbl_pb.env.trained import ModelError, load_trained
+
+    bad = tmp_path / "model.zip"
+    bad.write_bytes(b"not a zip")
+    with pytest.raises(ModelError, match="not a saved SB3 model"):
+        load_trained(str(bad))
