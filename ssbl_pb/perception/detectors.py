@@ -181,32 +181,46 @@ class SimDetector:
 class ColourParams:
     """Saturated-colour blob detector for the proxies (RGB frames)."""
 
-    min_saturation: int = 90  # HSV S (0-255) of the proxies' torsos; room, walls and Pepper are below ~40
+    min_saturation: int = 90  # HSV S (0-255) of the proxies' torsos; room, walls, skin and Pepper are below
     min_value: int = 40
+    hue_tol: int = 8  # OpenCV hue units (0-180) around each palette colour
     min_area: int = 12  # px
-    merge_gap: int = 2  # px dilation so a torso split by a marker stays one blob
+    merge_gap: int = 2  # px closing so a torso split by the facing marker stays one blob
 
 
 class ColourDetector:
-    """Proxies from RGB: torsos are saturated blobs; a torso box is extended to the whole body (legs below,
-    head above) with the proxy's proportions (torso 0.84-1.44 m of a 1.70 m body)."""
+    """Proxies' torso boxes from RGB. With a ``palette`` (the members' RGB colours, 0-1) each colour is
+    segmented on its own, so touching members stay apart; without, all saturated pixels form the blobs."""
 
-    def __init__(self, params: ColourParams | None = None) -> None:
+    def __init__(self, palette: Sequence[Sequence[float]] | None = None, params: ColourParams | None = None) -> None:
         self.params = params or ColourParams()
+        self.hues = None
+        if palette is not None:
+            rgb = np.clip(np.asarray(palette, dtype=float)[:, :3] * 255, 0, 255).astype(np.uint8)[None]
+            self.hues = cv2.cvtColor(rgb, cv2.COLOR_RGB2HSV)[0, :, 0].astype(int)
 
-    def __call__(self, frame: np.ndarray) -> np.ndarray:
+    def _blobs(self, mask: np.ndarray, out: list) -> None:
         p = self.params
-        hsv = cv2.cvtColor(np.ascontiguousarray(frame), cv2.COLOR_RGB2HSV)
-        mask = ((hsv[..., 1] >= p.min_saturation) & (hsv[..., 2] >= p.min_value)).astype(np.uint8)
-        # the yellow facing marker is saturated too; it sits on the torso, so it merges with it
+        mask = mask.astype(np.uint8)
         if p.merge_gap > 0:
             k = np.ones((2 * p.merge_gap + 1, 2 * p.merge_gap + 1), np.uint8)
             mask = cv2.morphologyEx(mask, cv2.MORPH_CLOSE, k)
         n, _, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
-        out = []
         for i in range(1, n):
             x, y, w, h, area = stats[i]
-            if area < p.min_area:
-                continue
-            out.append((x, y, w, h, 1.0))
+            if area >= p.min_area:
+                out.append((x, y, w, h, 1.0))
+
+    def __call__(self, frame: np.ndarray) -> np.ndarray:
+        p = self.params
+        hsv = cv2.cvtColor(np.ascontiguousarray(frame), cv2.COLOR_RGB2HSV)
+        sat = (hsv[..., 1] >= p.min_saturation) & (hsv[..., 2] >= p.min_value)
+        out: list = []
+        if self.hues is None:
+            self._blobs(sat, out)
+        else:
+            hue = hsv[..., 0].astype(int)
+            for h0 in self.hues:
+                d = np.abs(hue - h0)
+                self._blobs(sat & (np.minimum(d, 180 - d) <= p.hue_tol), out)
         return np.array(out, dtype=float).reshape(-1, 5)

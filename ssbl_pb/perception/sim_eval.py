@@ -3,7 +3,8 @@
 The sim camera is ``perception.camera.PinholeCamera`` built from ``RobotParams`` (horizontal FOV 56.3 deg,
 square pixels, TinyRenderer's principal point ``(w/2, h/2 - 1)``, see ``env.cameras``). A box becomes a
 robot-frame ground position from its bottom edge (feet on the floor, pushed back by the legs' radius) or,
-when the feet are below the image, from its top edge (head top at ``head_top`` m). The robot drives towards
+when the feet are below the image, from its top edge (head top at ``ProxyGeometry.head_top``, read from the
+scene by ``proxy_geometry``). The robot drives towards
 the group while weaving, so the tracker's ego-motion compensation is exercised.
 """
 
@@ -13,16 +14,40 @@ import dataclasses
 import math
 
 import numpy as np
+import pybullet as pb
 
-from ..env.world import World
+from ..env.world import HUMAN_COLOURS, World
 from ..params import RobotParams, WorldParams
 from .camera import PinholeCamera
 from .detectors import ColourDetector, SimDetector
 from .tracker import Tracker, TrackerParams
 
-HEAD_TOP = 1.70  # m, top of the proxy's head (urdf/human.urdf)
-LEG_RADIUS = 0.16  # m, the proxy's leg cylinder
-TORSO = (0.84, 1.44)  # m, bottom and top of the proxy's torso box
+LEG_RADIUS = 0.16  # m, the proxy's leg cylinder (urdf/human.urdf)
+
+
+@dataclasses.dataclass(frozen=True)
+class ProxyGeometry:
+    """Heights (m above the floor) of the rendered proxy's head top and torso box."""
+
+    head_top: float = 1.70  # urdf/human.urdf
+    torso: tuple[float, float] = (0.84, 1.44)
+
+
+def proxy_geometry(world: World) -> ProxyGeometry:
+    """The proxy's heights as PyBullet renders them, read from member 0's link frames and visual shapes
+    (so a change of URDF, or of how the world places bodies, is followed). Call after ``world.reset``."""
+    hid, c = world.human_ids[0], world.client
+    world.sync()
+    joints = {pb.getJointInfo(hid, j, physicsClientId=c)[12].decode(): j
+              for j in range(pb.getNumJoints(hid, physicsClientId=c))}
+    vis = {(v[1], v[2]): v for v in pb.getVisualShapeData(hid, physicsClientId=c)}
+    head, torso = joints["head"], joints["torso"]
+    head_z = pb.getLinkState(hid, head, physicsClientId=c)[4][2]
+    torso_z = pb.getLinkState(hid, torso, physicsClientId=c)[4][2]
+    head_r = vis[(head, pb.GEOM_SPHERE)][3][0]
+    box = vis[(torso, pb.GEOM_BOX)]
+    mid, half = torso_z + box[5][2], box[3][2] / 2
+    return ProxyGeometry(head_top=head_z + head_r, torso=(mid - half, mid + half))
 
 
 def sim_camera(robot: RobotParams, width: int, height: int) -> PinholeCamera:
@@ -46,8 +71,8 @@ def pixel_to_plane(cam: PinholeCamera, uv: np.ndarray, z: float) -> np.ndarray:
     return out
 
 
-def boxes_to_ground(cam: PinholeCamera, boxes: np.ndarray, margin: float = 1.0,
-                    torso: bool = False) -> np.ndarray:
+def boxes_to_ground(cam: PinholeCamera, boxes: np.ndarray, geom: ProxyGeometry | None = None,
+                    margin: float = 1.0, torso: bool = False) -> np.ndarray:
     """Person boxes ``x, y, w, h`` (n, >=4) -> robot-frame centres (n, 2); NaN when neither end is visible.
 
     ``torso=True`` treats boxes as torso boxes (``ColourDetector``): the mean of the top and bottom edges'
@@ -56,18 +81,19 @@ def boxes_to_ground(cam: PinholeCamera, boxes: np.ndarray, margin: float = 1.0,
     out = np.full((len(boxes), 2), np.nan)
     if not len(boxes):
         return out
+    g = geom or ProxyGeometry()
     u = boxes[:, 0] + (boxes[:, 2] - 1) / 2.0
     top, bottom = boxes[:, 1], boxes[:, 1] + boxes[:, 3] - 1
     if torso:
-        a = pixel_to_plane(cam, np.column_stack([u, top]), TORSO[1])
-        b = pixel_to_plane(cam, np.column_stack([u, bottom]), TORSO[0])
+        a = pixel_to_plane(cam, np.column_stack([u, top]), g.torso[1])
+        b = pixel_to_plane(cam, np.column_stack([u, bottom]), g.torso[0])
         ok_t = top > margin
         ok_b = bottom < cam.height - 1 - margin
         both = ok_t & ok_b
         out[both] = 0.5 * (a[both] + b[both])
         return out
     feet = pixel_to_plane(cam, np.column_stack([u, bottom + 0.5]), 0.0)
-    head = pixel_to_plane(cam, np.column_stack([u, top - 0.5]), HEAD_TOP)
+    head = pixel_to_plane(cam, np.column_stack([u, top - 0.5]), g.head_top)
     use_feet = bottom < cam.height - 1 - margin
     use_head = ~use_feet & (top > margin)
     rng = np.linalg.norm(feet - cam.centre()[None, :2], axis=1, keepdims=True)
@@ -115,18 +141,19 @@ def evaluate_sim(params: SimEvalParams | None = None, tracker: TrackerParams | N
     try:
         cam = sim_camera(world.robot_params, p.width, p.height)
         seg_det = SimDetector(world.human_ids)
-        col_det = ColourDetector()
+        col_det = ColourDetector(HUMAN_COLOURS)
         for _ in range(p.episodes):
             world.reset(rng, n_humans=int(rng.integers(2, 6)))
+            geom = proxy_geometry(world)
             trk = Tracker(tracker or TrackerParams(dt=world.params.dt, meas_std=0.1, birth_hits=2))
             for k in range(p.steps):
                 rgb, seg = world.render_first_person(p.width, p.height, segmentation=True)
                 if p.detector == "seg":
                     boxes, members = seg_det.with_index(seg)
-                    xy = boxes_to_ground(cam, boxes)
+                    xy = boxes_to_ground(cam, boxes, geom)
                 else:
                     boxes = col_det(rgb)
-                    xy = boxes_to_ground(cam, boxes, torso=True)
+                    xy = boxes_to_ground(cam, boxes, geom, torso=True)
                 xy = xy[~np.isnan(xy[:, 0])]
                 states = trk.update(xy, odom=world.robot_pose.copy())
                 # score: members within range and in the camera's view this frame
@@ -158,4 +185,5 @@ def evaluate_sim(params: SimEvalParams | None = None, tracker: TrackerParams | N
             "p90_err_m": float(np.percentile(e, 90)) if len(e) else float("nan"),
             "coverage": tracked / visible if visible else float("nan"), "scored": int(len(e)),
             "visible": int(visible), "episodes": p.episodes, "steps": p.steps, "width": p.width,
-            "height": p.height, "detector": p.detector, "max_range_m": p.max_range}
+            "height": p.height, "detector": p.detector, "max_range_m": p.max_range,
+            "proxy_head_top_m": geom.head_top, "proxy_torso_m": list(geom.torso)}

@@ -42,11 +42,14 @@ GRID: dict[str, list[Any]] = {
 
 @dataclasses.dataclass(frozen=True)
 class PipelineParams:
-    """Every threshold of the PETS pipeline, grouped by component."""
+    """Every threshold of the PETS pipeline, grouped by component. The defaults are the values
+    tools/bench_tracking.py chose on PETS S2L1 frames 0-399 (coordinate descent from ``UNTUNED``)."""
 
-    hog: HogParams = HogParams(shrink_x=0.235, shrink_top=0.115, shrink_bottom=0.14)
-    trk: TrackerParams = TrackerParams()
-    box: BoxParams = BoxParams()
+    hog: HogParams = HogParams(scales=(0.8, 1.0, 1.2, 1.45, 1.75), hit_threshold=0.8, shrink_x=0.235,
+                               shrink_top=0.115, shrink_bottom=0.14, nms_iou=0.3, fg_min=0.0)
+    trk: TrackerParams = TrackerParams(accel_std=2.5, meas_std=0.02, gate=13.8, birth_hits=3, max_misses=15,
+                                       tentative_misses=2, min_new_dist=0.8, birth_score=0.8)
+    box: BoxParams = BoxParams(height_gain=0.1, aspect=0.48, max_coast=3, pixel_noise=0.05)
 
     def with_value(self, key: str, value: Any) -> PipelineParams:
         part, name = key.split(".")
@@ -61,6 +64,15 @@ class PipelineParams:
             return {k: tuple(v) if isinstance(v, list) else v for k, v in d.items()}
         return cls(hog=HogParams(**fix(data["hog"])), trk=TrackerParams(**fix(data["trk"])),
                    box=BoxParams(**fix(data["box"])))
+
+
+# Where the search starts: box shrink measured on frames 0-399 (median HOG window -> GT box offsets), the rest
+# picked by hand from a few runs on frames 0-399.
+UNTUNED = PipelineParams(
+    hog=HogParams(scales=ALL_SCALES, hit_threshold=0.6, shrink_x=0.235, shrink_top=0.115, shrink_bottom=0.14,
+                  fg_min=0.2),
+    trk=TrackerParams(meas_std=0.05),
+    box=BoxParams(pixel_noise=0.06))
 
 
 def keep_scales(raw: np.ndarray, scales: tuple[float, ...]) -> np.ndarray:
