@@ -1,5 +1,7 @@
 """Reward terms (eqs. 11-15) against hand computations on a constructed two-step trajectory."""
 
+import math
+
 import numpy as np
 import pytest
 
@@ -90,3 +92,18 @@ def test_slot_potential_rewards_braking_near_the_slot():
     assert slot_potential(3.0, 0.35) == pytest.approx(-3.0)  # far: distance only
     assert slot_potential(0.5, 0.3) == pytest.approx(-(0.5 + 2.0 * 0.3 * 0.5))
     assert slot_potential(0.0, 0.0) == 0.0
+
+
+def test_route_distance_goes_around_the_group():
+    from ssbl_pb.env.reward import route_distance
+
+    c, slot = np.zeros(2), np.array([1.0, 0.0])
+    # straight in along the slot's ray
+    assert route_distance(np.array([4.0, 0.0]), slot, c, 2.0) == pytest.approx(3.0)
+    # from the far side: tangent sqrt(16 - 4), arc 2 (pi - acos(0.5)), then 1 m in from the rim
+    far = route_distance(np.array([-4.0, 0.0]), slot, c, 2.0)
+    assert far == pytest.approx(math.sqrt(12) + 2 * (math.pi - math.acos(0.5)) + 1.0)
+    assert far > 5.0  # longer than the straight line through the group
+    # inside the group, off the slot's ray: straight distance plus the arc to the ray
+    assert route_distance(np.array([0.0, 1.0]), slot, c, 2.0) == pytest.approx(math.sqrt(2) + math.pi)
+    assert route_distance(slot, slot, c, 2.0) == pytest.approx(0.0)

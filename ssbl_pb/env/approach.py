@@ -14,7 +14,7 @@ import numpy as np
 
 from ..params import RobotParams, SocialParams, WorldParams, from_dict
 from . import observation as ob
-from .reward import TERMS, RewardWeights, reward_terms, slot_potential, total_reward
+from .reward import TERMS, RewardWeights, reward_terms, route_distance, slot_potential, total_reward
 from .scenarios import ScenarioMix
 from .task import TaskParams
 from .world import World
@@ -90,6 +90,12 @@ class ApproachGroupEnv(gym.Env):
         return ob.vector_observation(w.robot_pose, w.base.vel, g.pos, g.vel, g.centre, g.radius, self._slot,
                                      self._walls(), self.robot_params.max_speed, self.robot_params.max_yaw_rate)
 
+    def _route(self, xy: np.ndarray) -> float:
+        """Distance to the free slot around the group (``reward.route_distance``)."""
+        g = self.world.group
+        keep_out = g.radius + self.social.human_radius + self.robot_params.radius + self.task.intimate_zone
+        return route_distance(xy, self._slot, g.centre, keep_out)
+
     def heading_error(self) -> float:
         """Angle (rad) from the robot's heading to the conversation centre."""
         d = self.world.group.centre - self.world.robot_pose[:2]
@@ -111,6 +117,7 @@ class ApproachGroupEnv(gym.Env):
         self._sums = {k: 0.0 for k in (*TERMS, "reward")}
         self._slot = self.world.group.free_slot(self.world.robot_pose[:2])
         self.trajectory = [self._snapshot()] if self.record else []
+        self._top_cam = None
         info = {"n_humans": n, "formation": formation, "start": start}
         return self._obs(), info
 
@@ -128,8 +135,7 @@ class ApproachGroupEnv(gym.Env):
         w, g = self.world, self.world.group
         a = np.minimum(np.maximum(np.asarray(action, dtype=float).reshape(self.action_space.shape), -1.0), 1.0)
         robot_before, members_before = w.robot_pose[:2].copy(), g.pos.copy()
-        speed_before = math.hypot(*w.base.vel[:2])
-        potential_before = slot_potential(math.hypot(*(self._slot - robot_before)), speed_before)
+        potential_before = slot_potential(self._route(robot_before), math.hypot(*w.base.vel[:2]))
         w.step(self.command(a))
         self._steps += 1
         self._slot = g.free_slot(w.robot_pose[:2])
@@ -142,7 +148,7 @@ class ApproachGroupEnv(gym.Env):
                    and abs(self.heading_error()) < math.radians(self.task.heading_tolerance_deg))
         terms = reward_terms(g.robot_force, w.robot_pose[:2] - robot_before, g.force, g.pos - members_before,
                              g.repulsion, self.dt, a, self._prev_action, potential_before,
-                             slot_potential(slot_after, speed), success, violation)
+                             slot_potential(self._route(w.robot_pose[:2]), speed), success, violation)
         r = total_reward(terms, self.weights)
         self._prev_action = a
         for k, v in terms.items():
@@ -164,8 +170,11 @@ class ApproachGroupEnv(gym.Env):
             return None
         from .drawing import draw_overlay
 
-        if self._top_cam is None:
-            self._top_cam = self.world.top_down_camera(self.render_width)
+        if self._top_cam is None:  # framed on the group and the robot's start, fixed for the episode
+            g, start = self.world.group, self.trajectory[0]["robot"][:2]
+            mid = 0.5 * (g.centre0 + start)
+            size = max(6.0, float(np.hypot(*(start - g.centre0))) + 2 * g.joined_radius + 2.0)
+            self._top_cam = self.world.top_down_camera(self.render_width, tuple(mid), size)
         img = self.world.render_top_down(self._top_cam)
         return draw_overlay(img, self._top_cam, self.trajectory, self.social, self.task)
 

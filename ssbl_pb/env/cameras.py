@@ -61,7 +61,7 @@ def first_person_view(pose: np.ndarray, robot: RobotParams) -> list[float]:
 
 
 class TopDown:
-    """Camera looking straight down on a ``size_x`` x ``size_y`` room centred at the origin.
+    """Camera looking straight down on a ``size_x`` x ``size_y`` area around ``centre`` (default: the room).
 
     TinyRenderer draws nothing through an orthographic matrix, so this is a narrow perspective camera from
     ``altitude`` metres up: the floor maps linearly to pixels (``to_pixel``), heads 1.7 m up shift outward by
@@ -69,20 +69,21 @@ class TopDown:
     """
 
     def __init__(self, size_x: float, size_y: float, width: int, margin: float = 0.3,
-                 altitude: float = 40.0) -> None:
+                 altitude: float = 40.0, centre: tuple[float, float] = (0.0, 0.0)) -> None:
         self.half_x = size_x / 2.0 + margin
         self.half_y = size_y / 2.0 + margin
+        self.cx, self.cy = float(centre[0]), float(centre[1])
         self.width = int(width)
         self.height = int(round(width * self.half_y / self.half_x))
-        self.view = list(p.computeViewMatrix((0, 0, altitude), (0, 0, 0), (0, 1, 0)))
+        self.view = list(p.computeViewMatrix((self.cx, self.cy, altitude), (self.cx, self.cy, 0), (0, 1, 0)))
         vfov = 2.0 * math.degrees(math.atan(self.half_y / altitude))
         self.proj = list(p.computeProjectionMatrixFOV(vfov, self.width / self.height, 1.0, altitude + 5.0))
 
     def to_pixel(self, xy: np.ndarray) -> np.ndarray:
         """World (x, y) on the floor in metres -> image (u, v) pixels (float), for drawing overlays."""
         xy = np.asarray(xy, dtype=float)
-        u = (xy[..., 0] + self.half_x) / (2 * self.half_x) * self.width
-        v = (self.half_y - xy[..., 1]) / (2 * self.half_y) * self.height
+        u = (xy[..., 0] - self.cx + self.half_x) / (2 * self.half_x) * self.width
+        v = (self.half_y - xy[..., 1] + self.cy) / (2 * self.half_y) * self.height
         return np.stack([u, v], axis=-1)
 
     @property

@@ -15,13 +15,14 @@ the start of the step and member j moving by ``du_j`` under its own total force 
 Total (eq. 15): ``w_e (w1 R1 + w2 R2 + w3 R3) + w4 R4 + w_a (w5 R5 + w_rep R5_rep) + w_effort E + w_smooth S
 + w_slot P - penalty``. The success bonus stands outside ``w_e`` as in the original code, which adds +1 on
 success on top of the weighted per-step reward (eq. 15 writes it inside; with ``w_e = 0.0035`` it would be
-negligible). ``P`` is the change of ``slot_potential`` (progress toward the free slot and braking near it; ours) and ``penalty`` applies on a collision or an
-intrusion into a member's intimate zone.
+negligible). ``P`` is the change of ``slot_potential`` (progress toward the free slot and braking near
+it; ours) and ``penalty`` applies on a collision or an intrusion into a member's intimate zone.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 
@@ -72,6 +73,29 @@ class RewardWeights:
         """The original Unity code's weights, rescaled to per-second terms at control period ``dt``."""
         return cls(w1=0.012 / dt, w2=3.6 / dt, w3=2.0 / dt, w4=1.0, w5=0.012 / dt, w_rep=1 / 3.8 / dt,
                    w_e=0.0035, w_a=0.9965, w_effort=0.0035 * 0.16 / dt, w_smooth=0.0, w_slot=0.0, violation_penalty=0.0)
+
+
+def route_distance(p: np.ndarray, slot: np.ndarray, centre: np.ndarray, keep_out: float) -> float:
+    """Length of the shortest way from ``p`` to the free slot that enters the group only through the slot.
+
+    The group is a disc of radius ``keep_out`` around its centre; the way goes around it (tangent, then arc) to
+    the point of its rim on the slot's ray, then straight in. Inside the disc it is the straight distance plus
+    the arc to the slot's ray, so cutting into the group elsewhere never shortens the way (ours: it makes the
+    shaping lead around a group instead of through its members).
+    """
+    rel = (float(p[0] - centre[0]), float(p[1] - centre[1]))
+    q = (float(slot[0] - centre[0]), float(slot[1] - centre[1]))
+    r, rq = math.hypot(*rel), math.hypot(*q)
+    dth = abs(math.remainder(math.atan2(rel[1], rel[0]) - math.atan2(q[1], q[0]), 2.0 * math.pi))
+    R = max(keep_out, rq)
+    if r < R:
+        return math.hypot(rel[0] - q[0], rel[1] - q[1]) + R * dth
+    beta = math.acos(R / r)
+    if dth <= beta:  # the rim point on the slot's ray is in plain sight
+        to_rim = math.sqrt(max(r * r + R * R - 2.0 * r * R * math.cos(dth), 0.0))
+    else:
+        to_rim = math.sqrt(r * r - R * R) + R * (dth - beta)
+    return to_rim + (R - rq)
 
 
 def slot_potential(distance: float, speed: float, brake_gain: float = 2.0, brake_radius: float = 1.0) -> float:

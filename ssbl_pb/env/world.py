@@ -230,9 +230,12 @@ class World:
         view = cameras.first_person_view(self.base.pose, self.robot_params)
         return cameras.render(self.client, width, height, view, proj, segmentation)
 
-    def top_down_camera(self, width: int = 480) -> cameras.TopDown:
-        """An orthographic top-down camera covering the room."""
-        return cameras.TopDown(*self.params.room_size, width)
+    def top_down_camera(self, width: int = 480, centre: tuple[float, float] | None = None,
+                        size: float | None = None) -> cameras.TopDown:
+        """A top-down camera over the room, or over a ``size`` x ``size`` square around ``centre``."""
+        if centre is None or size is None:
+            return cameras.TopDown(*self.params.room_size, width)
+        return cameras.TopDown(size, size, width, margin=0.0, centre=centre)
 
     def render_top_down(self, cam: cameras.TopDown) -> np.ndarray:
         """Top-down RGB image (H, W, 3) uint8."""

@@ -1,0 +1,67 @@
+"""Speed benchmarks of the simulator (used by tools/bench.py): raw PyBullet limits vs the world and env."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+
+import numpy as np
+import pybullet as p
+
+
+def rate(fn: Callable[[], None], n: int, repeats: int = 3) -> float:
+    """Best calls per second of ``fn`` over ``repeats`` runs of ``n`` calls."""
+    best = 0.0
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        for _ in range(n):
+            fn()
+        best = max(best, n / (time.perf_counter() - t0))
+    return best
+
+
+def simulator_rates(n_steps: int = 20_000, n_frames: int = 500, seed: int = 0) -> dict[str, float]:
+    """raw_step_per_s, raw_render_fps_84, world_step_per_s, camera_fps_84, camera_fps_128, env_step_per_s."""
+    from .env.approach import ApproachGroupEnv
+    from .env.cameras import first_person_view, perspective
+    from .env.world import World
+
+    world = World()
+    world.reset(np.random.default_rng(seed))
+    world.sync()
+    c = world.client
+    out = {"raw_step_per_s": rate(lambda: p.stepSimulation(physicsClientId=c), n_steps)}
+    view = first_person_view(world.robot_pose, world.robot_params)
+    proj = perspective(world.robot_params.camera_hfov_deg, 84, 84)
+    out["raw_render_fps_84"] = rate(lambda: p.getCameraImage(84, 84, view, proj, shadow=0,
+                                                              flags=p.ER_NO_SEGMENTATION_MASK,
+                                                              renderer=p.ER_TINY_RENDERER, physicsClientId=c),
+                                    n_frames)
+    cmd = np.array([0.3, 0.1, 0.2])
+    out["world_step_per_s"] = rate(lambda: world.step(cmd), n_steps)
+
+    def step_and_render(size: int) -> Callable[[], None]:
+        def fn() -> None:
+            world.step(cmd)
+            world.render_first_person(size, size)
+        return fn
+
+    world.reset(np.random.default_rng(seed))
+    out["camera_fps_84"] = rate(step_and_render(84), n_frames)
+    out["camera_fps_128"] = rate(step_and_render(128), n_frames)
+    world.close()
+
+    env = ApproachGroupEnv()
+    env.reset(seed=seed)
+    actions = np.random.default_rng(seed).uniform(-1, 1, (n_steps, 2)).astype(np.float32)
+    i = [0]
+
+    def env_step() -> None:
+        _, _, term, trunc, _ = env.step(actions[i[0] % n_steps])
+        i[0] += 1
+        if term or trunc:
+            env.reset()
+
+    out["env_step_per_s"] = rate(env_step, n_steps // 2)
+    env.close()
+    return out

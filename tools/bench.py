@@ -1,0 +1,56 @@
+#!/usr/bin/env python
+"""Simulator speed on one core: raw PyBullet stepping and TinyRenderer (the limits), the world with humans
+moving by social forces, first-person frames at 84x84 and 128x128, and the Vector env in an SB3-style loop.
+
+Writes results/bench.json and prints a table.
+    python tools/bench.py
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+TARGETS = {"world_step_per_s": ("world_step_per_s", 10_000), "env_step_per_s": ("env_step_per_s", 5_000)}
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--out", type=Path, default=ROOT / "results" / "bench.json")
+    ap.add_argument("--steps", type=int, default=20_000, help="steps per stepping measurement")
+    ap.add_argument("--frames", type=int, default=500, help="frames per rendering measurement")
+    ap.add_argument("--all-cores", action="store_true", help="do not pin the process to one core")
+    args = ap.parse_args(argv)
+
+    if not args.all_cores and hasattr(os, "sched_setaffinity"):
+        os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})
+    from ssbl_pb.bench import simulator_rates
+    from ssbl_pb.report import write_json
+
+    r = simulator_rates(args.steps, args.frames)
+    r["camera_84_vs_raw"] = r["camera_fps_84"] / r["raw_render_fps_84"]
+    r["machine"] = f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, one core used"
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    write_json(args.out, r)
+    checks = {"world_step_per_s >= 10000": r["world_step_per_s"] >= 10_000,
+              "camera_fps_84 >= 80% of raw_render_fps_84": r["camera_84_vs_raw"] >= 0.8,
+              "env_step_per_s >= 5000": r["env_step_per_s"] >= 5_000}
+    print(f"{'measure':24s} {'per second':>12s}")
+    for k in ("raw_step_per_s", "raw_render_fps_84", "world_step_per_s", "camera_fps_84", "camera_fps_128",
+              "env_step_per_s"):
+        print(f"{k:24s} {r[k]:12.0f}")
+    for k, ok in checks.items():
+        print(f"{'PASS' if ok else 'MISS'}  {k}")
+    print(f"-> {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,52 @@
+#!/usr/bin/env python
+"""Render one episode from above, zones drawn (intimate red, personal orange, o-space green, slot X).
+
+Examples:
+    python tools/render_episode.py --policy sffm --seed 3 --out results/videos/sffm_3.mp4
+    python tools/render_episode.py --policy vector --seed 3 --out results/videos/vector_3.mp4 --first-person
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from ssbl_pb.cli import fail  # noqa: E402
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--policy", required=True, help="sffm | random | straight | vector | PATH (.zip or run dir)")
+    ap.add_argument("--seed", type=int, default=0, help="episode seed (the same seed gives the same start)")
+    ap.add_argument("--scenario", default="default")
+    ap.add_argument("--out", type=Path, required=True, help="output .mp4")
+    ap.add_argument("--width", type=int, default=480, help="video width in pixels")
+    ap.add_argument("--first-person", action="store_true", help="also write OUT.first_person.png (contact sheet)")
+    args = ap.parse_args(argv)
+
+    from ssbl_pb.env.approach import make_env
+    from ssbl_pb.evaluation import UsageError, build_policy, check_policy_spec
+    from ssbl_pb.video import VideoError, contact_sheet, record_episode, save_png, write_mp4
+
+    if args.out.suffix != ".mp4":
+        return fail(f"--out {args.out}: expected a .mp4 file name")
+    try:
+        check_policy_spec(args.policy)
+        args.out.parent.mkdir(parents=True, exist_ok=True)
+        env = make_env(scenario=args.scenario, render_mode="rgb_array", render_width=args.width)
+        policy = build_policy(args.policy, env)
+        top, fp, m = record_episode(env, policy, args.seed, first_person=5 if args.first_person else 0)
+        write_mp4(args.out, top)
+        if fp:
+            save_png(args.out.with_suffix(".first_person.png"), contact_sheet(fp[:24]))
+    except (UsageError, VideoError, ValueError, OSError) as exc:
+        return fail(exc)
+    print(f"{'success' if m['success'] else 'fail'} in {m['episode_time_s']:.1f} s, {len(top)} frames -> {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
