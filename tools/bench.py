@@ -9,7 +9,6 @@ Writes results/bench.json and prints a table.
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import platform
 import sys
