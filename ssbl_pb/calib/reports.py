@@ -124,3 +124,47 @@ def dynamics_markdown(log: DynamicsLog, res: DynamicsResult, command: str,
 
 def write_markdown(path: str | Path, text: str) -> Path:
     return write_text(path, text)
+
+
+HUMAN_STATS = (("group_distance", "group: nearest-member distance (m)", (0, 3)),
+               ("walking_speed", "speed while moving (m/s)", (0, 2.5)),
+               ("stranger_distance", "stranger closest approach (m)", (0, 3)))
+
+
+def humans_figure(real: dict[str, np.ndarray], sims: dict[str, dict[str, np.ndarray]], path: str | Path) -> Path:
+    """Real vs simulated histograms (density), one panel per statistic."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 3, figsize=(15, 4))
+    for ax, (key, label, rng) in zip(axes, HUMAN_STATS, strict=True):
+        bins = np.linspace(*rng, 41)
+        ax.hist(np.clip(real[key], *rng), bins=bins, density=True, alpha=0.5, color="tab:blue", label="ETH/UCY")
+        for (name, sim), colour in zip(sims.items(), ("tab:red", "tab:green"), strict=False):
+            ax.hist(np.clip(sim[key], *rng), bins=bins, density=True, histtype="step", lw=1.5, color=colour,
+                    label=f"SFFM {name}")
+        ax.set_xlabel(label)
+        ax.legend(fontsize=8)
+    axes[0].set_ylabel("density")
+    return save_figure(path, fig)
+
+
+def humans_markdown(real: dict[str, dict[str, np.ndarray]], sims: dict[str, dict[str, np.ndarray]],
+                    fields: dict[str, float], notes: list[str], command: str) -> str:
+    """Table of median [quartiles] (count) per scene and for the simulations; fitted fields and reasons."""
+    from .humans import summary
+
+    head = "| source | " + " | ".join(label for _, label, _ in HUMAN_STATS) + " |"
+    lines = ["# Human motion: ETH/UCY against the social force model", "", f"Command: `{command}`", "",
+             "Median [25 %, 75 %] (count). ETH/UCY groups walk together; the SFFM groups stand in conversation, "
+             "so their member distances are not expected to match; speeds compare walking with repositioning.",
+             "", head, "|---|---|---|---|"]
+    for name, st in real.items():
+        lines.append(f"| {name} | " + " | ".join(summary(st[k]) for k, _, _ in HUMAN_STATS) + " |")
+    for name, st in sims.items():
+        lines.append(f"| SFFM {name} | " + " | ".join(summary(st[k]) for k, _, _ in HUMAN_STATS) + " |")
+    lines += ["", "SocialParams fields written:", ""] + [f"- {k}: {v}" for k, v in fields.items()]
+    lines += ["", "Reasons:", ""] + [f"- {n}" for n in notes]
+    return "\n".join(lines) + "\n"

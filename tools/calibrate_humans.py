@@ -1,0 +1,52 @@
+"""Human-motion statistics from ETH/UCY against the SFFM; write fitted SocialParams fields, a PNG and a report.
+
+    python tools/calibrate_humans.py --data ../shared/data/trajectories/eth_ucy_raw \
+        --out results/calib/humans.yaml                                    # + humans.png, humans.md
+
+Exit code 2 on bad input (missing folders or files, malformed obsmat).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import shlex
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from ssbl_pb.calib import reports  # noqa: E402
+from ssbl_pb.calib.cli import run  # noqa: E402
+from ssbl_pb.calib.humans import SCENES, fit_social, real_stats, sim_stats  # noqa: E402
+from ssbl_pb.calib.io import write_yaml  # noqa: E402
+from ssbl_pb.params import SocialParams, from_dict  # noqa: E402
+
+DEFAULT_DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "trajectories" / "eth_ucy_raw"
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--data", type=Path, default=DEFAULT_DATA, help="folder holding the ETH/UCY scene folders")
+    ap.add_argument("--scenes", nargs="+", default=list(SCENES), help="scene folders to use")
+    ap.add_argument("--out", type=Path, required=True, help="YAML of SocialParams fields (+ .png, .md)")
+    ap.add_argument("--episodes", type=int, default=40, help="simulated group episodes per parameter set")
+    ap.add_argument("--seed", type=int, default=0)
+    args = ap.parse_args(argv)
+    if not args.data.is_dir():
+        raise FileNotFoundError(f"{args.data}: data folder not found (give --data)")
+    real = real_stats(args.data, tuple(args.scenes))
+    fields, notes = fit_social(real["all"])
+    fitted = from_dict(SocialParams, fields, f"fitted from {args.data}")
+    sims = {"default": sim_stats(SocialParams(), args.episodes, seed=args.seed),
+            "fitted": sim_stats(dataclasses.replace(fitted), args.episodes, seed=args.seed)}
+    command = "python tools/calibrate_humans.py " + " ".join(shlex.quote(a) for a in (argv or sys.argv[1:]))
+    write_yaml(args.out, fields, header=f"{command}\nSocialParams fields fitted to ETH/UCY ({', '.join(args.scenes)})")
+    reports.humans_figure(real["all"], sims, args.out.with_suffix(".png"))
+    reports.write_markdown(args.out.with_suffix(".md"), reports.humans_markdown(real, sims, fields, notes, command))
+    print(f"{args.out}: " + ", ".join(f"{k} {v}" for k, v in fields.items()))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(run(main))
