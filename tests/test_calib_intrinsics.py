@@ -1,6 +1,9 @@
 """Camera intrinsics on the real OpenCV chessboard photographs, bad images, and the floor-board pose."""
 
 import math
+import subprocess
+import sys
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -111,3 +114,46 @@ def test_camera_pose_from_floor_board():
     with pytest.raises(CalibrationError, match=r"floor\.png: no 9x6"):
         pose_from_image(guess, np.full((480, 640), 128, np.uint8), BOARD, 0.1, where="floor.png")
     assert math.isfinite(r.height)
+
+
+TOOLS = Path(__file__).resolve().parents[1] / "tools"
+
+
+def _tool(name, *args):
+    return subprocess.run([sys.executable, str(TOOLS / name), *map(str, args)], capture_output=True, text=True,
+                          timeout=120)
+
+
+def test_calibrate_camera_cli(shared_data, tmp_path):
+    imgs = sorted((shared_data / "calib").glob("left*.jpg"))[:7]
+    out = tmp_path / "cam.yaml"
+    proc = _tool("calibrate_camera.py", *imgs, "--board", "9x6", "--square", "0.025", "--fix-aspect", "--out", out)
+    assert proc.returncode == 0, proc.stderr
+    cam = PinholeCamera.from_yaml(out)
+    assert cam.fx == pytest.approx(533, rel=0.02) and cam.fx == cam.fy
+    assert out.with_suffix(".png").is_file() and "RMS reprojection error" in out.with_suffix(".md").read_text()
+    blank = tmp_path / "blank.png"
+    cv2.imwrite(str(blank), np.full((480, 640), 200, np.uint8))
+    bad_out = tmp_path / "bad.yaml"
+    proc = _tool("calibrate_camera.py", blank, tmp_path / "missing.jpg", "--out", bad_out)
+    assert proc.returncode == 2 and "blank.png: no 9x6 chessboard found" in proc.stderr
+    assert "missing.jpg: file not found" in proc.stderr and not bad_out.exists()
+    proc = _tool("calibrate_camera.py", *imgs, "--board", "9by6", "--out", bad_out)
+    assert proc.returncode == 2 and "COLSxROWS" in proc.stderr
+
+
+def test_camera_pose_cli(tmp_path):
+    K = np.array([[540.0, 0, 322.0], [0, 540.0, 238.0], [0, 0, 1]])
+    truth = PinholeCamera(640, 480, K, np.zeros(5), camera_height=1.2, pitch_deg=20.0, roll_deg=-1.0)
+    floor = tmp_path / "floor.png"
+    cv2.imwrite(str(floor), _floor_board_image(truth, (2.2, -0.2), 0.1))
+    cam_yaml = PinholeCamera(640, 480, K).to_yaml(tmp_path / "cam.yaml")
+    out = tmp_path / "posed.yaml"
+    proc = _tool("camera_pose.py", floor, "--camera", cam_yaml, "--square", "0.1", "--board-centre", "2.2", "-0.2",
+                 "--out", out)
+    assert proc.returncode == 0, proc.stderr
+    cam = PinholeCamera.from_yaml(out)
+    assert cam.camera_height == pytest.approx(1.2, abs=0.01) and cam.pitch_deg == pytest.approx(20.0, abs=0.3)
+    assert cam.roll_deg == pytest.approx(-1.0, abs=0.3) and cam.extrinsics_calibrated
+    proc = _tool("camera_pose.py", cam_yaml, "--camera", cam_yaml, "--square", "0.1", "--out", out)
+    assert proc.returncode == 2 and "cam.yaml: not a readable image" in proc.stderr
