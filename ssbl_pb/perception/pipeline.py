@@ -117,6 +117,7 @@ class BoxParams:
     height_gain: float = 0.2  # EMA gain of the per-track height
     aspect: float = 0.42  # box width / box height
     max_coast: int = 3  # report a track's box for at most this many frames without a detection
+    det_weight: float = 0.0  # weight of the matched detection's own box against the drawn one (0 = drawn)
     pixel_noise: float = 0.0  # foot-point noise as a fraction of box height; > 0 gives each detection a
     #                           covariance through the projection's Jacobian (depth error grows with range)
 
@@ -144,7 +145,7 @@ class GroundTracker:
         feet = np.column_stack([boxes[:, 0] + boxes[:, 2] / 2, boxes[:, 1] + boxes[:, 3]])
         ground = self.camera.image_to_ground(feet) if len(boxes) else np.zeros((0, 2))
         heights = self.body_height(ground, boxes[:, 1]) if len(boxes) else np.zeros(0)
-        payloads = [(float(heights[i]), float(boxes[i, 2] / max(boxes[i, 3], 1e-6))) for i in range(len(boxes))]
+        payloads = [(float(heights[i]), boxes[i, :4].copy()) for i in range(len(boxes))]
         b = self.box
         cov = None
         if b.pixel_noise > 0 and len(boxes):
@@ -168,8 +169,10 @@ class GroundTracker:
             hpx = foot[1] - head[1]
             wpx = b.aspect * hpx
             cx = 0.5 * (foot[0] + head[0])
-            out.append((st.id, np.array([cx - wpx / 2, head[1], wpx, hpx]), st.position.copy(),
-                        st.velocity.copy()))
+            box = np.array([cx - wpx / 2, head[1], wpx, hpx])
+            if st.payload is not None and b.det_weight > 0:
+                box = (1 - b.det_weight) * box + b.det_weight * st.payload[1]
+            out.append((st.id, box, st.position.copy(), st.velocity.copy()))
         for k in list(self.heights):
             if k not in alive and all(k != tr.id for tr in self.tracker.tracks):
                 del self.heights[k]

@@ -37,6 +37,7 @@ GRID: dict[str, list[Any]] = {
     "box.aspect": [0.36, 0.4, 0.44, 0.48],
     "box.max_coast": [0, 1, 2, 3, 5],
     "box.height_gain": [0.1, 0.2, 0.4],
+    "box.det_weight": [0.0, 0.25, 0.5],
 }
 
 
@@ -47,8 +48,8 @@ class PipelineParams:
 
     hog: HogParams = HogParams(scales=(0.8, 1.0, 1.2, 1.45, 1.75), hit_threshold=0.8, shrink_x=0.235,
                                shrink_top=0.115, shrink_bottom=0.14, nms_iou=0.3, fg_min=0.0)
-    trk: TrackerParams = TrackerParams(accel_std=2.5, meas_std=0.02, gate=13.8, birth_hits=3, max_misses=15,
-                                       tentative_misses=2, min_new_dist=0.8, birth_score=0.8)
+    trk: TrackerParams = TrackerParams(accel_std=1.5, meas_std=0.02, gate=20.0, birth_hits=3, max_misses=15,
+                                       tentative_misses=2, min_new_dist=0.8)
     box: BoxParams = BoxParams(height_gain=0.1, aspect=0.48, max_coast=3, pixel_noise=0.05)
 
     def with_value(self, key: str, value: Any) -> PipelineParams:
