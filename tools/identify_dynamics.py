@@ -21,7 +21,7 @@ from ssbl_pb.calib.cli import run  # noqa: E402
 from ssbl_pb.calib.dynamics import identify  # noqa: E402
 from ssbl_pb.calib.dynamics_log import excitation_plan, read_log, simulate_log, write_log  # noqa: E402
 from ssbl_pb.calib.io import write_yaml  # noqa: E402
-from ssbl_pb.params import RobotParams, from_dict  # noqa: E402
+from ssbl_pb.params import RobotParams, from_dict, load_yaml  # noqa: E402
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -36,6 +36,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--dt", type=float, default=0.02, help="--simulate: log period (s)")
     ap.add_argument("--noise", type=float, default=0.001, help="--simulate: odometry position noise (m)")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--truth", type=Path, help="YAML of the true RobotParams fields (--simulate writes "
+                    "LOG.truth.yaml); the report then lists the errors")
     args = ap.parse_args(argv)
     command = "python tools/identify_dynamics.py " + " ".join(shlex.quote(a) for a in (argv or sys.argv[1:]))
     if args.simulate:
@@ -44,6 +46,9 @@ def main(argv: list[str] | None = None) -> int:
         cmd = excitation_plan(truth, args.dt, args.seed)
         t, pose = simulate_log(truth, cmd, args.dt, args.noise, 2 * args.noise, args.seed + 1)
         write_log(args.log, t, cmd, pose)
+        fields = ("latency_s", "time_constant_s", "max_speed", "max_accel", "max_yaw_rate", "max_yaw_accel")
+        write_yaml(args.log.with_suffix(".truth.yaml"), {f: getattr(truth, f) for f in fields},
+                   header=f"{command}\ntrue parameters of the simulated log {args.log}")
         print(f"{args.log}: {len(t)} rows, {t[-1]:.1f} s")
         return 0
     log = read_log(args.log)
@@ -52,7 +57,8 @@ def main(argv: list[str] | None = None) -> int:
     write_yaml(out, res.params, header=f"{command}\nRobotParams fields identified from {args.log}")
     params = from_dict(RobotParams, res.params)
     reports.dynamics_figure(log, res, params, out.with_suffix(".png"))
-    reports.write_markdown(out.with_suffix(".md"), reports.dynamics_markdown(log, res, command))
+    truth = load_yaml(args.truth) if args.truth else None
+    reports.write_markdown(out.with_suffix(".md"), reports.dynamics_markdown(log, res, command, truth))
     print(f"{out}: " + ", ".join(f"{k} {v:.4f}" for k, v in res.params.items()))
     for note in res.notes:
         print(f"note: {note}", file=sys.stderr)

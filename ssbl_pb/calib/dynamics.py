@@ -102,22 +102,34 @@ def fit_axis(log: DynamicsLog, axis: str, starts: tuple[float, ...] = (0.05, 0.3
     t, cmd, meas = log.t[lo:hi], log.cmd[lo:hi, j], log.vel[lo:hi, j]
     vpeak = float(np.percentile(np.abs(meas), 99.5))
     cmax = float(np.abs(cmd).max())
-    n_avg = max(1, int(round(0.2 / log.dt)))  # 0.2 s moving average before differentiating
-    smooth = np.convolve(meas, np.ones(n_avg) / n_avg, mode="same")
-    acc = np.abs(np.diff(smooth)) / np.diff(t)
-    a_s = float(np.clip(np.percentile(acc, 99), 0.05, 10.0))
     v0 = float(np.clip(min(vpeak * 1.02, cmax), LOWER[3], UPPER[3]))
+    # accel starts: reaching the peak speed in 1 s and in 0.3 s. Start low: while the limit binds the cost
+    # has a gradient in it; from a limit that never binds (e.g. one estimated from noisy differences) the
+    # fit trades latency and lag for it instead
+    a_starts = (v0 / 1.0, v0 / 0.3)
 
     def resid(x: np.ndarray) -> np.ndarray:
         return simulate_axis(t, cmd, x, meas[0] if not log.from_pose else 0.0, window_mean=log.from_pose) - meas
 
     runs = []
     for lat0 in starts:  # multi-start: latency and the accel limit trade off against the lag
-        for a0 in (a_s, 3.0 * a_s):
+        for a0 in a_starts:
             x0 = np.clip(np.array([lat0, 0.2, a0, v0]), LOWER + 1e-6, UPPER - 1e-6)
             runs.append(least_squares(resid, x0, bounds=(LOWER, UPPER), x_scale=np.array([0.05, 0.1, 0.1, 0.1]),
                                       diff_step=1e-3, max_nfev=200))
     best = min(runs, key=lambda r: r.cost)
+    # while the accel limit binds, a sub-step latency shift changes nothing, so the latency gradient can be
+    # zero and the solver stalls: scan latency around the solution (others fixed) and refit from the best
+    x = best.x.copy()
+    grid = x[0] + np.arange(-12, 13) * 0.0025
+    grid = grid[(grid >= LOWER[0]) & (grid <= UPPER[0])]
+    costs = [float(np.sum(resid(np.r_[lat, x[1:]]) ** 2)) for lat in grid]
+    if min(costs) < 2.0 * best.cost - 1e-12:
+        x[0] = grid[int(np.argmin(costs))]
+        r = least_squares(resid, np.clip(x, LOWER + 1e-6, UPPER - 1e-6), bounds=(LOWER, UPPER),
+                          x_scale=np.array([0.05, 0.1, 0.1, 0.1]), diff_step=1e-3, max_nfev=200)
+        if r.cost < best.cost:
+            best = r
     dof = max(1, len(t) - 4)
     s2 = 2.0 * best.cost / dof
     try:
@@ -134,20 +146,24 @@ def fit_axis(log: DynamicsLog, axis: str, starts: tuple[float, ...] = (0.05, 0.3
 
 @dataclasses.dataclass
 class DynamicsResult:
-    """Per-axis fits and the ``RobotParams`` fields they give."""
+    """Per-axis fits and the ``RobotParams`` fields they give (latency and lag: median over axes)."""
 
     fits: dict[str, AxisFit]
     params: dict[str, float]
     notes: list[str]
 
 
-def _weighted(vals: list[float], stds: list[float]) -> float:
-    w = np.array([1.0 / max(s, 1e-6) ** 2 for s in stds])
+def _combine(vals: list[float], stds: list[float], floor: float) -> float:
+    """Median of three or more axis estimates (robust to one stalled fit), else an inverse-variance mean
+    with each sigma floored at ``floor`` (a zero sigma means a flat cost, not certainty)."""
+    if len(vals) >= 3:
+        return float(np.median(vals))
+    w = np.array([1.0 / max(s, floor) ** 2 if np.isfinite(s) else 0.0 for s in stds]) + 1e-12
     return float(np.sum(w * np.array(vals)) / np.sum(w))
 
 
 def identify(log: DynamicsLog, axes: tuple[str, ...] = AXES, base: RobotParams | None = None) -> DynamicsResult:
-    """Fit each commanded axis; combine into RobotParams fields (latency and lag: inverse-variance mean)."""
+    """Fit each commanded axis; combine into RobotParams fields (shared latency and lag: median of the axes)."""
     base = base or RobotParams()
     fits = {}
     notes = []
@@ -160,13 +176,14 @@ def identify(log: DynamicsLog, axes: tuple[str, ...] = AXES, base: RobotParams |
     if not fits:
         raise CalibrationError(f"{log.path}: no axis is ever commanded")
     params: dict[str, float] = {}
-    params["latency_s"] = _weighted([f.theta[0] for f in fits.values()], [f.std[0] for f in fits.values()])
-    params["time_constant_s"] = _weighted([f.theta[1] for f in fits.values()], [f.std[1] for f in fits.values()])
+    params["latency_s"] = _combine([f.theta[0] for f in fits.values()], [f.std[0] for f in fits.values()], 0.005)
+    params["time_constant_s"] = _combine([f.theta[1] for f in fits.values()], [f.std[1] for f in fits.values()],
+                                         0.005)
     lin = [fits[a] for a in ("vx", "vy") if a in fits]
     for field, idx, group, label in (("max_speed", 3, lin, "max_speed"), ("max_accel", 2, lin, "max_accel")):
         ok = [f for f in group if f.identified[label]]
         if ok:
-            params[field] = _weighted([f.theta[idx] for f in ok], [f.std[idx] for f in ok])
+            params[field] = _combine([f.theta[idx] for f in ok], [f.std[idx] for f in ok], 0.005)
         elif group:
             notes.append(f"{field} not identified (commands never exceeded it / no accel-limited phase): "
                          f"kept {getattr(base, field)}")
