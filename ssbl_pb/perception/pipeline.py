@@ -117,6 +117,8 @@ class BoxParams:
     height_gain: float = 0.2  # EMA gain of the per-track height
     aspect: float = 0.42  # box width / box height
     max_coast: int = 3  # report a track's box for at most this many frames without a detection
+    max_coast_inside: int = 0  # ... or this many when the track has >= 10 hits and its box is inside the frame
+    #                            (occlusion rather than leaving), if larger than max_coast
     det_weight: float = 0.0  # weight of the matched detection's own box against the drawn one (0 = drawn)
     pixel_noise: float = 0.0  # foot-point noise as a fraction of box height; > 0 gives each detection a
     #                           covariance through the projection's Jacobian (depth error grows with range)
@@ -161,7 +163,7 @@ class GroundTracker:
                 h_m = float(np.clip(st.payload[0], *b.height_range))
                 old = self.heights.get(st.id)
                 self.heights[st.id] = h_m if old is None else old + b.height_gain * (h_m - old)
-            if st.misses > b.max_coast:
+            if st.misses > max(b.max_coast, b.max_coast_inside):
                 continue
             h_m = self.heights.get(st.id, b.default_height)
             foot = self.camera.world_to_image(np.array([*st.position, 0.0]))
@@ -170,6 +172,11 @@ class GroundTracker:
             wpx = b.aspect * hpx
             cx = 0.5 * (foot[0] + head[0])
             box = np.array([cx - wpx / 2, head[1], wpx, hpx])
+            if st.misses > b.max_coast:
+                w_img, h_img = self.camera.width * self.camera.scale, self.camera.height * self.camera.scale
+                inside = box[0] >= 0 and box[1] >= 0 and box[0] + box[2] <= w_img and box[1] + box[3] <= h_img
+                if not (inside and st.hits >= 10):
+                    continue
             if st.payload is not None and b.det_weight > 0:
                 box = (1 - b.det_weight) * box + b.det_weight * st.payload[1]
             out.append((st.id, box, st.position.copy(), st.velocity.copy()))

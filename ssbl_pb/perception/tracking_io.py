@@ -45,27 +45,33 @@ def load_inputs(video: str | Path, calib: str | Path) -> tuple[tuple[int, float,
 class Inset:
     """Top-down inset: ground positions (m) inside the ground area the camera sees, drawn into a square."""
 
-    def __init__(self, cam: TsaiCamera, size: tuple[int, int], px: int = 180) -> None:
+    def __init__(self, cam: TsaiCamera, size: tuple[int, int], px: int = 220) -> None:
         w, h = size
-        corners = cam.image_to_ground(np.array([[0, h * 0.25], [w, h * 0.25], [0, h], [w, h]], dtype=float))
-        self.lo = corners.min(axis=0)
-        self.span = float((corners.max(axis=0) - self.lo).max())
+        # the ground seen by the image below 30 % of its height (the horizon side is far and uninformative)
+        edge = np.array([[0, 0.3], [0.5, 0.3], [1, 0.3], [1, 0.65], [1, 1], [0.5, 1], [0, 1], [0, 0.65]])
+        self.footprint = cam.image_to_ground(edge * [w, h])
+        self.lo = self.footprint.min(axis=0)
+        self.span = float((self.footprint.max(axis=0) - self.lo).max())
         self.px = px
+
+    def _pix(self, xy: np.ndarray, x0: int, y0: int) -> np.ndarray:
+        q = (np.asarray(xy) - self.lo) / self.span * (self.px - 1)
+        return np.stack([x0 + q[..., 0], y0 + self.px - 1 - q[..., 1]], axis=-1).astype(np.int32)
 
     def draw(self, img: np.ndarray, tracks: list[tuple[int, np.ndarray, np.ndarray, np.ndarray]]) -> None:
         p = self.px
         x0, y0 = img.shape[1] - p - 5, 5
         roi = img[y0:y0 + p, x0:x0 + p]
-        roi[:] = (roi * 0.3 + 40).astype(np.uint8)
+        roi[:] = (roi * 0.25 + 30).astype(np.uint8)
         cv2.rectangle(img, (x0, y0), (x0 + p - 1, y0 + p - 1), (255, 255, 255), 1)
+        cv2.polylines(img, [self._pix(self.footprint, x0, y0)], True, (160, 160, 160), 1)
         for tid, _, xy, v in tracks:
-            q = (xy - self.lo) / self.span * (p - 1)
-            c = (int(x0 + q[0]), int(y0 + p - 1 - q[1]))
+            c = tuple(int(v) for v in self._pix(xy, x0, y0))
             if not (x0 <= c[0] < x0 + p and y0 <= c[1] < y0 + p):
                 continue
             col = colour(tid)
             cv2.circle(img, c, 3, col, -1)
-            tip = (int(c[0] + v[0] / self.span * p), int(c[1] - v[1] / self.span * p))
+            tip = (int(c[0] + v[0] / self.span * p), int(c[1] - v[1] / self.span * p))  # 1 s ahead
             cv2.line(img, c, tip, col, 1)
 
 

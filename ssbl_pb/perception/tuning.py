@@ -38,6 +38,7 @@ GRID: dict[str, list[Any]] = {
     "box.max_coast": [0, 1, 2, 3, 5],
     "box.height_gain": [0.1, 0.2, 0.4],
     "box.det_weight": [0.0, 0.25, 0.5],
+    "box.max_coast_inside": [0, 5, 8],
 }
 
 
