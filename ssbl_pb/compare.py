@@ -1,0 +1,129 @@
+"""Learned policy vs SFFM from the same start states: paired tests, side-by-side paths, speed profiles."""
+
+from __future__ import annotations
+
+import math
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from scipy import stats
+
+from .report import mean_ci
+
+# the five social measures of the targets: lower is better for each
+SOCIAL = ("personal_zone_time_s", "human_displacement_m", "mean_jerk", "arrival_speed", "outside_fov_time_s")
+BINARY = ("success", "collision", "violation", "approach_in_fov")
+LOWER_IS_BETTER = {"collision", "violation", "time_to_success_s", "episode_time_s", "path_length_m",
+                   "intimate_zone_time_s", "personal_zone_time_s", "human_displacement_m", "mean_accel",
+                   "max_accel", "mean_jerk", "max_jerk", "arrival_speed", "outside_fov_time_s",
+                   "final_slot_error_m", "final_heading_error_deg"}
+
+
+def paired_test(a: list[float], b: list[float], binary: bool) -> dict[str, float]:
+    """Paired comparison of ``a`` (learned) and ``b`` (baseline) over the same seeds.
+
+    Binary metrics: exact McNemar test on the discordant pairs. Others: Wilcoxon signed-rank test on the
+    pairs where both are finite (distributions such as jerk are far from normal); the effect size is the
+    matched-pairs rank-biserial correlation.
+    """
+    x, y = np.asarray(a, float), np.asarray(b, float)
+    ok = np.isfinite(x) & np.isfinite(y)
+    x, y = x[ok], y[ok]
+    if binary:
+        n10, n01 = int(np.sum((x == 1) & (y == 0))), int(np.sum((x == 0) & (y == 1)))
+        p = 1.0 if n10 + n01 == 0 else float(stats.binomtest(n10, n10 + n01, 0.5).pvalue)
+        return {"test": "mcnemar", "n": int(len(x)), "a_only": n10, "b_only": n01, "p": p}
+    d = x - y
+    if len(d) == 0 or np.all(d == 0):
+        return {"test": "wilcoxon", "n": int(len(d)), "p": 1.0, "effect": 0.0, "median_diff": 0.0}
+    res = stats.wilcoxon(x, y, zero_method="wilcox")
+    nz = d[d != 0]
+    ranks = stats.rankdata(np.abs(nz))
+    effect = float((ranks[nz > 0].sum() - ranks[nz < 0].sum()) / ranks.sum())
+    return {"test": "wilcoxon", "n": int(len(d)), "p": float(res.pvalue), "effect": effect,
+            "median_diff": float(np.median(d))}
+
+
+def compare_rows(learned: list[dict[str, float]], baseline: list[dict[str, float]], alpha: float = 0.05
+                 ) -> dict[str, Any]:
+    """Per metric: means with 95 % CIs for both, the paired test, and which side is better (if significant)."""
+    out: dict[str, Any] = {}
+    for key in learned[0]:
+        if key == "seed":
+            continue
+        a, b = [r[key] for r in learned], [r[key] for r in baseline]
+        test = paired_test(a, b, key in BINARY)
+        ma, mb = mean_ci(a), mean_ci(b)
+        better = None
+        if test["p"] < alpha and math.isfinite(ma["mean"]) and math.isfinite(mb["mean"]) and ma["mean"] != mb["mean"]:
+            lower = key in LOWER_IS_BETTER
+            learned_lower = ma["mean"] < mb["mean"]
+            better = "learned" if learned_lower == lower else "baseline"
+            if key not in LOWER_IS_BETTER and key not in ("success", "approach_in_fov", "return",
+                                                          "min_clearance_m"):
+                better = None  # no direction of "better" for descriptive metrics (n_humans, terms)
+        out[key] = {"learned": ma, "baseline": mb, "test": test, "better": better}
+    return out
+
+
+def markdown_table(cmp: dict[str, Any], names: tuple[str, str] = ("learned", "SFFM")) -> str:
+    lines = [f"| metric | {names[0]} (95 % CI) | {names[1]} (95 % CI) | test | p | better |",
+             "|---|---|---|---|---|---|"]
+
+    def fmt(m: dict[str, float]) -> str:
+        if not math.isfinite(m["mean"]):
+            return "n/a"
+        return f"{m['mean']:.3g} [{m['ci_low']:.3g}, {m['ci_high']:.3g}]"
+
+    for key, c in cmp.items():
+        t = c["test"]
+        mark = {"learned": names[0], "baseline": names[1], None: ""}[c["better"]]
+        lines.append(f"| {key}{' **' if key in SOCIAL else ''} | {fmt(c['learned'])} | {fmt(c['baseline'])} | "
+                     f"{t['test']} (n={t['n']}) | {t['p']:.2g} | {mark} |")
+    return "\n".join(lines)
+
+
+def speed_profile(trajectories: list[list[dict[str, Any]]], bins: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Mean robot speed and its 95 % CI half-width per bin of distance to the group centre."""
+    dist, speed = [], []
+    for traj in trajectories:
+        for s in traj:
+            dist.append(math.hypot(*(s["robot"][:2] - s["centre"])))
+            speed.append(math.hypot(*s["robot_vel"][:2]))
+    dist, speed = np.asarray(dist), np.asarray(speed)
+    idx = np.digitize(dist, bins) - 1
+    mean = np.full(len(bins) - 1, np.nan)
+    half = np.full(len(bins) - 1, np.nan)
+    for i in range(len(bins) - 1):
+        v = speed[idx == i]
+        if len(v) >= 3:
+            mean[i] = v.mean()
+            half[i] = 1.96 * v.std(ddof=1) / math.sqrt(len(v))
+    return mean, half
+
+
+def plot_speed_vs_distance(path: Path, groups: dict[str, list[list[dict[str, Any]]]], max_dist: float = 6.0) -> None:
+    """The paper's hypothesis, made visible: speed as a function of the distance to the group."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    bins = np.arange(0.5, max_dist + 0.25, 0.25)
+    mid = 0.5 * (bins[1:] + bins[:-1])
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for (name, trajs), colour in zip(groups.items(), ("tab:blue", "tab:green", "tab:red"), strict=False):
+        mean, half = speed_profile(trajs, bins)
+        ax.plot(mid, mean, color=colour, label=name)
+        ax.fill_between(mid, mean - half, mean + half, color=colour, alpha=0.2)
+    ax.set_xlabel("distance to the group centre (m)")
+    ax.set_ylabel("robot speed (m/s)")
+    ax.legend()
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    tmp = Path(path).with_name(f".{Path(path).name}.tmp.png")
+    fig.savefig(tmp, dpi=110)
+    plt.close(fig)
+    os.replace(tmp, path)

@@ -1,0 +1,102 @@
+#!/usr/bin/env python
+"""Learned policy vs the SFFM baseline from the same start states.
+
+Writes into OUT: report.md (every metric with 95 % CIs and a paired test), comparison.json, paths.png (paths
+side by side for a few starts, like the paper's Fig. 6), speed_vs_distance.png (the paper's hypothesis:
+accelerating and decelerating with the social feedback), and videos/SEED_{learned,sffm}.mp4 pairs from the same
+starts for a perceptual study.
+    python tools/compare.py --episodes 200 --out results/compare
+    python tools/compare.py --policy runs/my_run --scenario mixed --episodes 100 --out results/compare_mixed
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from ssbl_pb.cli import fail, progress_bar  # noqa: E402
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--policy", default="vector", help="the learned policy: vector (shipped) or a run dir / .zip")
+    ap.add_argument("--baseline", default="sffm", help="sffm | straight | random | another model")
+    ap.add_argument("--episodes", type=int, default=200)
+    ap.add_argument("--seed", type=int, default=500_000, help="first held-out seed (default 500000)")
+    ap.add_argument("--scenario", default="default")
+    ap.add_argument("--out", type=Path, required=True)
+    ap.add_argument("--pairs", type=int, default=3, help="starts drawn side by side and rendered as mp4 pairs")
+    ap.add_argument("--workers", type=int, default=0, help="processes (default: all cores)")
+    args = ap.parse_args(argv)
+
+    from ssbl_pb.compare import SOCIAL, compare_rows, markdown_table, plot_speed_vs_distance
+    from ssbl_pb.env.approach import make_env
+    from ssbl_pb.env.rollout import run_episodes
+    from ssbl_pb.evaluation import Setup, UsageError, build_policy, check_policy_spec, prepare_out
+    from ssbl_pb.report import atomic_write_text, plot_paths, write_json
+    from ssbl_pb.video import record_episode, write_mp4
+
+    workers = args.workers or os.cpu_count() or 1
+    try:
+        if args.episodes < 2:
+            raise UsageError(f"--episodes {args.episodes}: expected an integer >= 2 (paired tests)")
+        for spec in (args.policy, args.baseline):
+            check_policy_spec(spec)
+        prepare_out(args.out)
+        seeds = range(args.seed, args.seed + args.episodes)
+        results = {}
+        for name, spec in (("learned", args.policy), ("sffm", args.baseline)):
+            setup = Setup(spec, scenario=args.scenario)
+            env, _ = setup()
+            env.close()
+            with progress_bar(args.episodes, name) as bar:
+                results[name] = run_episodes(setup, seeds, workers, keep_trajectories=args.episodes, progress=bar)
+    except (UsageError, ValueError) as exc:
+        return fail(exc)
+    rows = {k: [r.metrics for r in v] for k, v in results.items()}
+    cmp = compare_rows(rows["learned"], rows["sffm"])
+    better = [k for k in SOCIAL if cmp[k]["better"] == "learned"]
+    worse = [k for k in SOCIAL if cmp[k]["better"] == "baseline"]
+    verdict = {"learned_better_on": better, "learned_worse_on": worse,
+               "target_met": len(better) >= 3 and not worse}
+    write_json(args.out / "comparison.json", {"policy": args.policy, "baseline": args.baseline,
+                                              "scenario": args.scenario, "seeds": [seeds.start, seeds.stop - 1],
+                                              "verdict": verdict, "metrics": cmp})
+    room = make_env().unwrapped.world_params.room_size
+    trajs, titles = [], []
+    for i in range(min(args.pairs, args.episodes)):
+        for name in ("learned", "sffm"):
+            r = results[name][i]
+            trajs.append(r.trajectory)
+            titles.append(f"{name}, seed {r.seed}: {'success' if r.metrics['success'] else 'fail'}")
+    plot_paths(args.out / "paths.png", trajs, titles, room, cols=2)
+    plot_speed_vs_distance(args.out / "speed_vs_distance.png",
+                           {"learned": [r.trajectory for r in results["learned"]],
+                            "SFFM": [r.trajectory for r in results["sffm"]]})
+    (args.out / "videos").mkdir(exist_ok=True)
+    for i in range(min(args.pairs, args.episodes)):
+        seed = seeds.start + i
+        for name, spec in (("learned", args.policy), ("sffm", args.baseline)):
+            env = make_env(scenario=args.scenario, render_mode="rgb_array")
+            top, _, _ = record_episode(env, build_policy(spec, env), seed)
+            write_mp4(args.out / "videos" / f"{seed}_{name}.mp4", top)
+            env.close()
+    text = [f"# {args.policy} vs {args.baseline}", "",
+            f"Scenario `{args.scenario}`, {args.episodes} paired episodes (seeds {seeds.start}-{seeds.stop - 1}). "
+            f"Metrics marked ** are the five social measures of the target; lower is better for each.", "",
+            markdown_table(cmp, ("learned", args.baseline)), "",
+            f"Learned better (p < 0.05) on: {', '.join(better) or 'none'}; worse on: {', '.join(worse) or 'none'}.",
+            f"Target (better on >= 3, worse on none): {'met' if verdict['target_met'] else 'NOT met'}.", "",
+            "Files: `paths.png`, `speed_vs_distance.png`, `videos/`."]
+    atomic_write_text(args.out / "report.md", "\n".join(text) + "\n")
+    print("\n".join(text[4:-1]))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
