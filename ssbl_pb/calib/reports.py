@@ -102,7 +102,8 @@ def dynamics_markdown(log: DynamicsLog, res: DynamicsResult, command: str,
              "| axis | latency (s) | time constant (s) | accel limit | speed limit | residual RMS | rows |",
              "|---|---|---|---|---|---|---|"]
     for name, f in res.fits.items():
-        cells = [f"{v:.4f} ± {s:.4f}" for v, s in zip(f.theta, f.std, strict=True)]
+        # a zero sigma means the cost was flat in that parameter at the optimum (no gradient), not certainty
+        cells = [f"{v:.4f} ± {s:.4f}" if s > 1e-6 else f"{v:.4f} (flat)" for v, s in zip(f.theta, f.std, strict=True)]
         if not f.identified["max_accel"]:
             cells[2] += " (not identified)"
         if not f.identified["max_speed"]:
