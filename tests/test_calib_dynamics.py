@@ -10,7 +10,7 @@ import pytest
 from ssbl_pb.calib.dynamics import identify, simulate_axis
 from ssbl_pb.calib.dynamics_log import excitation_plan, read_log, simulate_log, write_log
 from ssbl_pb.calib.io import CalibrationError
-from ssbl_pb.params import RobotParams
+from ssbl_pb.params import RobotParams, from_dict
 
 ROOT = Path(__file__).resolve().parents[1]
 FIELDS = ("latency_s", "time_constant_s", "max_accel", "max_speed", "max_yaw_rate", "max_yaw_accel")
@@ -39,6 +39,9 @@ def test_recovers_known_parameters_within_10_percent(tmp_path, true, dt, seed):
     assert not res.notes
     for f in FIELDS:
         assert res.params[f] == pytest.approx(getattr(true, f), rel=0.10), f
+    fitted = from_dict(RobotParams, res.params)  # the env loads the YAML this way
+    _, pose = simulate_log(fitted, cmd, dt)
+    assert np.abs(pose[:, :2] - simulate_log(true, cmd, dt)[1][:, :2]).max() < 0.05  # same path within 5 cm
 
 
 def test_velocity_form_of_the_log(tmp_path):

@@ -38,8 +38,8 @@ def main(argv: list[str] | None = None) -> int:
     real = real_stats(args.data, tuple(args.scenes))
     fields, notes = fit_social(real["all"])
     fitted = from_dict(SocialParams, fields, f"fitted from {args.data}")
-    sims = {"default": sim_stats(SocialParams(), args.episodes, seed=args.seed),
-            "fitted": sim_stats(dataclasses.replace(fitted), args.episodes, seed=args.seed)}
+    sims = {"default": sim_stats(SocialParams(), args.episodes, seed=args.seed, progress=True),
+            "fitted": sim_stats(dataclasses.replace(fitted), args.episodes, seed=args.seed, progress=True)}
     command = "python tools/calibrate_humans.py " + " ".join(shlex.quote(a) for a in (argv or sys.argv[1:]))
     write_yaml(args.out, fields, header=f"{command}\nSocialParams fields fitted to ETH/UCY ({', '.join(args.scenes)})")
     reports.humans_figure(real["all"], sims, args.out.with_suffix(".png"))

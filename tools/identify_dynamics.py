@@ -52,7 +52,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{args.log}: {len(t)} rows, {t[-1]:.1f} s")
         return 0
     log = read_log(args.log)
-    res = identify(log)
+    res = identify(log, progress=True)
     out = args.out or args.log.with_suffix(".yaml")
     write_yaml(out, res.params, header=f"{command}\nRobotParams fields identified from {args.log}")
     params = from_dict(RobotParams, res.params)

@@ -162,12 +162,18 @@ def _combine(vals: list[float], stds: list[float], floor: float) -> float:
     return float(np.sum(w * np.array(vals)) / np.sum(w))
 
 
-def identify(log: DynamicsLog, axes: tuple[str, ...] = AXES, base: RobotParams | None = None) -> DynamicsResult:
+def identify(log: DynamicsLog, axes: tuple[str, ...] = AXES, base: RobotParams | None = None,
+             progress: bool = False) -> DynamicsResult:
     """Fit each commanded axis; combine into RobotParams fields (shared latency and lag: median of the axes)."""
     base = base or RobotParams()
     fits = {}
     notes = []
-    for ax in axes:
+    it = axes
+    if progress:
+        from tqdm import tqdm
+
+        it = tqdm(axes, desc="fitting axes", unit="axis")
+    for ax in it:
         j = AXES.index(ax)
         if np.abs(log.cmd[:, j]).max() <= 1e-9:
             notes.append(f"axis {ax} never commanded: its limits keep their defaults")

@@ -110,11 +110,16 @@ def real_stats(root: str | Path, scenes: tuple[str, ...] = SCENES) -> dict[str, 
 
 
 def sim_stats(social: SocialParams, episodes: int = 40, seconds: float = 20.0, dt: float = 0.1,
-              robot_speed: float = 0.35, seed: int = 0) -> dict[str, np.ndarray]:
+              robot_speed: float = 0.35, seed: int = 0, progress: bool = False) -> dict[str, np.ndarray]:
     """The same statistics from SFFM groups (2-5 members, all formations) with a robot walking to the slot."""
     rng = np.random.default_rng(seed)
     group_d, speeds, closest = [], [], []
-    for ep in range(episodes):
+    eps = range(episodes)
+    if progress:
+        from tqdm import tqdm
+
+        eps = tqdm(eps, desc="SFFM episodes", unit="ep")
+    for ep in eps:
         n = 2 + ep % 4
         form = FORMATIONS[(ep // 4) % len(FORMATIONS)]
         angles = formation_angles(form, n, social) + rng.uniform(0, 2 * math.pi)
