@@ -139,3 +139,26 @@ def test_turn_option_adds_an_action():
 def test_unknown_env_option_rejected():
     with pytest.raises(ValueError, match="unknown key"):
         ApproachGroupEnv(task={"max_step": 5})
+
+
+def test_camera_yaml_sets_projection_and_pose(tmp_path):
+    from ssbl_pb.perception.camera import PinholeCamera
+
+    cam = PinholeCamera.from_yaml  # noqa: F841  (the reader the env uses)
+    yaml_text = """image_width: 640
+image_height: 480
+camera_name: test
+camera_matrix: {rows: 3, cols: 3, data: [500.0, 0.0, 319.5, 0.0, 500.0, 239.5, 0.0, 0.0, 1.0]}
+distortion_model: plumb_bob
+distortion_coefficients: {rows: 1, cols: 5, data: [0.0, 0.0, 0.0, 0.0, 0.0]}
+rectification_matrix: {rows: 3, cols: 3, data: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]}
+projection_matrix: {rows: 3, cols: 4, data: [500.0, 0.0, 319.5, 0.0, 0.0, 500.0, 239.5, 0.0, 0.0, 0.0, 1.0, 0.0]}
+"""
+    path = tmp_path / "cam.yaml"
+    path.write_text(yaml_text)
+    env = gym.make("ssbl_pb/ApproachGroup-v0", obs_mode="camera", camera_yaml=str(path), camera_width=64,
+                   camera_height=48)
+    core = env.unwrapped
+    assert core.robot_params.camera_hfov_deg == pytest.approx(2 * math.degrees(math.atan(320 / 500)), abs=0.2)
+    obs, _ = env.reset(seed=0)
+    assert obs.shape == (48, 64, 3)

@@ -6,6 +6,7 @@ camera observation modes are wrappers of this one env (``wrappers``).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import Any
 
@@ -69,7 +70,7 @@ class ApproachGroupEnv(gym.Env):
                                                 dtype=np.float32)
         self.dt = self.world_params.dt
         self._steps = 0
-        self._prev_action = np.zeros(n_act)
+        self._prev_accel = np.zeros(2)
         self._sums: dict[str, float] = {}
         self._slot = np.zeros(2)
         self.trajectory: list[dict[str, Any]] = []
@@ -113,7 +114,7 @@ class ApproachGroupEnv(gym.Env):
         n, formation, start = self.scenario.sample(self.np_random)
         self.world.reset(self.np_random, n_humans=n, formation=formation, start=start)
         self._steps = 0
-        self._prev_action = np.zeros(self.action_space.shape)
+        self._prev_accel = np.zeros(2)
         self._sums = {k: 0.0 for k in (*TERMS, "reward")}
         self._slot = self.world.group.free_slot(self.world.robot_pose[:2])
         self.trajectory = [self._snapshot()] if self.record else []
@@ -134,7 +135,7 @@ class ApproachGroupEnv(gym.Env):
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
         w, g = self.world, self.world.group
         a = np.minimum(np.maximum(np.asarray(action, dtype=float).reshape(self.action_space.shape), -1.0), 1.0)
-        robot_before, members_before = w.robot_pose[:2].copy(), g.pos.copy()
+        robot_before, members_before, vel_before = w.robot_pose[:2].copy(), g.pos.copy(), w.base.vel[:2].copy()
         potential_before = slot_potential(self._route(robot_before), math.hypot(*w.base.vel[:2]))
         w.step(self.command(a))
         self._steps += 1
@@ -146,11 +147,12 @@ class ApproachGroupEnv(gym.Env):
         speed = math.hypot(*w.base.vel[:2])
         success = (not violation and slot_after < self.task.slot_tolerance and speed < self.task.stop_speed
                    and abs(self.heading_error()) < math.radians(self.task.heading_tolerance_deg))
+        accel = (w.base.vel[:2] - vel_before) / self.dt
         terms = reward_terms(g.robot_force, w.robot_pose[:2] - robot_before, g.force, g.pos - members_before,
-                             g.repulsion, self.dt, a, self._prev_action, potential_before,
+                             g.repulsion, self.dt, accel, self._prev_accel, potential_before,
                              slot_potential(self._route(w.robot_pose[:2]), speed), success, violation)
         r = total_reward(terms, self.weights)
-        self._prev_action = a
+        self._prev_accel = accel
         for k, v in terms.items():
             self._sums[k] += v
         self._sums["reward"] += r
@@ -182,10 +184,25 @@ class ApproachGroupEnv(gym.Env):
         self.world.close()
 
 
-def make_env(obs_mode: str = "vector", camera_width: int = 84, camera_height: int = 84, **kwargs: Any) -> gym.Env:
-    """Entry point of ``ssbl_pb/ApproachGroup-v0``: the core env wrapped for ``obs_mode``."""
+def make_env(obs_mode: str = "vector", camera_width: int = 84, camera_height: int = 84,
+             camera_yaml: str | None = None, **kwargs: Any) -> gym.Env:
+    """Entry point of ``ssbl_pb/ApproachGroup-v0``: the core env wrapped for ``obs_mode``.
+
+    ``camera_yaml`` (a ROS camera_info YAML from ``tools/calibrate_camera.py``) makes the first-person camera
+    match a calibrated camera: its intrinsics set the projection, its field of view and (when calibrated) its
+    height, pitch and forward offset set ``RobotParams``.
+    """
     from .wrappers import OBS_MODES, wrap_obs_mode
 
     if obs_mode not in OBS_MODES:
         raise ValueError(f"obs_mode {obs_mode!r}: expected one of {OBS_MODES}")
-    return wrap_obs_mode(ApproachGroupEnv(**kwargs), obs_mode, camera_width, camera_height)
+    projection = None
+    if camera_yaml is not None:
+        from ..perception.camera import PinholeCamera, sim_projection_from_yaml
+
+        cam = PinholeCamera.from_yaml(camera_yaml)
+        robot = kwargs.get("robot") or {}
+        robot = dataclasses.asdict(robot) if isinstance(robot, RobotParams) else dict(robot)
+        kwargs["robot"] = {**robot, **cam.robot_overrides()}
+        projection = sim_projection_from_yaml(camera_yaml, camera_width, camera_height)
+    return wrap_obs_mode(ApproachGroupEnv(**kwargs), obs_mode, camera_width, camera_height, projection)

@@ -10,7 +10,8 @@ the start of the step and member j moving by ``du_j`` under its own total force 
 * R4 (success bonus): 1 on the step that completes the approach.
 * R5 (eq. 14, altruism): ``-sum_j F_j . du_j`` plus the original's repulsion term ``-sum_j |F_rep,j| dt``
   weighted by ``w_rep`` (how much the robot pushes the members).
-* effort: ``-|v|^2 dt`` and smoothness ``-|a_t - a_{t-1}|^2`` on the normalised action (ours, see below).
+* effort: ``-|v|^2 dt``, and smoothness ``-|j| dt`` with ``j = (a_t - a_{t-1}) / dt`` the base's jerk (ours,
+  see below; L1 so that small jerks still cost).
 
 Total (eq. 15): ``w_e (w1 R1 + w2 R2 + w3 R3) + w4 R4 + w_a (w5 R5 + w_rep R5_rep) + w_effort E + w_smooth S
 + w_slot P - penalty``. The success bonus stands outside ``w_e`` as in the original code, which adds +1 on
@@ -58,7 +59,7 @@ class RewardWeights:
     w_e: float = 1.0  # egoism weight
     w_a: float = 1.0  # altruism weight
     w_effort: float = 0.1  # -|v|^2 dt
-    w_smooth: float = 0.05  # -|a_t - a_{t-1}|^2 (normalised actions)
+    w_smooth: float = 0.3  # -|jerk| dt, jerk in m/s^3
     w_slot: float = 1.0  # change of slot_potential (per metre of progress toward the free slot)
     violation_penalty: float = 1.0  # collision or intimate-zone intrusion (ends the episode)
 
@@ -98,7 +99,7 @@ def route_distance(p: np.ndarray, slot: np.ndarray, centre: np.ndarray, keep_out
     return to_rim + (R - rq)
 
 
-def slot_potential(distance: float, speed: float, brake_gain: float = 2.0, brake_radius: float = 1.0) -> float:
+def slot_potential(distance: float, speed: float, brake_gain: float = 5.0, brake_radius: float = 1.0) -> float:
     """Potential of the robot's state for shaping (ours): minus the distance to the free slot, and minus its
     speed (times ``brake_gain`` seconds) within ``brake_radius`` of the slot, so arriving slowly pays. Its
     difference between steps is potential-based shaping (Ng et al. 1999): it does not change the optimum."""
@@ -112,8 +113,8 @@ def reward_terms(
     member_du: np.ndarray,
     member_repulsion: np.ndarray,
     dt: float,
-    action: np.ndarray,
-    prev_action: np.ndarray,
+    accel: np.ndarray,
+    prev_accel: np.ndarray,
     potential_before: float,
     potential_after: float,
     success: bool,
@@ -122,7 +123,7 @@ def reward_terms(
     """Unweighted terms of one step (see the module docstring for each formula and its unit)."""
     v = robot_du / dt
     moving_along = float(np.dot(v, robot_force)) > 0.0
-    da = np.asarray(action, dtype=float) - np.asarray(prev_action, dtype=float)
+    da = np.asarray(accel, dtype=float) - np.asarray(prev_accel, dtype=float)
     return {
         "r1_group_forming": float(np.dot(robot_force, robot_du)),
         "r2_non_increasing": dt if moving_along else 0.0,
@@ -131,7 +132,7 @@ def reward_terms(
         "r5_altruism": -float(np.sum(member_forces * member_du)),
         "r5_repulsion": -float(np.sum(np.hypot(member_repulsion[:, 0], member_repulsion[:, 1]))) * dt,
         "effort": -float(np.dot(v, v)) * dt,
-        "smoothness": -float(np.dot(da, da)),
+        "smoothness": -math.hypot(da[0], da[1]),
         "slot_progress": potential_after - potential_before,
         "violation": -1.0 if violation else 0.0,
     }

@@ -45,11 +45,19 @@ def resolve_model(spec: str) -> tuple[Path, Path | None, dict[str, Any]]:
 class TrainedPolicy(Policy):
     """An SB3 model behind the common ``predict`` signature; observations are normalised as in training."""
 
-    def __init__(self, model: Any, normalizer: Any = None, recurrent: bool = False) -> None:
+    def __init__(self, model: Any, normalizer: Any = None, recurrent: bool = False, smoothing: float = 1.0) -> None:
+        from .wrappers import ActionFilter
+
         self.model = model
         self.normalizer = normalizer
         self.recurrent = recurrent
         self.observation_space = model.observation_space
+        self.filter = ActionFilter(smoothing) if smoothing < 1.0 else None
+
+    def reset(self) -> None:
+        """Start of an episode: clears the action filter."""
+        if self.filter is not None:
+            self.filter.reset()
 
     def normalize(self, obs: Any) -> Any:
         return obs if self.normalizer is None else self.normalizer.normalize_obs(obs)
@@ -58,9 +66,11 @@ class TrainedPolicy(Policy):
                 deterministic: bool = True) -> tuple[np.ndarray, Any]:
         obs = self.normalize(observation)
         if self.recurrent:
-            return self.model.predict(obs, state=state, episode_start=episode_start, deterministic=deterministic)
-        action, _ = self.model.predict(obs, deterministic=deterministic)
-        return action, None
+            action, state = self.model.predict(obs, state=state, episode_start=episode_start,
+                                               deterministic=deterministic)
+        else:
+            action, state = self.model.predict(obs, deterministic=deterministic)[0], None
+        return (action if self.filter is None else self.filter(action)), state
 
 
 def load_trained(spec: str, observation_space: gym.Space | None = None) -> TrainedPolicy:
@@ -89,4 +99,4 @@ def load_trained(spec: str, observation_space: gym.Space | None = None) -> Train
         except Exception as exc:
             raise ModelError(f"{norm_path}: cannot read the normalisation statistics ({exc})") from exc
         normalizer.training = False
-    return TrainedPolicy(model, normalizer, recurrent)
+    return TrainedPolicy(model, normalizer, recurrent, float(config.get("action_smoothing", 1.0)))

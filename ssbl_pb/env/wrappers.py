@@ -41,12 +41,51 @@ class CameraSpeedObservation(CameraObservation):
         return {"image": self.image(), "speed": np.clip(observation[5:8], -1.5, 1.5).astype(np.float32)}
 
 
-def wrap_obs_mode(env: gym.Env, obs_mode: str, width: int = 84, height: int = 84) -> gym.Env:
-    """The env seen through ``obs_mode``."""
+class ActionSmoothing(gym.ActionWrapper):
+    """Exponential smoothing of the agent's actions, ``u_t = u_{t-1} + alpha (a_t - u_{t-1})``.
+
+    Part of the learned agent, not of the robot (the paper: "a smoothing algorithm can also be applied to the
+    learned policy"): training wraps the env with it and ``TrainedPolicy`` applies the same filter when it acts,
+    so the closed loop is the same in training, evaluation and deploy. ``alpha = 1`` is no smoothing.
+    """
+
+    def __init__(self, env: gym.Env, alpha: float) -> None:
+        super().__init__(env)
+        if not 0.0 < alpha <= 1.0:
+            raise ValueError(f"action smoothing alpha {alpha!r}: expected a number in (0, 1]")
+        self.filter = ActionFilter(alpha)
+
+    def reset(self, **kwargs):  # type: ignore[override]
+        self.filter.reset()
+        return self.env.reset(**kwargs)
+
+    def action(self, action: np.ndarray) -> np.ndarray:
+        return self.filter(action)
+
+
+class ActionFilter:
+    """The stateful filter behind ``ActionSmoothing`` (also used by trained policies at inference)."""
+
+    def __init__(self, alpha: float) -> None:
+        self.alpha = float(alpha)
+        self.state: np.ndarray | None = None
+
+    def reset(self) -> None:
+        self.state = None
+
+    def __call__(self, action: np.ndarray) -> np.ndarray:
+        a = np.clip(np.asarray(action, dtype=np.float32), -1.0, 1.0)
+        self.state = a if self.state is None else (self.state + self.alpha * (a - self.state)).astype(np.float32)
+        return self.state
+
+
+def wrap_obs_mode(env: gym.Env, obs_mode: str, width: int = 84, height: int = 84,
+                  projection: list[float] | None = None) -> gym.Env:
+    """The env seen through ``obs_mode`` (``projection``: a calibrated camera's, else Pepper's FOV)."""
     if obs_mode == "vector":
         return env
     if obs_mode == "camera":
-        return CameraObservation(env, width, height)
+        return CameraObservation(env, width, height, projection)
     if obs_mode == "camera_speed":
-        return CameraSpeedObservation(env, width, height)
+        return CameraSpeedObservation(env, width, height, projection)
     raise ValueError(f"obs_mode {obs_mode!r}: expected one of {OBS_MODES}")

@@ -84,6 +84,7 @@ class TrainConfig:
     checkpoint_every: int = 50_000
     baseline_episodes: int = 20  # episodes of the random and SFFM baselines drawn on the learning curve
     camera_size: int = 84
+    action_smoothing: float = 0.4  # agent-side action filter (env.wrappers.ActionSmoothing); 1.0 = off
 
     def __post_init__(self) -> None:
         _check(self.obs_mode in OBS_MODES, "config", "obs_mode", self.obs_mode, f"one of {OBS_MODES}")
@@ -100,6 +101,8 @@ class TrainConfig:
             v = getattr(self, name)
             _check(isinstance(v, int) and v >= 1, "config", name, v, "an integer >= 1")
         _check(isinstance(self.seed, int), "config", "seed", self.seed, "an integer")
+        _check(isinstance(self.action_smoothing, int | float) and 0 < self.action_smoothing <= 1, "config",
+               "action_smoothing", self.action_smoothing, "a number in (0, 1] (1 = off)")
         from ..env.reward import RewardWeights
 
         from_dict(RewardWeights, self.reward, "config.reward")  # validates names and values early

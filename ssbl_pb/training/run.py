@@ -30,13 +30,17 @@ def _env_kwargs(cfg: TrainConfig) -> dict[str, Any]:
 
 
 class EnvFactory:
-    """Picklable env constructor for SubprocVecEnv workers."""
+    """Picklable env constructor for SubprocVecEnv workers (the agent's action smoothing included)."""
 
-    def __init__(self, kwargs: dict[str, Any], monitor: bool = True) -> None:
-        self.kwargs, self.monitor = kwargs, monitor
+    def __init__(self, kwargs: dict[str, Any], monitor: bool = True, smoothing: float = 1.0) -> None:
+        self.kwargs, self.monitor, self.smoothing = kwargs, monitor, smoothing
 
     def __call__(self) -> Any:
         env = make_env(**self.kwargs)
+        if self.smoothing < 1.0:
+            from ..env.wrappers import ActionSmoothing
+
+            env = ActionSmoothing(env, self.smoothing)
         if self.monitor:
             from stable_baselines3.common.monitor import Monitor
 
@@ -48,7 +52,7 @@ def make_vec_env(cfg: TrainConfig, seed: int) -> Any:
     """The training VecEnv (Dummy or Subproc), seeded, with VecNormalize."""
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
 
-    factory = EnvFactory(_env_kwargs(cfg))
+    factory = EnvFactory(_env_kwargs(cfg), smoothing=cfg.action_smoothing)
     fns = [factory] * cfg.n_envs
     venv = SubprocVecEnv(fns, start_method="forkserver") if cfg.vec_env == "subproc" else DummyVecEnv(fns)
     venv.seed(seed)
@@ -108,7 +112,8 @@ def _callbacks(cfg: TrainConfig, run_dir: Path) -> list[Any]:
     eval_kwargs = _env_kwargs(cfg)
     return [ProgressCallback(cfg.total_steps), EpisodeLogCallback(run_dir / "learning_curve.csv"),
             EvalCheckpointCallback(run_dir, EnvFactory(eval_kwargs, monitor=False), cfg.eval_every,
-                                   cfg.eval_episodes, cfg.eval_seed, cfg.checkpoint_every, cfg.policy == "lstm")]
+                                   cfg.eval_episodes, cfg.eval_seed, cfg.checkpoint_every, cfg.policy == "lstm",
+                                   cfg.action_smoothing)]
 
 
 def _learn(cfg: TrainConfig, run_dir: Path, model: Any, venv: Any, resumed_from: int | None) -> dict[str, Any]:
