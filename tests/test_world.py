@@ -128,3 +128,14 @@ def test_bad_world_config(kwargs, field):
 def test_negative_radius_rejected():
     with pytest.raises(ConfigError, match="personal_radius"):
         SocialParams(personal_radius=-1.0)
+
+
+def test_fractional_latency_blends_commands():
+    base = HolonomicBase(RobotParams(latency_s=0.15, max_accel=100.0), 0.1)
+    base.reset(np.zeros(3))
+    base.step(np.array([0.2, 0, 0]))
+    assert base.vel[0] == 0.0
+    base.step(np.array([0.2, 0, 0]))  # 1.5 periods late: half of the first command is active
+    assert base.vel[0] == pytest.approx(0.1)
+    base.step(np.array([0.2, 0, 0]))
+    assert base.vel[0] == pytest.approx(0.2)

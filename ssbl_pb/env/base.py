@@ -1,7 +1,7 @@
 """Pepper's holonomic base: velocity commands within the real limits, as a pure function of arrays.
 
 State: pose ``(x, y, yaw)`` and world-frame velocity ``(vx, vy, wz)``. A command is a body-frame velocity
-``(forward, left, turn)`` in m/s and rad/s. The command is delayed by ``latency_s``, passed through a
+``(forward, left, turn)`` in m/s and rad/s. The command is delayed by ``latency_s`` (fractions of a period interpolate between commands), passed through a
 first-order lag ``time_constant_s`` (both identified from logs by ``ssbl_pb.calib``; zero by default), clipped
 to the speed limits, and reached at most at the acceleration limits (``RobotParams``).
 """
@@ -52,15 +52,17 @@ class HolonomicBase:
         """Place the base at rest at ``pose`` (x, y, yaw)."""
         self.pose = np.asarray(pose, dtype=float).copy()
         self.vel = np.zeros(3)
-        delay = int(round(self.p.latency_s / self.dt))
-        self._queue = deque([np.zeros(3)] * delay)
+        delay = round(self.p.latency_s / self.dt, 9)
+        self._delay_steps, self._delay_frac = int(delay), delay - int(delay)
+        self._queue = deque([np.zeros(3)] * (self._delay_steps + 2), maxlen=self._delay_steps + 2)
 
     def step(self, cmd: np.ndarray) -> np.ndarray:
         """Apply a body-frame command for one period; returns the limited command actually accepted."""
         p, dt = self.p, self.dt
         accepted = limit_command(cmd, p)
-        self._queue.append(accepted)
-        fx, fy, w = self._queue.popleft()
+        self._queue.appendleft(accepted)  # [0] is now; a fractional latency blends two past commands
+        k, f = self._delay_steps, self._delay_frac
+        fx, fy, w = self._queue[k] if f == 0.0 else (1.0 - f) * self._queue[k] + f * self._queue[k + 1]
         x, y, yaw = self.pose
         vx, vy, wz = self.vel
         c, s = math.cos(yaw), math.sin(yaw)
