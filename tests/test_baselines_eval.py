@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from ssbl_pb.env.approach import ApproachGroupEnv
+from ssbl_pb.env.observation import OBS_SIZE
 from ssbl_pb.env.policies import SFFMPolicy, StraightPolicy, make_policy
 from ssbl_pb.env.rollout import run_episode
 from ssbl_pb.evaluation import Setup, UsageError, evaluate
@@ -33,7 +34,7 @@ def test_sffm_force_points_toward_the_group_from_afar():
 
 def test_straight_policy_brakes_near_the_slot():
     pol = StraightPolicy()
-    far = np.zeros(39, dtype=np.float32)
+    far = np.zeros(OBS_SIZE, dtype=np.float32)
     far[0:2] = (1.0, 0.0)  # 5 m ahead
     near = far.copy()
     near[0:2] = (0.02, 0.0)  # 0.1 m ahead

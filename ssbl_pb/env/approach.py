@@ -76,6 +76,10 @@ class ApproachGroupEnv(gym.Env):
         self.trajectory: list[dict[str, Any]] = []
         self._top_cam = None
 
+    def set_reward_weights(self, **changes: float) -> None:
+        """Change reward weights between episodes (training schedules); unknown names raise."""
+        self.weights = from_dict(RewardWeights, {**dataclasses.asdict(self.weights), **changes}, "reward")
+
     # -- helpers ------------------------------------------------------------------------------------------
     def _walls(self) -> np.ndarray:
         sx, sy = self.world_params.room_size
@@ -89,7 +93,8 @@ class ApproachGroupEnv(gym.Env):
     def _obs(self) -> np.ndarray:
         w, g = self.world, self.world.group
         return ob.vector_observation(w.robot_pose, w.base.vel, g.pos, g.vel, g.centre, g.radius, self._slot,
-                                     self._walls(), self.robot_params.max_speed, self.robot_params.max_yaw_rate)
+                                     self._walls(), self.robot_params.max_speed, self.robot_params.max_yaw_rate,
+                                     w.robot_pose[2] if self.task.turn else None)
 
     def _route(self, xy: np.ndarray) -> float:
         """Distance to the free slot around the group (``reward.route_distance``)."""
@@ -123,14 +128,19 @@ class ApproachGroupEnv(gym.Env):
         return self._obs(), info
 
     def command(self, action: np.ndarray) -> np.ndarray:
-        """Body-frame base command (forward, left, turn) for a normalised action."""
+        """Body-frame base command (forward, left, turn) for a normalised action.
+
+        The action is (toward the centre, to the left of that) in the approach frame (``observation``), or
+        (forward, left, turn) in the body frame when the policy steers (``TaskParams.turn``).
+        """
         a = np.minimum(np.maximum(np.asarray(action, dtype=float), -1.0), 1.0)
         rp = self.robot_params
         if self.task.turn:
-            turn = a[2] * rp.max_yaw_rate
-        else:
-            turn = min(max(self.task.heading_gain * self.heading_error(), -rp.max_yaw_rate), rp.max_yaw_rate)
-        return np.array([a[0] * rp.max_speed, a[1] * rp.max_speed, turn])
+            return np.array([a[0] * rp.max_speed, a[1] * rp.max_speed, a[2] * rp.max_yaw_rate])
+        e = self.heading_error()
+        turn = min(max(self.task.heading_gain * e, -rp.max_yaw_rate), rp.max_yaw_rate)
+        c, s = math.cos(e), math.sin(e)  # approach frame -> body frame
+        return np.array([(c * a[0] - s * a[1]) * rp.max_speed, (s * a[0] + c * a[1]) * rp.max_speed, turn])
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
         w, g = self.world, self.world.group

@@ -1,7 +1,11 @@
 """The Vector observation (paper III-B "Vector" mode): one layout shared by the simulator and the robot.
 
-Everything is relative to the robot and expressed in its body frame (x forward, y left), so the same vector can
-be built from the simulator's state or from the tracker's output on the real robot. Layout (``OBS_SIZE`` = 39):
+Everything is relative to the robot and expressed in the *approach frame*: x from the robot toward the group
+centre, y to its left. The robot turns to face the centre (as in the original, where it always faces it), so
+this is its body frame once it has turned; actions use the same frame, so a turning robot's commands do not
+swing around with it. (With ``TaskParams.turn`` the policy steers and the frame is the body frame.) The same
+vector is built from the simulator's state or from the tracker's output on the real robot.
+Layout (``OBS_SIZE`` = 40):
 
 ====  =========================================================  =========
 idx   value                                                      scale
@@ -11,10 +15,11 @@ idx   value                                                      scale
 4     o-space radius                                             / 5 m
 5-6   robot velocity (forward, left)                             / max speed
 7     robot turn rate                                            / max turn rate
-8-9   robot heading in the room (cos, sin)                       1
+8-9   the frame's orientation in the room (cos, sin)             1
 10-13 distance to the walls (+x, -x, +y, -y, room frame)         / 5 m
 14-38 up to 5 members, nearest first: position (2), velocity     / 5 m, / 1 m/s
       (2), present flag (1); absent members are zeros
+39    robot heading minus the frame's (how far it still turns)   / pi
 ====  =========================================================  =========
 
 The original divides by half its 20 m arena (ref "Vector observation"); our default room is 10 m, so 5 m.
@@ -28,7 +33,7 @@ import numpy as np
 
 MAX_MEMBERS = 5
 MEMBER_FIELDS = 5
-OBS_SIZE = 14 + MAX_MEMBERS * MEMBER_FIELDS
+OBS_SIZE = 14 + MAX_MEMBERS * MEMBER_FIELDS + 1
 POS_SCALE = 5.0
 OBS_LIMIT = 10.0
 
@@ -44,10 +49,16 @@ def vector_observation(
     walls: np.ndarray,
     max_speed: float,
     max_yaw_rate: float,
+    frame_yaw: float | None = None,
 ) -> np.ndarray:
-    """Build the observation; ``robot_vel`` is the world-frame (vx, vy, wz), positions are world-frame metres."""
+    """Build the observation; ``robot_vel`` is the world-frame (vx, vy, wz), positions are world-frame metres.
+
+    ``frame_yaw`` is the orientation of the frame vectors are expressed in (default: toward ``centre``).
+    """
     x, y, yaw = float(robot_pose[0]), float(robot_pose[1]), float(robot_pose[2])
-    c, s = math.cos(yaw), math.sin(yaw)
+    if frame_yaw is None:
+        frame_yaw = approach_yaw(robot_pose, centre)
+    c, s = math.cos(frame_yaw), math.sin(frame_yaw)
     to_body = np.array([[c, -s], [s, c]])  # row vectors @ to_body rotate world -> body
     here = np.array([x, y])
     members_pos = np.asarray(members_pos, dtype=float).reshape(-1, 2)
@@ -72,12 +83,18 @@ def vector_observation(
     block[:k, 0:2] = body[3:3 + k] / POS_SCALE
     block[:k, 2:4] = body[3 + k:]
     block[:k, 4] = 1.0
-    obs[14:] = block.ravel()
+    obs[14:39] = block.ravel()
+    obs[39] = math.remainder(yaw - frame_yaw, 2.0 * math.pi) / math.pi
     return np.clip(obs, -OBS_LIMIT, OBS_LIMIT, out=obs)
 
 
+def approach_yaw(robot_pose: np.ndarray, centre: np.ndarray) -> float:
+    """Orientation (rad) of the approach frame: from the robot toward the group centre."""
+    return math.atan2(float(centre[1] - robot_pose[1]), float(centre[0] - robot_pose[0]))
+
+
 def decode_members(obs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Present members' body-frame positions (m) and velocities (m/s) from an observation."""
-    block = np.asarray(obs[14:], dtype=float).reshape(MAX_MEMBERS, MEMBER_FIELDS)
+    """Present members' positions (m) and velocities (m/s), in the observation's frame."""
+    block = np.asarray(obs[14:39], dtype=float).reshape(MAX_MEMBERS, MEMBER_FIELDS)
     present = block[:, 4] > 0.5
     return block[present, 0:2] * POS_SCALE, block[present, 2:4]

@@ -59,7 +59,7 @@ class RewardWeights:
     w_e: float = 1.0  # egoism weight
     w_a: float = 1.0  # altruism weight
     w_effort: float = 0.1  # -|v|^2 dt
-    w_smooth: float = 0.3  # -|jerk| dt, jerk in m/s^3
+    w_smooth: float = 0.6  # -|jerk| dt, jerk in m/s^3 (training ramps it up from 0.05: configs/)
     w_slot: float = 1.0  # change of slot_potential (per metre of progress toward the free slot)
     violation_penalty: float = 1.0  # collision or intimate-zone intrusion (ends the episode)
 

@@ -145,3 +145,29 @@ class EvalCheckpointCallback(BaseCallback):
         self.model.save(folder / f"ckpt_{n:09d}.zip")
         self.training_env.save(str(folder / f"ckpt_{n:09d}_vecnormalize.pkl"))
         atomic_write_text(folder / "latest.json", json.dumps({"step": n, "model": f"ckpt_{n:09d}.zip"}))
+
+
+class RewardRampCallback(BaseCallback):
+    """Ramps reward weights linearly with training progress (set in every env at each rollout start)."""
+
+    def __init__(self, ramp: dict[str, list[float]], fraction: float, total: int) -> None:
+        super().__init__()
+        self.ramp, self.fraction, self.total = ramp, fraction, total
+
+    def weights_at(self, step: int) -> dict[str, float]:
+        x = min(1.0, step / (self.fraction * self.total))
+        return {k: float(a + (b - a) * x) for k, (a, b) in self.ramp.items()}
+
+    def _on_rollout_start(self) -> None:
+        w = self.weights_at(self.num_timesteps)
+        venv = self.training_env.unwrapped
+        if hasattr(venv, "envs"):  # DummyVecEnv
+            for env in venv.envs:
+                env.unwrapped.set_reward_weights(**w)
+        else:  # SubprocVecEnv: the call is forwarded through the wrappers in each worker
+            venv.env_method("set_reward_weights", **w)
+        for k, v in w.items():
+            self.logger.record(f"reward_ramp/{k}", v)
+
+    def _on_step(self) -> bool:
+        return True

@@ -76,6 +76,9 @@ class TrainConfig:
     device: str = "cpu"
     torch_threads: int = 1
     reward: dict[str, float] = dataclasses.field(default_factory=dict)
+    # reward weights that ramp linearly from [start, end] over the first ``reward_ramp_fraction`` of training
+    reward_ramp: dict[str, list[float]] = dataclasses.field(default_factory=dict)
+    reward_ramp_fraction: float = 0.5
     env: dict[str, Any] = dataclasses.field(default_factory=dict)
     ppo: PPOConfig = dataclasses.field(default_factory=PPOConfig)
     eval_every: int = 20_000
@@ -106,6 +109,13 @@ class TrainConfig:
         from ..env.reward import RewardWeights
 
         from_dict(RewardWeights, self.reward, "config.reward")  # validates names and values early
+        for key, value in self.reward_ramp.items():
+            _check(isinstance(value, list | tuple) and len(value) == 2, "config", f"reward_ramp.{key}", value,
+                   "[start, end]")
+            from_dict(RewardWeights, {key: value[0]}, "config.reward_ramp")
+            from_dict(RewardWeights, {key: value[1]}, "config.reward_ramp")
+        _check(isinstance(self.reward_ramp_fraction, int | float) and 0 < self.reward_ramp_fraction <= 1, "config",
+               "reward_ramp_fraction", self.reward_ramp_fraction, "a number in (0, 1]")
 
     @property
     def steps_per_update(self) -> int:

@@ -107,10 +107,11 @@ def baseline_returns(cfg: TrainConfig) -> dict[str, float]:
 
 
 def _callbacks(cfg: TrainConfig, run_dir: Path) -> list[Any]:
-    from .callbacks import EpisodeLogCallback, EvalCheckpointCallback, ProgressCallback
+    from .callbacks import EpisodeLogCallback, EvalCheckpointCallback, ProgressCallback, RewardRampCallback
 
     eval_kwargs = _env_kwargs(cfg)
-    return [ProgressCallback(cfg.total_steps), EpisodeLogCallback(run_dir / "learning_curve.csv"),
+    ramp = [RewardRampCallback(cfg.reward_ramp, cfg.reward_ramp_fraction, cfg.total_steps)] if cfg.reward_ramp else []
+    return ramp + [ProgressCallback(cfg.total_steps), EpisodeLogCallback(run_dir / "learning_curve.csv"),
             EvalCheckpointCallback(run_dir, EnvFactory(eval_kwargs, monitor=False), cfg.eval_every,
                                    cfg.eval_episodes, cfg.eval_seed, cfg.checkpoint_every, cfg.policy == "lstm",
                                    cfg.action_smoothing)]

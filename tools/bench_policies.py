@@ -1,0 +1,70 @@
+#!/usr/bin/env python
+"""Success rates (and main social metrics) of policies per scenario over held-out seeded episodes.
+
+Writes results/bench_policies.json and a Markdown table (results/bench_policies.md) for docs/benchmarks.md.
+    python tools/bench_policies.py --policies sffm,straight,random --episodes 200
+    python tools/bench_policies.py --policies vector --scenarios default,mixed --episodes 200
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from ssbl_pb.cli import fail, progress_bar  # noqa: E402
+
+SCENARIOS = "default,vis_a_vis,l_shape,side_by_side,circular,behind,mixed"
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--policies", default="sffm,straight,random")
+    ap.add_argument("--scenarios", default=SCENARIOS)
+    ap.add_argument("--episodes", type=int, default=200)
+    ap.add_argument("--seed", type=int, default=500_000, help="first held-out seed")
+    ap.add_argument("--out", type=Path, default=ROOT / "results" / "bench_policies")
+    args = ap.parse_args(argv)
+
+    from ssbl_pb.env.rollout import run_episodes
+    from ssbl_pb.evaluation import Setup, UsageError, check_policy_spec
+    from ssbl_pb.report import atomic_write_text, summarize, write_json
+
+    table: dict[str, dict[str, dict]] = {}
+    try:
+        for pol in args.policies.split(","):
+            check_policy_spec(pol)
+            for sc in args.scenarios.split(","):
+                setup = Setup(pol, scenario=sc)
+                setup()[0].close()
+                with progress_bar(args.episodes, f"{pol} {sc}") as bar:
+                    res = run_episodes(setup, range(args.seed, args.seed + args.episodes), os.cpu_count() or 1,
+                                       progress=bar)
+                s = summarize([r.metrics for r in res])
+                table.setdefault(pol, {})[sc] = {k: s[k] for k in ("success_rate", "collision_rate",
+                                                                   "violation_rate", "personal_zone_time_s",
+                                                                   "mean_jerk", "arrival_speed")}
+                table[pol][sc]["success_ci"] = [s["metrics"]["success"]["ci_low"], s["metrics"]["success"]["ci_high"]]
+    except (UsageError, ValueError) as exc:
+        return fail(exc)
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    write_json(args.out.with_suffix(".json"), {"episodes": args.episodes, "seed": args.seed, "results": table})
+    scs = args.scenarios.split(",")
+    lines = ["| policy | " + " | ".join(scs) + " |", "|---|" + "---|" * len(scs)]
+    for pol, row in table.items():
+        lines.append(f"| {pol} | " + " | ".join(f"{row[sc]['success_rate']:.1%} ({row[sc]['violation_rate']:.0%} v)"
+                                                 for sc in scs) + " |")
+    text = (f"Success rate (and share of episodes ended by a collision or intimate-zone intrusion, 'v') over "
+            f"{args.episodes} episodes per scenario, seeds {args.seed}-{args.seed + args.episodes - 1}.\n\n"
+            + "\n".join(lines) + "\n")
+    atomic_write_text(args.out.with_suffix(".md"), text)
+    print(text)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
