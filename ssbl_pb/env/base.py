@@ -1,9 +1,10 @@
 """Pepper's holonomic base: velocity commands within the real limits, as a pure function of arrays.
 
 State: pose ``(x, y, yaw)`` and world-frame velocity ``(vx, vy, wz)``. A command is a body-frame velocity
-``(forward, left, turn)`` in m/s and rad/s. The command is delayed by ``latency_s`` (fractions of a period interpolate between commands), passed through a
-first-order lag ``time_constant_s`` (both identified from logs by ``ssbl_pb.calib``; zero by default), clipped
-to the speed limits, and reached at most at the acceleration limits (``RobotParams``).
+``(forward, left, turn)`` in m/s and rad/s. The command is delayed by ``latency_s`` (fractions of a period
+interpolate between commands), passed through a first-order lag ``time_constant_s`` (both identified from logs
+by ``ssbl_pb.calib``; zero by default), clipped to the speed limits, and reached at most at the acceleration
+limits (``RobotParams``).
 """
 
 from __future__ import annotations
