@@ -1,7 +1,7 @@
 """Tracking benchmark (issue 6): thresholds chosen on PETS S2L1 frames 0-399 only, then results on frames
 400-794 and on the whole sequence; timings; the simulation evaluation.
 
-    python tools/bench_tracking.py            # everything (about 10 min on 2 cores)
+    python tools/bench_tracking.py            # everything (about 25 min on 2 shared cores)
     python tools/bench_tracking.py --skip-tune --skip-sim
 
 Steps: (1) one HOG pass over all frames at every candidate scale with a low SVM margin, cached (windows +
@@ -9,7 +9,8 @@ foreground fractions); (2) coordinate descent over the pipeline's thresholds sco
 0-399 only, starting from untuned values; (3) tools/track.py's code path (online detector + tracker) over the
 whole video with the chosen thresholds, scored on 400-794 and 0-794; (4) timings on one core; (5) the tracker
 on first-person TinyRenderer frames against the simulator's member positions.
-Writes results/tracking/{pets_params,pets_metrics,timing,sim,bench}.json and docs/benchmarks_tracking.md.
+Writes results/tracking/{pets_params,pets_metrics,timing,sim,bench}.json, results/tracking/pets_s{stride}/
+(tracks + overlay per variant) and docs/benchmarks_tracking.md.
 """
 
 from __future__ import annotations
@@ -34,7 +35,7 @@ from ssbl_pb.perception.pipeline import detect_raw, read_frames  # noqa: E402
 from ssbl_pb.perception.sim_eval import SimEvalParams, evaluate_sim  # noqa: E402
 from ssbl_pb.perception.tracking_io import evaluate_dir, track_video, write_atomic, write_json  # noqa: E402
 from ssbl_pb.perception.tsai import TsaiCamera  # noqa: E402
-from ssbl_pb.perception.tuning import ALL_SCALES, UNTUNED, PipelineParams, tune  # noqa: E402
+from ssbl_pb.perception.tuning import ALL_SCALES, UNTUNED, PipelineParams, score, tune  # noqa: E402
 
 PETS = ROOT.parent / "shared" / "data" / "video" / "pets2009_s2l1"
 PETS_FPS = 7.0  # PETS 2009 frame rate (vtest.avi's header says 10; 7 gives ~1 m/s walking in the GT)
@@ -48,6 +49,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--doc", default=str(ROOT / "docs" / "benchmarks_tracking.md"), help="Markdown report")
     ap.add_argument("--skip-tune", action="store_true", help="use the built-in (previously tuned) thresholds")
     ap.add_argument("--skip-sim", action="store_true", help="skip the simulation evaluation")
+    ap.add_argument("--strides", type=int, nargs="+", default=[8, 4],
+                    help="HOG window strides to tune; the best MOTA + IDF1 on frames 0-399 is selected")
     ap.add_argument("--sim-episodes", type=int, default=SimEvalParams.episodes)
     args = ap.parse_args(argv)
     data, out = Path(args.data), Path(args.out)
@@ -64,50 +67,49 @@ def main(argv: list[str] | None = None) -> int:
                     "date": time.strftime("%Y-%m-%d %H:%M")}
     t_all = time.time()
 
-    # (1) + (2): thresholds on frames 0-399 only
+    # (1) + (2): thresholds on frames 0-399 only, for each HOG stride; the best score on 0-399 is selected
+    variants: dict[int, PipelineParams] = {}
     if args.skip_tune:
         params = PipelineParams()
+        variants[params.hog.win_stride] = params
     else:
-        cache = out / ".cache" / "pets_windows.npz"
-        if cache.is_file():
-            z = np.load(cache)
-            raw = {int(k): z[k] for k in z.files}
-        else:
-            print("HOG pass over frames 0-399 (all candidate scales) ...", flush=True)
-            raw = detect_raw(read_frames(video, 0, 400), HogParams(scales=ALL_SCALES), RAW_THRESHOLD)
-            cache.parent.mkdir(parents=True, exist_ok=True)
-            np.savez_compressed(cache, **{str(k): v for k, v in raw.items()})
-        print("tuning on frames 0-399 ...", flush=True)
-        params, train_res, log = tune(raw, gt, cam, 1.0 / PETS_FPS, 0, 400, UNTUNED, rounds=3)
-        report["tuning"] = {"frames": [0, 399], "trials": len(log), "score": "MOTA + IDF1",
-                            "train_mota": train_res["mota"], "train_idf1": train_res["idf1"]}
+        report["tuning"] = {}
+        best_score = -np.inf
+        for stride in args.strides:
+            raw = cached_windows(out / ".cache" / f"pets_windows_s{stride}.npz", video, stride)
+            print(f"tuning stride {stride} on frames 0-399 ...", flush=True)
+            init = UNTUNED.with_value("hog.win_stride", stride)
+            cand, train_res, log = tune(raw, gt, cam, 1.0 / PETS_FPS, 0, 400, init, rounds=3)
+            s = score(train_res)
+            report["tuning"][f"stride {stride}"] = {"frames": [0, 399], "trials": len(log), "score": s,
+                                                    "train_mota": train_res["mota"],
+                                                    "train_idf1": train_res["idf1"]}
+            variants[stride] = cand
+            if s > best_score:
+                best_score, params = s, cand
     write_json(out / "pets_params.json", params.to_dict())
     report["params"] = params.to_dict()
+    report["selected_stride"] = params.hog.win_stride
 
-    # (3): the tools/track.py code path over the whole video
-    print("tracking the whole video ...", flush=True)
-    tmp = Path(tempfile.mkdtemp(prefix=".bench-", dir=out))
-    try:
-        summary = track_video(video, calib, tmp, params=params.to_dict(), fps=PETS_FPS, progress=True)
-        res = evaluate_dir(tmp, gt_path, calib, [(0, 400), (400, 795), (0, 795)])
-        run_dir = out / "pets"
-        run_dir.mkdir(parents=True, exist_ok=True)
-        for f in tmp.iterdir():
-            f.replace(run_dir / f.name)
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
-    report["pets"] = res
-    report["pets_run"] = summary
-    write_json(out / "pets_metrics.json", res)
+    # (3): the tools/track.py code path over the whole video, for each variant
+    report["variants"] = {}
+    for stride, vp in variants.items():
+        print(f"tracking the whole video (stride {stride}) ...", flush=True)
+        res, summary = whole_video(video, calib, gt_path, vp, out / f"pets_s{stride}")
+        report["variants"][f"stride {stride}"] = {"metrics": res, "run": summary}
+        if vp == params:
+            report["pets"], report["pets_run"] = res, summary
+            write_json(out / "pets_metrics.json", res)
 
     # (4): timings on one core
     print("timings ...", flush=True)
     frames = [f for _, f in read_frames(video, 100, 160)]
-    timing = {"tracker_update": time_tracker_update(5),
-              "pipeline_320x240": time_pipeline(frames, cam, params, (320, 240), rescale_scales=False),
-              "pipeline_320x240_pets_scales": time_pipeline(frames[:20], cam, params, (320, 240),
-                                                            rescale_scales=True),
-              "pipeline_768x576": time_pipeline(frames[:30], cam, params, (768, 576), rescale_scales=False)}
+    timing: dict = {"tracker_update": time_tracker_update(5)}
+    for stride, vp in sorted(variants.items(), reverse=True):
+        timing[f"stride {stride}"] = {
+            "320x240": time_pipeline(frames, cam, vp, (320, 240), rescale_scales=False),
+            "320x240 PETS-size scales": time_pipeline(frames[:15], cam, vp, (320, 240), rescale_scales=True),
+            "768x576": time_pipeline(frames[:20], cam, vp, (768, 576), rescale_scales=False)}
     report["timing"] = timing
     write_json(out / "timing.json", timing)
 
@@ -124,6 +126,35 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
+def cached_windows(cache: Path, video: Path, stride: int) -> dict[int, np.ndarray]:
+    """HOG windows of frames 0-399 at every candidate scale (computed once, then read from ``cache``)."""
+    if cache.is_file():
+        z = np.load(cache)
+        return {int(k): z[k] for k in z.files}
+    print(f"HOG pass over frames 0-399 (all candidate scales, stride {stride}) ...", flush=True)
+    raw = detect_raw(read_frames(video, 0, 400), HogParams(scales=ALL_SCALES, win_stride=stride), RAW_THRESHOLD)
+    cache.parent.mkdir(parents=True, exist_ok=True)
+    tmp = cache.with_name(cache.stem + ".tmp.npz")
+    np.savez_compressed(tmp, **{str(k): v for k, v in raw.items()})
+    tmp.replace(cache)
+    return raw
+
+
+def whole_video(video: Path, calib: Path, gt_path: Path, params: PipelineParams, run_dir: Path) -> tuple[dict, dict]:
+    """tools/track.py's code path over the whole video, scored on 0-399, 400-794 and 0-794."""
+    run_dir.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=".bench-", dir=run_dir.parent))
+    try:
+        summary = track_video(video, calib, tmp, params=params.to_dict(), fps=PETS_FPS, progress=True)
+        res = evaluate_dir(tmp, gt_path, calib, [(0, 400), (400, 795), (0, 795)])
+        run_dir.mkdir(parents=True, exist_ok=True)
+        for f in tmp.iterdir():
+            f.replace(run_dir / f.name)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    return res, summary
+
+
 def markdown(r: dict) -> str:
     """The benchmark report (figures + the command that made them)."""
     L = ["# Tracking benchmark (issue 6)", "",
@@ -131,10 +162,14 @@ def markdown(r: dict) -> str:
          "raw figures in `results/tracking/*.json`.", "",
          "## PETS 2009 S2L1 View_001 (real frames)", ""]
     if "tuning" in r:
-        t = r["tuning"]
-        L += [f"Thresholds chosen on frames 0-399 only ({t['trials']} trials of coordinate descent, score MOTA + "
-              f"IDF1; frames 0-399 MOTA {t['train_mota']:.3f}, IDF1 {t['train_idf1']:.3f} with cached HOG "
-              "windows). Chosen values: `results/tracking/pets_params.json` (and the built-in defaults).", ""]
+        L += ["Thresholds chosen on frames 0-399 only: coordinate descent over `tuning.GRID` (score MOTA + IDF1) "
+              "on cached HOG windows of frames 0-399, once per HOG window stride; the stride with the better "
+              f"score on 0-399 is selected (stride {r['selected_stride']}). Chosen values: "
+              "`results/tracking/pets_params.json` (and the built-in defaults of `PipelineParams`).", "",
+              "| variant | trials | MOTA 0-399 | IDF1 0-399 | score |", "|---|---|---|---|---|"]
+        for name, t in r["tuning"].items():
+            L.append(f"| {name} | {t['trials']} | {t['train_mota']:.3f} | {t['train_idf1']:.3f} | {t['score']:.3f} |")
+        L.append("")
     L += ["Scored with `tools/eval_tracking.py` on the output of `tools/track.py`'s code path (online: HOG at "
           "fixed scales, foreground fraction, NMS, ground-plane Kalman tracker; boxes drawn from each track's "
           "ground position and height). IoU >= 0.5; ground error = distance between the GT box's foot point "
@@ -145,6 +180,14 @@ def markdown(r: dict) -> str:
         L.append(f"| {name.replace('frames ', '')} | {m['mota']:.3f} | {m['idf1']:.3f} | {m['num_switches']:.0f} "
                  f"| {m['precision']:.3f} | {m['recall']:.3f} | {m['num_false_positives']:.0f} "
                  f"| {m['num_misses']:.0f} | {m['ground_err_median_m']:.3f} | {m['ground_err_p90_m']:.3f} |")
+    if len(r.get("variants", {})) > 1:
+        L += ["", "Every tuned variant on the whole video (for information; the selection above used 0-399 only):", "",
+              "| variant | frames | MOTA | IDF1 | ID sw | ground err median (m) | ms/frame (2 threads) |",
+              "|---|---|---|---|---|---|---|"]
+        for name, v in r["variants"].items():
+            for rng, m in v["metrics"].items():
+                L.append(f"| {name} | {rng.replace('frames ', '')} | {m['mota']:.3f} | {m['idf1']:.3f} | "
+                         f"{m['num_switches']:.0f} | {m['ground_err_median_m']:.3f} | {v['run']['ms_per_frame']:.0f} |")
     test = r["pets"].get("frames 400-794", {})
     if test:
         ok = lambda c: "met" if c else "**not met**"  # noqa: E731
@@ -155,14 +198,13 @@ def markdown(r: dict) -> str:
     L += ["", "## Timing (one core: `cv2.setNumThreads(1)`)", "",
           "| what | mean (ms) | p95 (ms) | target |", "|---|---|---|---|",
           f"| tracker update, {tu['n_targets']} targets | {tu['mean_ms']:.3f} | {tu['p95_ms']:.3f} | <= 1 ms |"]
-    for key, label in (("pipeline_320x240", "detector + tracker, 320x240, scales as tuned"),
-                       ("pipeline_320x240_pets_scales", "detector + tracker, 320x240, scales x2.4 (PETS-size "
-                                                        "people)"),
-                       ("pipeline_768x576", "detector + tracker, 768x576 (full resolution)")):
-        m = t[key]
-        target = "<= 60 ms" if key == "pipeline_320x240" else "-"
-        L.append(f"| {label} (HOG {m['detector_mean_ms']:.1f} ms) | {m['mean_ms']:.1f} | {m['p95_ms']:.1f} "
-                 f"| {target} |")
+    labels = {"320x240": "320x240, scales as tuned", "320x240 PETS-size scales": "320x240, scales / 0.42 "
+              "(PETS-size people)", "768x576": "768x576 (full resolution)"}
+    for variant, rows in ((k, v) for k, v in t.items() if k.startswith("stride")):
+        for key, m in rows.items():
+            target = "<= 60 ms" if key == "320x240" else "-"
+            L.append(f"| detector + tracker, {variant}, {labels[key]} (HOG {m['detector_mean_ms']:.1f} ms) | "
+                     f"{m['mean_ms']:.1f} | {m['p95_ms']:.1f} | {target} |")
     if "sim" in r:
         L += ["", "## Simulation (first-person TinyRenderer frames)", "",
               "The same `Tracker` (ego-motion compensated with the robot's odometry) on Pepper's CameraTop "
