@@ -107,3 +107,22 @@ def test_corrupt_model_file(tmp_path):
     bad.write_bytes(b"not a zip")
     with pytest.raises(ModelError, match="not a saved SB3 model"):
         load_trained(str(bad))
+
+
+def test_camera_speed_cnn_trains(tmp_path):
+    out = tmp_path / "cam"
+    res = subprocess.run([*TRAIN, "--config", str(ROOT / "configs" / "camera_cnn.yaml"), "--total-steps", "128",
+                          "--out", str(out), "--n-envs", "1", "--set", "ppo.n_steps=128", "--set",
+                          "ppo.batch_size=64", "--set", "ppo.n_epochs=1", "--set", "eval_every=128", "--set",
+                          "eval_episodes=1", "--set", "baseline_episodes=1", "--set", "camera_size=48"],
+                         capture_output=True, text=True, timeout=240)
+    assert res.returncode == 0, res.stderr[-2000:]
+    from ssbl_pb.env.approach import make_env
+    from ssbl_pb.env.trained import load_trained
+
+    env = make_env(obs_mode="camera_speed", camera_width=48, camera_height=48)
+    pol = load_trained(str(out), env.observation_space)
+    obs, _ = env.reset(seed=0)
+    assert pol.predict(obs)[0].shape == (2,)
+    with pytest.raises(ValueError, match="trained for observations"):
+        load_trained(str(out), make_env().observation_space)

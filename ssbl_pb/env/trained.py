@@ -73,6 +73,20 @@ class TrainedPolicy(Policy):
         return (action if self.filter is None else self.filter(action)), state
 
 
+def _channel_first(space: gym.Space) -> gym.Space:
+    """SB3 stores image spaces channel-first (VecTransposeImage); do the same to an env's space."""
+    if isinstance(space, gym.spaces.Dict):
+        return gym.spaces.Dict({k: _channel_first(v) for k, v in space.spaces.items()})
+    if isinstance(space, gym.spaces.Box) and space.dtype == np.uint8 and len(space.shape) == 3:
+        h, w, c = space.shape
+        return gym.spaces.Box(0, 255, (c, h, w), np.uint8)
+    return space
+
+
+def _compatible(model_space: gym.Space, env_space: gym.Space) -> bool:
+    return model_space == env_space or model_space == _channel_first(env_space)
+
+
 def load_trained(spec: str, observation_space: gym.Space | None = None) -> TrainedPolicy:
     """Load a trained model (shipped name, run directory or .zip); checks it fits ``observation_space``."""
     model_path, norm_path, config = resolve_model(spec)
@@ -87,7 +101,7 @@ def load_trained(spec: str, observation_space: gym.Space | None = None) -> Train
         model = Algo.load(str(model_path), device="cpu")
     except Exception as exc:  # corrupt archive, wrong algorithm, ...
         raise ModelError(f"{model_path}: cannot load the model ({type(exc).__name__}: {exc})") from exc
-    if observation_space is not None and model.observation_space != observation_space:
+    if observation_space is not None and not _compatible(model.observation_space, observation_space):
         mode = config.get("obs_mode", "unknown")
         raise ModelError(f"{model_path}: the model was trained for observations {model.observation_space} "
                          f"(obs_mode '{mode}'), not {observation_space}")
