@@ -64,3 +64,32 @@ def test_short_tracking_run(pets):
     assert res["idf1"] > 0.7, res
     assert res["num_switches"] == 0
     assert res["ground_err_median_m"] < 0.35
+
+
+def test_track_and_eval_cli(pets, tmp_path):
+    import json
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    d, _, _ = pets
+    root = Path(__file__).resolve().parents[1]
+    out = tmp_path / "run"
+    calib = str(d / "View_001_tsai_calibration.xml")
+    r = subprocess.run([sys.executable, "tools/track.py", str(d / "vtest.avi"), "--calib", calib, "--out", str(out),
+                        "--stop", "8", "--fps", "7", "--quiet"], cwd=root, capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    assert sorted(p.name for p in out.iterdir()) == ["overlay.mp4", "tracks_mot.txt", "tracks_world.csv"]
+    mot = np.loadtxt(out / "tracks_mot.txt", delimiter=",", ndmin=2)
+    assert mot.shape[1] == 10 and mot[:, 0].min() >= 1 and mot[:, 0].max() <= 8
+    world = np.loadtxt(out / "tracks_world.csv", delimiter=",", skiprows=1, ndmin=2)
+    assert len(world) == len(mot) and np.all(np.isfinite(world))
+    cap = cv2.VideoCapture(str(out / "overlay.mp4"))
+    assert int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) == 8
+    r = subprocess.run([sys.executable, "tools/eval_tracking.py", "--tracks", str(out), "--gt",
+                        str(d / "PETS2009-S2L1.xml"), "--calib", calib, "--range", "0:8"], cwd=root,
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    m = json.loads((out / "metrics.json").read_text())["frames 0-7"]
+    assert m["mota"] > 0.5 and m["num_switches"] == 0
+    assert (out / "metrics.md").read_text().startswith("# Tracking")

@@ -16,6 +16,7 @@ Writes results/tracking/{pets_params,pets_metrics,timing,sim,bench}.json, result
 from __future__ import annotations
 
 import argparse
+import json
 import platform
 import shutil
 import sys
@@ -51,9 +52,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--skip-sim", action="store_true", help="skip the simulation evaluation")
     ap.add_argument("--strides", type=int, nargs="+", default=[8, 4],
                     help="HOG window strides to tune; the best MOTA + IDF1 on frames 0-399 is selected")
+    ap.add_argument("--report-only", action="store_true",
+                    help="re-render the Markdown from results/tracking/bench.json without running anything")
     ap.add_argument("--sim-episodes", type=int, default=SimEvalParams.episodes)
     args = ap.parse_args(argv)
     data, out = Path(args.data), Path(args.out)
+    if args.report_only:
+        write_atomic(args.doc, markdown(json.loads((out / "bench.json").read_text())))
+        return 0
     video, gt_path = data / "vtest.avi", data / "PETS2009-S2L1.xml"
     calib = data / "View_001_tsai_calibration.xml"
     for f in (video, gt_path, calib):
@@ -180,6 +186,12 @@ def markdown(r: dict) -> str:
         L.append(f"| {name.replace('frames ', '')} | {m['mota']:.3f} | {m['idf1']:.3f} | {m['num_switches']:.0f} "
                  f"| {m['precision']:.3f} | {m['recall']:.3f} | {m['num_false_positives']:.0f} "
                  f"| {m['num_misses']:.0f} | {m['ground_err_median_m']:.3f} | {m['ground_err_p90_m']:.3f} |")
+    L += ["", "The same figures from the command line (built-in defaults = the selected thresholds):", "", "```bash",
+          "D=../shared/data/video/pets2009_s2l1",
+          "python tools/track.py $D/vtest.avi --calib $D/View_001_tsai_calibration.xml --out results/tracking/pets "
+          "--fps 7",
+          "python tools/eval_tracking.py --tracks results/tracking/pets --gt $D/PETS2009-S2L1.xml "
+          "--calib $D/View_001_tsai_calibration.xml --range 0:400 --range 400:795 --range 0:795", "```"]
     if len(r.get("variants", {})) > 1:
         L += ["", "Every tuned variant on the whole video (for information; the selection above used 0-399 only):", "",
               "| variant | frames | MOTA | IDF1 | ID sw | ground err median (m) | ms/frame (2 threads) |",
