@@ -71,3 +71,14 @@ def test_seg_detector_needs_mask(scene):
     rgb, _ = scene.render_first_person(64, 48)
     with pytest.raises(ValueError, match="segmentation"):
         SimDetector(scene.human_ids)((rgb, None))
+
+
+def test_short_sim_evaluation():
+    from ssbl_pb.perception.sim_eval import SimEvalParams, evaluate_sim
+
+    res = evaluate_sim(SimEvalParams(episodes=1, steps=40, width=160, height=120, seed=1))
+    assert res["scored"] > 20
+    assert res["median_err_m"] < 0.2
+    assert res["coverage"] > 0.5
+    with pytest.raises(ValueError, match="detector"):
+        evaluate_sim(SimEvalParams(detector="hog"))

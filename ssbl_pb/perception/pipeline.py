@@ -143,7 +143,8 @@ class GroundTracker:
 
     def step(self, boxes: np.ndarray, dt: float) -> list[tuple[int, np.ndarray, np.ndarray, np.ndarray]]:
         """Boxes (n, >=4) ``x, y, w, h`` -> list of (id, image box (4,), ground xy (2,), velocity (2,))."""
-        boxes = np.asarray(boxes, dtype=float).reshape(-1, boxes.shape[-1] if np.ndim(boxes) == 2 else 5)
+        boxes = np.asarray(boxes, dtype=float)
+        boxes = boxes.reshape(-1, boxes.shape[-1] if boxes.ndim == 2 else 5)
         feet = np.column_stack([boxes[:, 0] + boxes[:, 2] / 2, boxes[:, 1] + boxes[:, 3]])
         ground = self.camera.image_to_ground(feet) if len(boxes) else np.zeros((0, 2))
         heights = self.body_height(ground, boxes[:, 1]) if len(boxes) else np.zeros(0)

@@ -77,7 +77,8 @@ def boxes_to_ground(cam: PinholeCamera, boxes: np.ndarray, geom: ProxyGeometry |
 
     ``torso=True`` treats boxes as torso boxes (``ColourDetector``): the mean of the top and bottom edges'
     intersections with the torso's top and bottom planes."""
-    boxes = np.asarray(boxes, dtype=float).reshape(-1, boxes.shape[-1] if np.ndim(boxes) == 2 else 5)
+    boxes = np.asarray(boxes, dtype=float)
+    boxes = boxes.reshape(-1, boxes.shape[-1] if boxes.ndim == 2 else 5)
     out = np.full((len(boxes), 2), np.nan)
     if not len(boxes):
         return out
