@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import time
 
 import cv2
@@ -36,8 +37,6 @@ def time_pipeline(frames: list[np.ndarray], camera: TsaiCamera, params: Pipeline
 
     ``rescale_scales`` divides the HOG scales by the resize factor (same person sizes searched, as tools/track.py
     --scale does); without it the scales apply to the small frame as they are (large people near a robot)."""
-    import dataclasses
-
     old = cv2.getNumThreads()
     cv2.setNumThreads(threads)
     try:

@@ -3,6 +3,7 @@ outputs (MOT text, world CSV, overlay video, metrics JSON/Markdown) written into
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import time
 from pathlib import Path
@@ -93,7 +94,6 @@ def track_video(video: str | Path, calib: str | Path, out_dir: str | Path, start
     dt = 1.0 / (fps or vfps)
     hog = pp.hog
     if scale != 1.0:  # search the same person sizes on the resized frame
-        import dataclasses
         hog = dataclasses.replace(hog, scales=tuple(s / scale for s in hog.scales),
                                   min_height=hog.min_height * scale)
     det = HogFgDetector(hog)
