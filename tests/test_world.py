@@ -139,3 +139,20 @@ def test_fractional_latency_blends_commands():
     assert base.vel[0] == pytest.approx(0.1)
     base.step(np.array([0.2, 0, 0]))
     assert base.vel[0] == pytest.approx(0.2)
+
+
+def test_bodies_stand_on_the_floor(world):
+    import pybullet as p
+
+    world.reset(np.random.default_rng(5))
+    world.sync()
+
+    def top_and_bottom(body):
+        boxes = [p.getAABB(body, link, physicsClientId=world.client)
+                 for link in range(-1, p.getNumJoints(body, physicsClientId=world.client))]
+        return max(b[1][2] for b in boxes), min(b[0][2] for b in boxes)
+
+    top, bottom = top_and_bottom(world.robot_id)
+    assert top == pytest.approx(1.21, abs=0.03) and bottom == pytest.approx(0.0, abs=0.02)
+    top, bottom = top_and_bottom(world.human_ids[0])
+    assert top == pytest.approx(1.70, abs=0.03) and bottom == pytest.approx(0.0, abs=0.02)
