@@ -14,7 +14,7 @@ import yaml
 from ..policies import SHIPPED
 from .policies import Policy
 
-MODEL_FILES = ("best_model.zip", "model.zip")
+MODEL_FILES = ("model.zip", "best/model.zip")  # a run directory: its final model, else its best one
 
 
 class ModelError(ValueError):
@@ -22,7 +22,10 @@ class ModelError(ValueError):
 
 
 def resolve_model(spec: str) -> tuple[Path, Path | None, dict[str, Any]]:
-    """(model zip, normalisation pickle or None, run config) for a shipped name, a run dir or a .zip path."""
+    """(model zip, normalisation pickle or None, run config) for a shipped name, a run dir or a .zip path.
+
+    A run directory gives its final model (``model.zip``; ``RUN/best`` names the best evaluated one); the
+    normalisation statistics and config are those saved beside the chosen model."""
     path = SHIPPED.get(spec, Path(spec))
     if spec in SHIPPED and not path.is_dir():
         raise ModelError(f"shipped policy '{spec}' is missing: expected {path}/model.zip")

@@ -109,7 +109,8 @@ def baseline_returns(cfg: TrainConfig) -> dict[str, float]:
 def _callbacks(cfg: TrainConfig, run_dir: Path) -> list[Any]:
     from .callbacks import EpisodeLogCallback, EvalCheckpointCallback, ProgressCallback, RewardRampCallback
 
-    eval_kwargs = _env_kwargs(cfg)
+    eval_kwargs = _env_kwargs(cfg)  # evaluated with the ramps' final weights, comparable across the run
+    eval_kwargs["reward"] = {**eval_kwargs["reward"], **{k: v[1] for k, v in cfg.reward_ramp.items()}}
     ramp = [RewardRampCallback(cfg.reward_ramp, cfg.reward_ramp_fraction, cfg.total_steps)] if cfg.reward_ramp else []
     return ramp + [ProgressCallback(cfg.total_steps), EpisodeLogCallback(run_dir / "learning_curve.csv"),
             EvalCheckpointCallback(run_dir, EnvFactory(eval_kwargs, monitor=False), cfg.eval_every,
