@@ -8,6 +8,7 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from ssbl_pb.params import ConfigError
@@ -45,6 +46,19 @@ def test_smoke_run_writes_a_complete_run_dir(tmp_path):
                          text=True, timeout=120)
     assert res.returncode == 2 and "already holds a run" in res.stderr
     assert (out / "model.zip").read_bytes() == before
+    # fine-tuning starts from the run's weights
+    from ssbl_pb.training.config import load_config as load
+    from ssbl_pb.training.run import _init_from, build_model, make_vec_env
+
+    cfg = load(out / "config.yaml")
+    venv = make_vec_env(cfg, 0)
+    fresh = build_model(cfg, venv, tmp_path / "tb")
+    venv = _init_from(fresh, venv, out)
+    a = fresh.policy.state_dict()
+    b = pol.model.policy.state_dict()
+    assert all(np.allclose(a[k].numpy(), b[k].numpy()) for k in b)
+    assert np.allclose(venv.obs_rms.mean, pol.normalizer.obs_rms.mean)
+    venv.close()
 
 
 def test_kill_and_resume_continues_the_step_count(tmp_path):

@@ -54,6 +54,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, help="run directory (default runs/<name>)")
     ap.add_argument("--overwrite", action="store_true", help="replace an existing run directory")
     ap.add_argument("--resume", type=Path, metavar="RUN_DIR", help="continue a run from its last checkpoint")
+    ap.add_argument("--init-from", type=Path, metavar="RUN_DIR",
+                    help="start from another run's final weights (fine-tuning with this config)")
     args = ap.parse_args(argv)
 
     from ssbl_pb.training.run import ConfigError, RunError, load_config, resume, train
@@ -69,7 +71,7 @@ def main(argv: list[str] | None = None) -> int:
             over.update(parse_set(args.set))
             cfg = load_config(args.config, over)
             out = args.out or ROOT / "runs" / cfg.name
-            summary = train(cfg, out, args.overwrite)
+            summary = train(cfg, out, args.overwrite, args.init_from)
     except (ConfigError, RunError, ValueError, FileNotFoundError) as exc:
         return fail(exc)
     best = summary.get("best_eval") or {}

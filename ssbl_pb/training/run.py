@@ -141,8 +141,12 @@ def _learn(cfg: TrainConfig, run_dir: Path, model: Any, venv: Any, resumed_from:
     return summary
 
 
-def train(cfg: TrainConfig, run_dir: Path, overwrite: bool = False) -> dict[str, Any]:
-    """Start a new run in ``run_dir`` (refuses a directory that already holds a run unless ``overwrite``)."""
+def train(cfg: TrainConfig, run_dir: Path, overwrite: bool = False, init_from: Path | None = None
+          ) -> dict[str, Any]:
+    """Start a new run in ``run_dir`` (refuses a directory that already holds a run unless ``overwrite``).
+
+    ``init_from`` (a run directory) starts from that run's final weights and normalisation instead of from
+    scratch (fine-tuning, e.g. with other reward weights or scenarios); the step counter starts at 0."""
     import torch
 
     if (run_dir / "config.yaml").exists() and not overwrite:
@@ -154,7 +158,29 @@ def train(cfg: TrainConfig, run_dir: Path, overwrite: bool = False) -> dict[str,
     atomic_write_text(run_dir / "baselines.json", json.dumps(baseline_returns(cfg), indent=2))
     venv = make_vec_env(cfg, cfg.seed)
     model = build_model(cfg, venv, run_dir / "tb")
+    if init_from is not None:
+        venv = _init_from(model, venv, init_from)
     return _learn(cfg, run_dir, model, venv, None)
+
+
+def _init_from(model: Any, venv: Any, source: Path) -> Any:
+    """Copy a run's final policy weights and observation statistics into a fresh model and VecEnv."""
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    from ..env.trained import resolve_model
+
+    src_model, src_norm, _ = resolve_model(str(source))
+    if src_norm is None:
+        raise RunError(f"{source}: no vecnormalize.pkl to start from")
+    try:
+        params = _algo(load_config(source / "config.yaml")).load(str(src_model), device="cpu").get_parameters()
+        model.set_parameters({"policy": params["policy"]}, exact_match=False)
+        new = VecNormalize.load(str(src_norm), venv.venv)
+    except Exception as exc:
+        raise RunError(f"{source}: cannot start from this run ({type(exc).__name__}: {exc})") from exc
+    new.training, new.norm_reward = True, venv.norm_reward
+    model.set_env(new)
+    return new
 
 
 def latest_checkpoint(run_dir: Path) -> tuple[Path, Path, int]:
