@@ -16,12 +16,12 @@ def two_steps():
     return [
         dict(robot_force=np.array([1.0, 0.5]), robot_du=np.array([0.03, 0.0]),
              member_forces=np.array([[0.0, 0.0], [0.2, 0.0]]), member_du=np.zeros((2, 2)),
-             member_repulsion=np.zeros((2, 2)), action=np.array([0.5, 0.0]), prev_action=np.zeros(2),
+             member_repulsion=np.zeros((2, 2)), accel=np.array([0.5, 0.0]), prev_accel=np.zeros(2),
              potential_before=-2.0, potential_after=-1.97, success=False, violation=False),
         dict(robot_force=np.array([-1.0, 0.5]), robot_du=np.array([0.02, 0.01]),
              member_forces=np.array([[0.0, 0.3], [0.0, 0.0]]), member_du=np.array([[0.0, 0.01], [0.0, 0.0]]),
-             member_repulsion=np.array([[0.0, -0.16], [0.0, 0.0]]), action=np.array([0.5, 0.25]),
-             prev_action=np.array([0.5, 0.0]), potential_before=-1.97, potential_after=-0.2, success=True,
+             member_repulsion=np.array([[0.0, -0.16], [0.0, 0.0]]), accel=np.array([0.5, 0.25]),
+             prev_accel=np.array([0.5, 0.0]), potential_before=-1.97, potential_after=-0.2, success=True,
              violation=False),
     ]
 
@@ -45,7 +45,8 @@ def test_each_term_by_hand():
     # effort: -|v|^2 dt, v = du / dt
     assert t1["effort"] == pytest.approx(-(0.3**2) * DT)
     assert t2["effort"] == pytest.approx(-(0.2**2 + 0.1**2) * DT)
-    assert t1["smoothness"] == pytest.approx(-0.25) and t2["smoothness"] == pytest.approx(-0.0625)
+    # smoothness: -|jerk| dt = -|a_t - a_{t-1}|
+    assert t1["smoothness"] == pytest.approx(-0.5) and t2["smoothness"] == pytest.approx(-0.25)
     assert t2["slot_progress"] == pytest.approx(1.77)
     assert set(t1) == set(TERMS)
 
@@ -90,7 +91,7 @@ def test_slot_potential_rewards_braking_near_the_slot():
     from ssbl_pb.env.reward import slot_potential
 
     assert slot_potential(3.0, 0.35) == pytest.approx(-3.0)  # far: distance only
-    assert slot_potential(0.5, 0.3) == pytest.approx(-(0.5 + 2.0 * 0.3 * 0.5))
+    assert slot_potential(0.5, 0.3) == pytest.approx(-(0.5 + 5.0 * 0.3 * 0.5))
     assert slot_potential(0.0, 0.0) == 0.0
 
 
