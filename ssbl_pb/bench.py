@@ -9,7 +9,7 @@ import numpy as np
 import pybullet as p
 
 
-def rate(fn: Callable[[], None], n: int, repeats: int = 3) -> float:
+def rate(fn: Callable[[], None], n: int, repeats: int = 5) -> float:
     """Best calls per second of ``fn`` over ``repeats`` runs of ``n`` calls."""
     best = 0.0
     for _ in range(repeats):

@@ -73,6 +73,7 @@ class ApproachGroupEnv(gym.Env):
         self._prev_accel = np.zeros(2)
         self._sums: dict[str, float] = {}
         self._slot = np.zeros(2)
+        self._potential = 0.0
         self.trajectory: list[dict[str, Any]] = []
         self._top_cam = None
 
@@ -122,6 +123,7 @@ class ApproachGroupEnv(gym.Env):
         self._prev_accel = np.zeros(2)
         self._sums = {k: 0.0 for k in (*TERMS, "reward")}
         self._slot = self.world.group.free_slot(self.world.robot_pose[:2])
+        self._potential = slot_potential(self._route(self.world.robot_pose[:2]), 0.0)
         self.trajectory = [self._snapshot()] if self.record else []
         self._top_cam = None
         info = {"n_humans": n, "formation": formation, "start": start}
@@ -146,7 +148,7 @@ class ApproachGroupEnv(gym.Env):
         w, g = self.world, self.world.group
         a = np.minimum(np.maximum(np.asarray(action, dtype=float).reshape(self.action_space.shape), -1.0), 1.0)
         robot_before, members_before, vel_before = w.robot_pose[:2].copy(), g.pos.copy(), w.base.vel[:2].copy()
-        potential_before = slot_potential(self._route(robot_before), math.hypot(*w.base.vel[:2]))
+        potential_before = self._potential  # the state's potential, computed at the end of the previous step
         w.step(self.command(a))
         self._steps += 1
         self._slot = g.free_slot(w.robot_pose[:2])
@@ -158,9 +160,10 @@ class ApproachGroupEnv(gym.Env):
         success = (not violation and slot_after < self.task.slot_tolerance and speed < self.task.stop_speed
                    and abs(self.heading_error()) < math.radians(self.task.heading_tolerance_deg))
         accel = (w.base.vel[:2] - vel_before) / self.dt
+        self._potential = slot_potential(self._route(w.robot_pose[:2]), speed)
         terms = reward_terms(g.robot_force, w.robot_pose[:2] - robot_before, g.force, g.pos - members_before,
-                             g.repulsion, self.dt, accel, self._prev_accel, potential_before,
-                             slot_potential(self._route(w.robot_pose[:2]), speed), success, violation)
+                             g.repulsion, self.dt, accel, self._prev_accel, potential_before, self._potential,
+                             success, violation)
         r = total_reward(terms, self.weights)
         self._prev_accel = accel
         for k, v in terms.items():

@@ -59,31 +59,25 @@ def vector_observation(
     if frame_yaw is None:
         frame_yaw = approach_yaw(robot_pose, centre)
     c, s = math.cos(frame_yaw), math.sin(frame_yaw)
-    to_body = np.array([[c, -s], [s, c]])  # row vectors @ to_body rotate world -> body
-    here = np.array([x, y])
     members_pos = np.asarray(members_pos, dtype=float).reshape(-1, 2)
     k = min(len(members_pos), MAX_MEMBERS)
-    vecs = np.empty((3 + 2 * k, 2))
-    vecs[0] = slot - here
-    vecs[1] = centre - here
-    vecs[2] = robot_vel[:2]
-    rel = members_pos - here
+    rel = members_pos - (x, y)
     order = np.argsort(rel[:, 0] ** 2 + rel[:, 1] ** 2, kind="stable")[:k]
-    vecs[3:3 + k] = rel[order]
-    vecs[3 + k:] = np.asarray(members_vel, dtype=float).reshape(-1, 2)[order]
-    body = vecs @ to_body
+    # rows: slot, centre, robot velocity, members' positions, members' velocities (world frame)
+    vecs = np.concatenate([[(slot[0] - x, slot[1] - y), (centre[0] - x, centre[1] - y), robot_vel[:2]],
+                           rel[order], np.asarray(members_vel, dtype=float).reshape(-1, 2)[order]])
+    body = vecs @ np.array([[c, -s], [s, c]])  # world -> frame
     obs = np.zeros(OBS_SIZE, dtype=np.float32)
-    obs[0:4] = body[0:2].ravel() / POS_SCALE
+    obs[0:4] = body[0:2].ravel() * (1.0 / POS_SCALE)
     obs[4] = radius / POS_SCALE
-    obs[5:7] = body[2] / max_speed
+    obs[5:7] = body[2] * (1.0 / max_speed)
     obs[7] = robot_vel[2] / max_yaw_rate
-    obs[8:10] = (c, s)
-    obs[10:14] = np.asarray(walls) / POS_SCALE
-    block = np.zeros((MAX_MEMBERS, MEMBER_FIELDS))
-    block[:k, 0:2] = body[3:3 + k] / POS_SCALE
+    obs[8], obs[9] = c, s
+    obs[10:14] = np.asarray(walls) * (1.0 / POS_SCALE)
+    block = obs[14:14 + MAX_MEMBERS * MEMBER_FIELDS].reshape(MAX_MEMBERS, MEMBER_FIELDS)
+    block[:k, 0:2] = body[3:3 + k] * (1.0 / POS_SCALE)
     block[:k, 2:4] = body[3 + k:]
     block[:k, 4] = 1.0
-    obs[14:39] = block.ravel()
     obs[39] = math.remainder(yaw - frame_yaw, 2.0 * math.pi) / math.pi
     return np.clip(obs, -OBS_LIMIT, OBS_LIMIT, out=obs)
 

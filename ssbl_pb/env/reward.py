@@ -121,18 +121,20 @@ def reward_terms(
     violation: bool,
 ) -> dict[str, float]:
     """Unweighted terms of one step (see the module docstring for each formula and its unit)."""
-    v = robot_du / dt
-    moving_along = float(np.dot(v, robot_force)) > 0.0
-    da = np.asarray(accel, dtype=float) - np.asarray(prev_accel, dtype=float)
+    fx, fy = float(robot_force[0]), float(robot_force[1])
+    dx, dy = float(robot_du[0]), float(robot_du[1])
+    along = fx * dx + fy * dy  # F . du, and v . F has the same sign
+    jx, jy = float(accel[0] - prev_accel[0]), float(accel[1] - prev_accel[1])
+    rep = member_repulsion
     return {
-        "r1_group_forming": float(np.dot(robot_force, robot_du)),
-        "r2_non_increasing": dt if moving_along else 0.0,
+        "r1_group_forming": along,
+        "r2_non_increasing": dt if along > 0.0 else 0.0,
         "r3_time": -dt,
         "r4_success": 1.0 if success else 0.0,
-        "r5_altruism": -float(np.sum(member_forces * member_du)),
-        "r5_repulsion": -float(np.sum(np.hypot(member_repulsion[:, 0], member_repulsion[:, 1]))) * dt,
-        "effort": -float(np.dot(v, v)) * dt,
-        "smoothness": -math.hypot(da[0], da[1]),
+        "r5_altruism": -float((member_forces * member_du).sum()),
+        "r5_repulsion": -float(np.hypot(rep[:, 0], rep[:, 1]).sum()) * dt,
+        "effort": -(dx * dx + dy * dy) / dt,
+        "smoothness": -math.hypot(jx, jy),
         "slot_progress": potential_after - potential_before,
         "violation": -1.0 if violation else 0.0,
     }
