@@ -19,6 +19,8 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--steps", type=int, default=40_000)
     ap.add_argument("--out", type=Path, default=ROOT / "results" / "bench_training.json")
+    ap.add_argument("--sb3-defaults", action="store_true",
+                    help="PPO with SB3's default settings and one env instead of configs/vector_ff.yaml")
     args = ap.parse_args(argv)
 
     import gymnasium as gym
@@ -46,14 +48,23 @@ def main(argv: list[str] | None = None) -> int:
 
     cfg = load_config(ROOT / "configs" / "vector_ff.yaml")
     torch.set_num_threads(cfg.torch_threads)
-    out = {"steps": args.steps, "n_envs": cfg.n_envs, "config": "configs/vector_ff.yaml"}
+    label = "SB3 defaults, 1 env" if args.sb3_defaults else "configs/vector_ff.yaml"
+    out = {"steps": args.steps, "n_envs": 1 if args.sb3_defaults else cfg.n_envs, "config": label}
     for name in ("trivial", "vector_env"):
-        if name == "trivial":
-            venv = VecNormalize(DummyVecEnv([Trivial] * cfg.n_envs), gamma=cfg.ppo.gamma)
+        if args.sb3_defaults:
+            from stable_baselines3 import PPO
+
+            from ssbl_pb.env.approach import make_env
+
+            venv = DummyVecEnv([Trivial if name == "trivial" else make_env])
+            model = PPO("MlpPolicy", venv, device="cpu")
         else:
-            venv = make_vec_env(cfg, 0)
-        model = build_model(cfg, venv, Path("/tmp/ssbl_bench_tb"))
-        model.tensorboard_log = None
+            if name == "trivial":
+                venv = VecNormalize(DummyVecEnv([Trivial] * cfg.n_envs), gamma=cfg.ppo.gamma)
+            else:
+                venv = make_vec_env(cfg, 0)
+            model = build_model(cfg, venv, Path("/tmp/ssbl_bench_tb"))
+            model.tensorboard_log = None
         t0 = time.perf_counter()
         model.learn(args.steps)
         out[f"{name}_steps_per_s"] = model.num_timesteps / (time.perf_counter() - t0)
@@ -61,7 +72,7 @@ def main(argv: list[str] | None = None) -> int:
     out["ratio"] = out["vector_env_steps_per_s"] / out["trivial_steps_per_s"]
     args.out.parent.mkdir(parents=True, exist_ok=True)
     write_json(args.out, out)
-    print(f"trivial env {out['trivial_steps_per_s']:.0f} steps/s, Vector env {out['vector_env_steps_per_s']:.0f} "
+    print(f"{label}: trivial env {out['trivial_steps_per_s']:.0f} steps/s, Vector env {out['vector_env_steps_per_s']:.0f} "
           f"steps/s: {out['ratio']:.0%} ({'PASS' if out['ratio'] >= 0.8 else 'MISS'} >= 80 %) -> {args.out}")
     return 0
 
