@@ -5,7 +5,7 @@ baselines, and write plots and a video.
 Outputs (default OUT = results/quickstart): OUT/run/ (the training run: learning_curve.png, model, ...),
 OUT/eval_{learned,sffm,random}/ (episodes.csv, summary.json, paths.png), OUT/comparison.png,
 OUT/learned_episode.mp4 and OUT/README.md (what is where, with the headline numbers).
-    python tools/main_job.py                      # about 2-3 minutes on 2 cores
+    python tools/main_job.py                      # about 3 minutes on 2 cores
     python tools/main_job.py --steps 300000 --episodes 200
 """
 
@@ -25,7 +25,7 @@ from ssbl_pb.cli import fail, progress_bar  # noqa: E402
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--out", type=Path, default=ROOT / "results" / "quickstart")
-    ap.add_argument("--steps", type=int, default=80_000, help="training steps (default 80k, about a minute)")
+    ap.add_argument("--steps", type=int, default=150_000, help="training steps (default 150k, about 90 s)")
     ap.add_argument("--episodes", type=int, default=60, help="evaluation episodes per policy")
     ap.add_argument("--seed", type=int, default=0)
     args = ap.parse_args(argv)

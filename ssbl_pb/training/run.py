@@ -94,6 +94,7 @@ def baseline_returns(cfg: TrainConfig) -> dict[str, float]:
     from ..env.rollout import run_episode
 
     kwargs = {**_env_kwargs(cfg), "obs_mode": "vector"}
+    kwargs["reward"] = {**kwargs["reward"], **{k: v[1] for k, v in cfg.reward_ramp.items()}}  # as evaluations
     out = {}
     for name in ("random", "sffm"):
         env = make_env(**kwargs)
