@@ -162,3 +162,23 @@ projection_matrix: {rows: 3, cols: 4, data: [500.0, 0.0, 319.5, 0.0, 0.0, 500.0,
     assert core.robot_params.camera_hfov_deg == pytest.approx(2 * math.degrees(math.atan(320 / 500)), abs=0.2)
     obs, _ = env.reset(seed=0)
     assert obs.shape == (48, 64, 3)
+
+
+def test_calibration_yamls_overlay_the_defaults(tmp_path):
+    from ssbl_pb.env.approach import make_env
+    from ssbl_pb.params import ConfigError
+
+    (tmp_path / "dyn.yaml").write_text("latency_s: 0.2\nmax_accel: 0.4\n")
+    (tmp_path / "humans.yaml").write_text("personal_radius: 1.1\nmax_speed: 1.2\n")
+    (tmp_path / "room.yaml").write_text("world:\n  room_size: [8.0, 7.0]\nmap_to_room: {}\n")
+    env = make_env(robot_yaml=str(tmp_path / "dyn.yaml"), social_yaml=str(tmp_path / "humans.yaml"),
+                   room_yaml=str(tmp_path / "room.yaml"), robot={"max_speed": 0.3})
+    core = env.unwrapped
+    assert core.robot_params.latency_s == 0.2 and core.robot_params.max_accel == 0.4
+    assert core.robot_params.max_speed == 0.3  # explicit values win
+    assert core.social.personal_radius == 1.1 and core.world_params.room_size == (8.0, 7.0)
+    (tmp_path / "bad.yaml").write_text("latency: 0.2\n")
+    with pytest.raises(ConfigError, match="latency"):
+        make_env(robot_yaml=str(tmp_path / "bad.yaml"))
+    with pytest.raises(ConfigError, match="world"):
+        make_env(room_yaml=str(tmp_path / "dyn.yaml"))

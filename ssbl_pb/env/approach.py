@@ -197,18 +197,40 @@ class ApproachGroupEnv(gym.Env):
         self.world.close()
 
 
+def _merge_yaml(kwargs: dict[str, Any], key: str, path: str | None, section: str | None = None) -> None:
+    """Overlay the fields of a calibration YAML onto the ``key`` parameters (explicit values still win)."""
+    if path is None:
+        return
+    from ..params import ConfigError, load_yaml
+
+    data = load_yaml(path)
+    if section is not None:
+        if section not in data or not isinstance(data[section], dict):
+            raise ConfigError(f"{path}: expected a '{section}:' mapping (as tools/import_map.py writes)")
+        data = data[section]
+    given = kwargs.get(key) or {}
+    given = dataclasses.asdict(given) if dataclasses.is_dataclass(given) else dict(given)
+    kwargs[key] = {**data, **given}
+
+
 def make_env(obs_mode: str = "vector", camera_width: int = 84, camera_height: int = 84,
-             camera_yaml: str | None = None, **kwargs: Any) -> gym.Env:
+             camera_yaml: str | None = None, robot_yaml: str | None = None, social_yaml: str | None = None,
+             room_yaml: str | None = None, **kwargs: Any) -> gym.Env:
     """Entry point of ``ssbl_pb/ApproachGroup-v0``: the core env wrapped for ``obs_mode``.
 
     ``camera_yaml`` (a ROS camera_info YAML from ``tools/calibrate_camera.py``) makes the first-person camera
     match a calibrated camera: its intrinsics set the projection, its field of view and (when calibrated) its
-    height, pitch and forward offset set ``RobotParams``.
+    height, pitch and forward offset set ``RobotParams``. ``robot_yaml`` (``tools/identify_dynamics.py``),
+    ``social_yaml`` (``tools/calibrate_humans.py``) and ``room_yaml`` (``tools/import_map.py``, its ``world``
+    section) overlay calibrated values on the defaults.
     """
     from .wrappers import OBS_MODES, wrap_obs_mode
 
     if obs_mode not in OBS_MODES:
         raise ValueError(f"obs_mode {obs_mode!r}: expected one of {OBS_MODES}")
+    _merge_yaml(kwargs, "robot", robot_yaml)
+    _merge_yaml(kwargs, "social", social_yaml)
+    _merge_yaml(kwargs, "world", room_yaml, "world")
     projection = None
     if camera_yaml is not None:
         from ..perception.camera import PinholeCamera, sim_projection_from_yaml
