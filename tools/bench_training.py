@@ -72,8 +72,8 @@ def main(argv: list[str] | None = None) -> int:
     out["ratio"] = out["vector_env_steps_per_s"] / out["trivial_steps_per_s"]
     args.out.parent.mkdir(parents=True, exist_ok=True)
     write_json(args.out, out)
-    print(f"{label}: trivial env {out['trivial_steps_per_s']:.0f} steps/s, Vector env {out['vector_env_steps_per_s']:.0f} "
-          f"steps/s: {out['ratio']:.0%} ({'PASS' if out['ratio'] >= 0.8 else 'MISS'} >= 80 %) -> {args.out}")
+    print(f"{label}: trivial env {out['trivial_steps_per_s']:.0f} steps/s, "
+          f"Vector env {out['vector_env_steps_per_s']:.0f} steps/s: {out['ratio']:.0%} ({'PASS' if out['ratio'] >= 0.8 else 'MISS'} >= 80 %) -> {args.out}")
     return 0
 
 
