@@ -73,7 +73,8 @@ def main(argv: list[str] | None = None) -> int:
     args.out.parent.mkdir(parents=True, exist_ok=True)
     write_json(args.out, out)
     print(f"{label}: trivial env {out['trivial_steps_per_s']:.0f} steps/s, "
-          f"Vector env {out['vector_env_steps_per_s']:.0f} steps/s: {out['ratio']:.0%} ({'PASS' if out['ratio'] >= 0.8 else 'MISS'} >= 80 %) -> {args.out}")
+          f"Vector env {out['vector_env_steps_per_s']:.0f} steps/s: {out['ratio']:.0%} "
+          f"({'PASS' if out['ratio'] >= 0.8 else 'MISS'} >= 80 %) -> {args.out}")
     return 0
 
 
