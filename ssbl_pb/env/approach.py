@@ -100,7 +100,8 @@ class ApproachGroupEnv(gym.Env):
     def _route(self, xy: np.ndarray) -> float:
         """Distance to the free slot around the group (``reward.route_distance``)."""
         g = self.world.group
-        keep_out = g.radius + self.social.human_radius + self.robot_params.radius + self.task.intimate_zone
+        keep_out = (g.radius + self.social.human_radius + self.robot_params.radius + self.task.intimate_zone
+                    + self.task.route_margin)
         return route_distance(xy, self._slot, g.centre, keep_out)
 
     def heading_error(self) -> float:
