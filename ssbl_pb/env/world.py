@@ -44,14 +44,6 @@ def box_circle_distance(pose: np.ndarray, half: tuple[float, float], centres: np
     return np.hypot(out[:, 0], out[:, 1])
 
 
-def box_corners(pose: np.ndarray, half: tuple[float, float]) -> np.ndarray:
-    """The footprint's four corners (4, 2) in the world frame."""
-    c, s = math.cos(pose[2]), math.sin(pose[2])
-    local = np.array([[1, 1], [1, -1], [-1, 1], [-1, -1]]) * np.array(half)
-    rot = np.array([[c, -s], [s, c]])
-    return local @ rot.T + pose[None, :2]
-
-
 class World:
     """Pepper and one conversation group in a walled room; ``reset`` spawns, ``step`` advances by ``dt``."""
 
