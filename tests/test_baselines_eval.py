@@ -94,3 +94,13 @@ def test_cli_unwritable_out(tmp_path):
 def test_baseline_needs_vector_obs(tmp_path):
     with pytest.raises(UsageError, match="--obs-mode vector"):
         evaluate(Setup("sffm", obs_mode="camera"), 1, 0, tmp_path)
+
+
+def test_shipped_vector_policy_joins_the_group():
+    from ssbl_pb.env.trained import load_trained
+
+    env = ApproachGroupEnv(record=True)
+    pol = load_trained("vector", env.observation_space)
+    assert pol.filter is not None  # the agent's action smoothing travels with the model
+    wins = [run_episode(env, pol, 500_000 + i).metrics["success"] for i in range(4)]
+    assert sum(wins) >= 3
