@@ -19,6 +19,7 @@ LOWER_IS_BETTER = {"collision", "violation", "time_to_success_s", "episode_time_
                    "intimate_zone_time_s", "personal_zone_time_s", "human_displacement_m", "mean_accel",
                    "max_accel", "mean_jerk", "max_jerk", "arrival_speed", "outside_fov_time_s",
                    "final_slot_error_m", "final_heading_error_deg"}
+HIGHER_IS_BETTER = {"success", "approach_in_fov", "return", "min_clearance_m"}  # the rest is descriptive
 
 
 def paired_test(a: list[float], b: list[float], binary: bool) -> dict[str, float]:
@@ -57,13 +58,11 @@ def compare_rows(learned: list[dict[str, float]], baseline: list[dict[str, float
         test = paired_test(a, b, key in BINARY)
         ma, mb = mean_ci(a), mean_ci(b)
         better = None
-        if test["p"] < alpha and math.isfinite(ma["mean"]) and math.isfinite(mb["mean"]) and ma["mean"] != mb["mean"]:
-            lower = key in LOWER_IS_BETTER
+        directed = key in LOWER_IS_BETTER or key in HIGHER_IS_BETTER
+        if directed and test["p"] < alpha and math.isfinite(ma["mean"]) and math.isfinite(mb["mean"]) \
+                and ma["mean"] != mb["mean"]:
             learned_lower = ma["mean"] < mb["mean"]
-            better = "learned" if learned_lower == lower else "baseline"
-            if key not in LOWER_IS_BETTER and key not in ("success", "approach_in_fov", "return",
-                                                          "min_clearance_m"):
-                better = None  # no direction of "better" for descriptive metrics (n_humans, terms)
+            better = "learned" if learned_lower == (key in LOWER_IS_BETTER) else "baseline"
         out[key] = {"learned": ma, "baseline": mb, "test": test, "better": better}
     return out
 

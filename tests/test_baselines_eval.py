@@ -104,3 +104,15 @@ def test_shipped_vector_policy_joins_the_group():
     assert pol.filter is not None  # the agent's action smoothing travels with the model
     wins = [run_episode(env, pol, 500_000 + i).metrics["success"] for i in range(4)]
     assert sum(wins) >= 3
+
+
+def test_compare_marks_the_better_side():
+    from ssbl_pb.compare import compare_rows
+
+    learned = [{"success": 1.0, "mean_jerk": 0.1 + 0.01 * i, "n_humans": 2.0} for i in range(20)]
+    baseline = [{"success": 1.0, "mean_jerk": 0.3 + 0.01 * i, "n_humans": 3.0} for i in range(20)]
+    cmp = compare_rows(learned, baseline)
+    assert cmp["mean_jerk"]["better"] == "learned" and cmp["mean_jerk"]["test"]["p"] < 0.05
+    assert cmp["success"]["better"] is None  # no discordant pairs
+    assert cmp["n_humans"]["better"] is None  # descriptive: no direction
+    assert compare_rows(baseline, learned)["mean_jerk"]["better"] == "baseline"

@@ -142,9 +142,6 @@ def test_unknown_env_option_rejected():
 
 
 def test_camera_yaml_sets_projection_and_pose(tmp_path):
-    from ssbl_pb.perception.camera import PinholeCamera
-
-    cam = PinholeCamera.from_yaml  # noqa: F841  (the reader the env uses)
     yaml_text = """image_width: 640
 image_height: 480
 camera_name: test
