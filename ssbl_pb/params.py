@@ -106,6 +106,11 @@ class RobotParams:
         """Body radius used for clearances (m): mean of the footprint half-extents, 0.23 m by default."""
         return 0.25 * (self.length + self.width)
 
+    @property
+    def reach(self) -> float:
+        """Circumscribed radius of the footprint (m), 0.32 m by default: how far a corner reaches."""
+        return 0.5 * math.hypot(self.length, self.width)
+
 
 @dataclasses.dataclass(frozen=True)
 class SocialParams:

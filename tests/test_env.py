@@ -100,6 +100,52 @@ def test_intimate_zone_intrusion_ends_episode_as_failure():
     assert info["episode_terms"]["violation"] == -1.0
 
 
+def test_proximity_cost_charges_driving_at_a_member_not_standing_beside_it():
+    env = ApproachGroupEnv()
+    env.reset(seed=2)
+    w, g = env.world, env.world.group
+    m = g.pos[0]
+    u = (m - g.centre) / np.linalg.norm(m - g.centre)
+    # outside member 0 on the ray from the centre, 1.3 m from it (clearance 0.78 m, outside the 0.3 m band):
+    # driving toward the centre (action (1, 0) in the approach frame) drives at the member
+    start = m + 1.3 * u
+    w.base.reset(np.array([*start, math.atan2(-u[1], -u[0])]))
+    env._clearance = w.human_clearance()
+    cost, clearances = 0.0, []
+    for _ in range(20):
+        _, _, term, _, info = env.step(np.array([1.0, 0.0], dtype=np.float32))
+        cost += info["terms"]["proximity"]
+        clearances.append(w.human_clearance()[0])
+        if term:
+            break
+    assert info["violation"] and min(clearances) < 0.45
+    # it crossed the whole band (0.75 -> 0.45 m): the cost is about the band's mean depth times its width
+    assert -0.3 < cost < -0.1
+    # beside the member, in the band (clearance 0.73 m) but outside its personal zone and the joining range, so
+    # nobody else moves: standing still costs nothing, moving at it does
+    per_step = {}
+    for action in (0.0, 1.0):
+        env.reset(seed=2)
+        w.base.reset(np.array([*(g.centre0 + (np.linalg.norm(m - g.centre0) + 1.25) * u), math.atan2(-u[1], -u[0])]))
+        env._clearance = w.human_clearance()
+        assert 0.45 < env._clearance[0] < 0.75
+        per_step[action] = env.step(np.array([action, 0.0], dtype=np.float32))[4]["terms"]["proximity"]
+    assert per_step[0.0] == 0.0 and per_step[1.0] < 0.0
+
+
+def test_route_keeps_the_footprint_corners_out_of_the_intimate_zone():
+    env = ApproachGroupEnv(task={"route_margin": 0.0})
+    env.reset(seed=0)
+    g = env.world.group
+    # a point on the far side of the group from the slot: its way goes around at the keep-out radius
+    far = g.centre + 4.0 * (g.centre - env.slot()) / np.linalg.norm(g.centre - env.slot())
+    keep_out = g.radius + env.social.human_radius + env.robot_params.reach + env.task.intimate_zone
+    from ssbl_pb.env.reward import route_distance
+
+    assert env._route(far) == pytest.approx(route_distance(far, env.slot(), g.centre, keep_out))
+    assert env.robot_params.reach == pytest.approx(0.5 * math.hypot(0.48, 0.43))
+
+
 def test_truncation_at_max_steps():
     env = ApproachGroupEnv(task={"max_steps": 5})
     env.reset(seed=0)

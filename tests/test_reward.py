@@ -53,16 +53,28 @@ def test_each_term_by_hand():
 
 def test_total_is_eq15_with_our_terms():
     w = RewardWeights(w1=2.0, w2=3.0, w3=5.0, w4=7.0, w5=11.0, w_rep=13.0, w_e=0.5, w_a=0.25, w_effort=17.0,
-                      w_smooth=19.0, w_slot=23.0, violation_penalty=29.0)
+                      w_smooth=19.0, w_slot=23.0, w_prox=31.0, violation_penalty=29.0)
     s1, s2 = two_steps()
-    t = reward_terms(**s2, dt=DT)
+    t = reward_terms(**s2, dt=DT, proximity=0.01)
     ego = 2.0 * t["r1_group_forming"] + 3.0 * t["r2_non_increasing"] + 5.0 * t["r3_time"]
     expected = (0.5 * ego + 7.0 * 1.0 + 0.25 * (11.0 * t["r5_altruism"] + 13.0 * t["r5_repulsion"])
-                + 17.0 * t["effort"] + 19.0 * t["smoothness"] + 23.0 * t["slot_progress"])
+                + 17.0 * t["effort"] + 19.0 * t["smoothness"] + 23.0 * t["slot_progress"] - 31.0 * 0.01)
     assert total_reward(t, w) == pytest.approx(expected)
     # episode sum over the two steps
     total = sum(total_reward(reward_terms(**s, dt=DT), w) for s in (s1, s2))
-    assert total == pytest.approx(total_reward(reward_terms(**s1, dt=DT), w) + expected)
+    assert total == pytest.approx(total_reward(reward_terms(**s1, dt=DT), w) + expected + 31.0 * 0.01)
+
+
+def test_proximity_cost_charges_closing_in_near_the_intimate_zone():
+    from ssbl_pb.env.reward import proximity_cost
+
+    # intimate 0.45, band 0.3: member 0 closed 0.04 m to 0.55 (depth (0.75 - 0.55)/0.3 = 2/3); member 1 closed
+    # 0.05 m but ends at 0.8, outside the band; member 2 moved away
+    before, after = np.array([0.59, 0.85, 0.5]), np.array([0.55, 0.8, 0.52])
+    assert proximity_cost(before, after, 0.45, 0.3) == pytest.approx(0.04 * 2 / 3)
+    # standing still next to a member costs nothing; inside the zone the depth saturates at 1
+    assert proximity_cost(after, after, 0.45, 0.3) == 0.0
+    assert proximity_cost(np.array([0.45]), np.array([0.40]), 0.45, 0.3) == pytest.approx(0.05)
 
 
 def test_reference_weights_match_original_per_step_values():

@@ -82,6 +82,7 @@ def test_collisions_agree_with_pybullet(world):
         theirs = {(c.kind, c.index) for c in world.pybullet_contacts()}
         assert (("human", 0) in ours) == (dist < 0.24 + 0.28), dist
         assert ours == theirs, dist
+        assert world.in_contact() == bool(ours), dist
     half = world.params.room_size[0] / 2
     world.base.pose = np.array([half - 0.2, 0.0, 0.0])
     world._synced = False

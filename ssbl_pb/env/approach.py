@@ -15,7 +15,7 @@ import numpy as np
 
 from ..params import RobotParams, SocialParams, WorldParams, from_dict
 from . import observation as ob
-from .reward import TERMS, RewardWeights, reward_terms, route_distance, slot_potential, total_reward
+from .reward import TERMS, RewardWeights, proximity_cost, reward_terms, route_distance, slot_potential, total_reward
 from .scenarios import ScenarioMix
 from .task import TaskParams
 from .world import World
@@ -71,6 +71,7 @@ class ApproachGroupEnv(gym.Env):
         self.dt = self.world_params.dt
         self._steps = 0
         self._prev_accel = np.zeros(2)
+        self._clearance = np.zeros(0)
         self._sums: dict[str, float] = {}
         self._slot = np.zeros(2)
         self._potential = 0.0
@@ -100,7 +101,8 @@ class ApproachGroupEnv(gym.Env):
     def _route(self, xy: np.ndarray) -> float:
         """Distance to the free slot around the group (``reward.route_distance``)."""
         g = self.world.group
-        keep_out = (g.radius + self.social.human_radius + self.robot_params.radius + self.task.intimate_zone
+        # the footprint's corners, not its mean radius, must stay out of the intimate zone
+        keep_out = (g.radius + self.social.human_radius + self.robot_params.reach + self.task.intimate_zone
                     + self.task.route_margin)
         return route_distance(xy, self._slot, g.centre, keep_out)
 
@@ -125,6 +127,7 @@ class ApproachGroupEnv(gym.Env):
         self._sums = {k: 0.0 for k in (*TERMS, "reward")}
         self._slot = self.world.group.free_slot(self.world.robot_pose[:2])
         self._potential = slot_potential(self._route(self.world.robot_pose[:2]), 0.0)
+        self._clearance = self.world.human_clearance()
         self.trajectory = [self._snapshot()] if self.record else []
         self._top_cam = None
         info = {"n_humans": n, "formation": formation, "start": start}
@@ -155,16 +158,18 @@ class ApproachGroupEnv(gym.Env):
         self._slot = g.free_slot(w.robot_pose[:2])
         slot_after = math.hypot(*(self._slot - w.robot_pose[:2]))
         clearance = w.human_clearance()
-        collided = bool(w.collisions(clearance))
+        collided = w.in_contact(clearance)
         violation = collided or bool(clearance.min() < self.task.intimate_zone)
         speed = math.hypot(*w.base.vel[:2])
         success = (not violation and slot_after < self.task.slot_tolerance and speed < self.task.stop_speed
                    and abs(self.heading_error()) < math.radians(self.task.heading_tolerance_deg))
         accel = (w.base.vel[:2] - vel_before) / self.dt
         self._potential = slot_potential(self._route(w.robot_pose[:2]), speed)
+        proximity = proximity_cost(self._clearance, clearance, self.task.intimate_zone, self.task.proximity_band)
+        self._clearance = clearance
         terms = reward_terms(g.robot_force, w.robot_pose[:2] - robot_before, g.force, g.pos - members_before,
                              g.repulsion, self.dt, accel, self._prev_accel, potential_before, self._potential,
-                             success, violation)
+                             success, violation, proximity)
         r = total_reward(terms, self.weights)
         self._prev_accel = accel
         for k, v in terms.items():

@@ -75,15 +75,16 @@ def equality(P: np.ndarray, d_s: float, mask: np.ndarray | None = None,
     """
     _, dist = pair if pair is not None else pairwise(P)
     W = _neighbours(dist, d_s, mask).astype(P.dtype)
-    count1 = W.sum(axis=1) + 1.0
-    c = (P + W @ P) / count1[:, None]
+    WP, count = W @ P, W.sum(axis=1)
+    count1 = (count + 1.0)[:, None]
+    c = (P + WP) / count1
     to_c = c[:, None, :] - P[None, :, :]  # [i, j] = c_i - p_j
     d_to_c = np.hypot(to_c[..., 0], to_c[..., 1])
     self_d = np.diagonal(d_to_c)
-    m = (self_d + (W * d_to_c).sum(axis=1)) / count1
+    m = (self_d + (W * d_to_c).sum(axis=1)) / count1[:, 0]
     ok = self_d > _EPS
     scale = np.where(ok, 1.0 - m / np.where(ok, self_d, 1.0), 0.0)
-    return scale[:, None] * (c - P), _sum_toward(W, P)
+    return scale[:, None] * (c - P), WP - count[:, None] * P
 
 
 def cohesion(P: np.ndarray, o: np.ndarray, s: float, d_s: float, d_pub: float, mask: np.ndarray | None = None,
@@ -95,10 +96,11 @@ def cohesion(P: np.ndarray, o: np.ndarray, s: float, d_s: float, d_pub: float, m
     at ``o`` has no defined direction and feels no cohesion.
     """
     _, dist = pair if pair is not None else pairwise(P)
-    A = _neighbours(dist, d_pub, mask)
-    alpha = A.sum(axis=1) / (_neighbours(dist, d_s, mask).sum(axis=1) + 1.0)
+    A = _neighbours(dist, d_pub, mask).astype(P.dtype)
+    n_a = A.sum(axis=1)
+    alpha = n_a / (np.count_nonzero(_neighbours(dist, d_s, mask), axis=1) + 1.0)
     op = o - P
     d = np.hypot(op[:, 0], op[:, 1])
     ok = d > _EPS
     scale = np.where(ok, alpha * (1.0 - s / np.where(ok, d, 1.0)), 0.0)
-    return scale[:, None] * op, _sum_toward(A.astype(P.dtype), P)
+    return scale[:, None] * op, A @ P - n_a[:, None] * P

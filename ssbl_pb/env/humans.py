@@ -83,12 +83,12 @@ def widest_gap(angles: np.ndarray, toward: float | None = None, tie_deg: float =
 def combined_force(f_c: np.ndarray, f_e: np.ndarray, f_r: np.ndarray, gate: np.ndarray | float,
                    social: SocialParams) -> np.ndarray:
     """The SFFM's motion force ``w_c n(F_c) + w_e g n(F_e) + w_r n(F_r)`` (ref), ``n`` a soft normalisation."""
-    sat = social.saturation
+    k = len(f_c)
+    n = forces.soft_normalize(np.concatenate([f_c, f_e, f_r]), social.saturation)  # one call for all three
     g = np.asarray(gate, dtype=float)
-    g = g[..., None] if g.ndim else g
-    return (social.weight_cohesion * forces.soft_normalize(f_c, sat)
-            + social.weight_equality * g * forces.soft_normalize(f_e, sat)
-            + social.weight_repulsion * forces.soft_normalize(f_r, sat))
+    g = g[..., None] if g.ndim == 1 else g
+    return (social.weight_cohesion * n[:k] + (social.weight_equality * g) * n[k:2 * k]
+            + social.weight_repulsion * n[2 * k:])
 
 
 def equality_gate(ring_error: np.ndarray, social: SocialParams) -> np.ndarray:
@@ -147,33 +147,33 @@ class Group:
         s = self.social
         self.update_centre(robot_xy)
         agents = np.concatenate([self.pos, robot_xy[None, :2]])
-        joined = self.join_weight >= 0.5
-        f_c, f_e, f_r, _ = self.field_at(agents, joined)
+        f_c, f_e, f_r, _ = self.field_at(agents, self.join_weight >= 0.5)
         self.robot_force = f_c[-1] + f_e[-1] + f_r[-1]
-        f_c, f_e, f_r = f_c[:-1], f_e[:-1], f_r[:-1]
+        n = self.n
+        f_c, f_e, f_r = f_c[:n], f_e[:n], f_r[:n]
         rel = self.pos - self.centre
-        gate = equality_gate(np.hypot(rel[:, 0], rel[:, 1]) - self.radius, s)
+        gate = equality_gate(np.hypot(rel[:, 0], rel[:, 1]) - self.radius, s)[:, None]
         total = combined_force(f_c, f_e, f_r, gate, s)
-        self.force = f_c + gate[:, None] * f_e + f_r
+        self.force = f_c + gate * f_e + f_r
         self.repulsion = f_r
-        acc = s.force_newton / s.mass * forces.soft_normalize(total, 1.0)
         # exact solution of dv/dt = acc - drag v with acc held over dt
-        k = s.drag
-        v_inf = acc / k
-        decay = math.exp(-k * dt)
+        decay = math.exp(-s.drag * dt)
+        v_inf = forces.soft_normalize(total, 1.0) * (s.force_newton / s.mass / s.drag)
         v0 = self.vel
         vel = v_inf + (v0 - v_inf) * decay
         speed = np.hypot(vel[:, 0], vel[:, 1])
-        self.vel = vel * np.minimum(1.0, s.max_speed / np.maximum(speed, 1e-9))[:, None]
-        self.pos = self.pos + 0.5 * (v0 + self.vel) * dt
+        if speed.max() > s.max_speed:
+            vel *= np.minimum(1.0, s.max_speed / speed)[:, None]
+        self.vel = vel
+        self.pos = self.pos + (0.5 * dt) * (v0 + vel)
         # turn toward the conversation centre at a bounded rate
         to_o = self.centre - self.pos
         want = np.arctan2(to_o[:, 1], to_o[:, 0])
-        has = np.hypot(to_o[:, 0], to_o[:, 1]) > 1e-9
-        err = np.mod(want - self.yaw + math.pi, 2.0 * math.pi) - math.pi
+        err = np.remainder(want - self.yaw + math.pi, 2.0 * math.pi) - math.pi
         lim = s.max_turn_rate * dt
         turn = np.minimum(np.maximum(err, -lim), lim)
-        self.yaw = np.mod(self.yaw + np.where(has, turn, 0.0), 2.0 * math.pi)
+        turn[np.hypot(to_o[:, 0], to_o[:, 1]) <= 1e-9] = 0.0
+        self.yaw = np.remainder(self.yaw + turn, 2.0 * math.pi)
 
     def member_angles(self) -> np.ndarray:
         """Members' angles around the current conversation centre (rad)."""

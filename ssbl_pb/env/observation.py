@@ -55,31 +55,32 @@ def vector_observation(
 
     ``frame_yaw`` is the orientation of the frame vectors are expressed in (default: toward ``centre``).
     """
-    x, y, yaw = float(robot_pose[0]), float(robot_pose[1]), float(robot_pose[2])
+    x, y, yaw = np.asarray(robot_pose, dtype=float)[:3].tolist()
     if frame_yaw is None:
         frame_yaw = approach_yaw(robot_pose, centre)
     c, s = math.cos(frame_yaw), math.sin(frame_yaw)
+
+    def to_frame(dx: float, dy: float, scale: float) -> tuple[float, float]:
+        return (c * dx + s * dy) / scale, (c * dy - s * dx) / scale
+
     members_pos = np.asarray(members_pos, dtype=float).reshape(-1, 2)
     k = min(len(members_pos), MAX_MEMBERS)
     rel = members_pos - (x, y)
-    order = np.argsort(rel[:, 0] ** 2 + rel[:, 1] ** 2, kind="stable")[:k]
-    # rows: slot, centre, robot velocity, members' positions, members' velocities (world frame)
-    vecs = np.concatenate([[(slot[0] - x, slot[1] - y), (centre[0] - x, centre[1] - y), robot_vel[:2]],
-                           rel[order], np.asarray(members_vel, dtype=float).reshape(-1, 2)[order]])
-    body = vecs @ np.array([[c, -s], [s, c]])  # world -> frame
+    order = np.argsort(np.einsum("ij,ij->i", rel, rel), kind="stable")[:k]
+    (sx, sy), (cx, cy), (vx, vy, wz) = slot[:2].tolist(), centre[:2].tolist(), robot_vel[:3].tolist()
     obs = np.zeros(OBS_SIZE, dtype=np.float32)
-    obs[0:4] = body[0:2].ravel() * (1.0 / POS_SCALE)
-    obs[4] = radius / POS_SCALE
-    obs[5:7] = body[2] * (1.0 / max_speed)
-    obs[7] = robot_vel[2] / max_yaw_rate
-    obs[8], obs[9] = c, s
-    obs[10:14] = np.asarray(walls) * (1.0 / POS_SCALE)
+    obs[0:14] = (*to_frame(sx - x, sy - y, POS_SCALE), *to_frame(cx - x, cy - y, POS_SCALE), radius / POS_SCALE,
+                 *to_frame(vx, vy, max_speed), wz / max_yaw_rate, c, s, *(np.asarray(walls) / POS_SCALE).tolist())
+    # members' positions and velocities (world frame) -> frame, one matrix product
+    vecs = np.concatenate([rel[order], np.asarray(members_vel, dtype=float).reshape(-1, 2)[order]])
+    body = vecs @ np.array([[c, -s], [s, c]])
     block = obs[14:14 + MAX_MEMBERS * MEMBER_FIELDS].reshape(MAX_MEMBERS, MEMBER_FIELDS)
-    block[:k, 0:2] = body[3:3 + k] * (1.0 / POS_SCALE)
-    block[:k, 2:4] = body[3 + k:]
+    block[:k, 0:2] = body[:k] * (1.0 / POS_SCALE)
+    block[:k, 2:4] = body[k:]
     block[:k, 4] = 1.0
     obs[39] = math.remainder(yaw - frame_yaw, 2.0 * math.pi) / math.pi
-    return np.clip(obs, -OBS_LIMIT, OBS_LIMIT, out=obs)
+    np.maximum(obs, -OBS_LIMIT, out=obs)
+    return np.minimum(obs, OBS_LIMIT, out=obs)
 
 
 def approach_yaw(robot_pose: np.ndarray, centre: np.ndarray) -> float:

@@ -10,11 +10,14 @@ the start of the step and member j moving by ``du_j`` under its own total force 
 * R4 (success bonus): 1 on the step that completes the approach.
 * R5 (eq. 14, altruism): ``-sum_j F_j . du_j`` plus the original's repulsion term ``-sum_j |F_rep,j| dt``
   weighted by ``w_rep`` (how much the robot pushes the members).
+* proximity (ours): ``-sum_j max(0, c_j - c'_j) ramp(c'_j)``, the metres by which the robot closes the clearance
+  ``c`` to member j while within ``band`` of the intimate zone, weighted by ``ramp`` (0 at ``intimate + band``,
+  1 at ``intimate``). Standing still costs nothing, driving at a member does (see ``proximity_cost``).
 * effort: ``-|v|^2 dt``, and smoothness ``-|j| dt`` with ``j = (a_t - a_{t-1}) / dt`` the base's jerk (ours,
   see below; L1 so that small jerks still cost).
 
 Total (eq. 15): ``w_e (w1 R1 + w2 R2 + w3 R3) + w4 R4 + w_a (w5 R5 + w_rep R5_rep) + w_effort E + w_smooth S
-+ w_slot P - penalty``. The success bonus stands outside ``w_e`` as in the original code, which adds +1 on
++ w_slot P + w_prox C - penalty``. The success bonus stands outside ``w_e`` as in the original code, which adds +1 on
 success on top of the weighted per-step reward (eq. 15 writes it inside; with ``w_e = 0.0035`` it would be
 negligible). ``P`` is the change of ``slot_potential`` (progress toward the free slot and braking near
 it; ours) and ``penalty`` applies on a collision or an intrusion into a member's intimate zone.
@@ -30,7 +33,7 @@ import numpy as np
 from ..params import _check, _nonneg
 
 TERMS = ("r1_group_forming", "r2_non_increasing", "r3_time", "r4_success", "r5_altruism", "r5_repulsion",
-         "effort", "smoothness", "slot_progress", "violation")
+         "effort", "smoothness", "slot_progress", "proximity", "violation")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -61,6 +64,7 @@ class RewardWeights:
     w_effort: float = 0.1  # -|v|^2 dt
     w_smooth: float = 0.6  # -|jerk| dt, jerk in m/s^3 (training ramps it up from 0.05: configs/)
     w_slot: float = 1.0  # change of slot_potential (per metre of progress toward the free slot)
+    w_prox: float = 3.0  # closing in on a member near its intimate zone (per metre closed at the zone's edge)
     violation_penalty: float = 1.0  # collision or intimate-zone intrusion (ends the episode)
 
     def __post_init__(self) -> None:
@@ -73,7 +77,8 @@ class RewardWeights:
     def reference(cls, dt: float = 0.1) -> RewardWeights:
         """The original Unity code's weights, rescaled to per-second terms at control period ``dt``."""
         return cls(w1=0.012 / dt, w2=3.6 / dt, w3=2.0 / dt, w4=1.0, w5=0.012 / dt, w_rep=1 / 3.8 / dt,
-                   w_e=0.0035, w_a=0.9965, w_effort=0.0035 * 0.16 / dt, w_smooth=0.0, w_slot=0.0, violation_penalty=0.0)
+                   w_e=0.0035, w_a=0.9965, w_effort=0.0035 * 0.16 / dt, w_smooth=0.0, w_slot=0.0, w_prox=0.0,
+                   violation_penalty=0.0)
 
 
 def route_distance(p: np.ndarray, slot: np.ndarray, centre: np.ndarray, keep_out: float) -> float:
@@ -106,6 +111,22 @@ def slot_potential(distance: float, speed: float, brake_gain: float = 5.0, brake
     return -(distance + brake_gain * speed * max(0.0, 1.0 - distance / brake_radius))
 
 
+def proximity_cost(clearance_before: np.ndarray, clearance_after: np.ndarray, intimate: float,
+                   band: float) -> float:
+    """Metres the robot closed on members near their intimate zone this step, each weighted by how deep it is in
+    the ``band`` beyond the zone (linear: 0 at ``intimate + band``, 1 at ``intimate``); >= 0.
+
+    Ours. The violation penalty alone is a cliff: a policy that circles a group along the intimate zone's edge
+    learns nothing until it falls over it. This cost is graded and charges only closing in, so standing at a
+    slot between two near neighbours costs (almost) nothing, while grazing a member at full speed does. Closing
+    counts whoever moves; members settling around a still robot close at most a few cm per second.
+    """
+    after = np.asarray(clearance_after)
+    closed = np.maximum(np.asarray(clearance_before) - after, 0.0)
+    depth = np.minimum(np.maximum((intimate + band - after) * (1.0 / band), 0.0), 1.0)
+    return float(closed @ depth)
+
+
 def reward_terms(
     robot_force: np.ndarray,
     robot_du: np.ndarray,
@@ -119,6 +140,7 @@ def reward_terms(
     potential_after: float,
     success: bool,
     violation: bool,
+    proximity: float = 0.0,
 ) -> dict[str, float]:
     """Unweighted terms of one step (see the module docstring for each formula and its unit)."""
     fx, fy = float(robot_force[0]), float(robot_force[1])
@@ -136,6 +158,7 @@ def reward_terms(
         "effort": -(dx * dx + dy * dy) / dt,
         "smoothness": -math.hypot(jx, jy),
         "slot_progress": potential_after - potential_before,
+        "proximity": -proximity,
         "violation": -1.0 if violation else 0.0,
     }
 
@@ -145,4 +168,5 @@ def total_reward(t: dict[str, float], w: RewardWeights) -> float:
     ego = w.w1 * t["r1_group_forming"] + w.w2 * t["r2_non_increasing"] + w.w3 * t["r3_time"]
     return (w.w_e * ego + w.w4 * t["r4_success"] + w.w_a * (w.w5 * t["r5_altruism"] + w.w_rep * t["r5_repulsion"])
             + w.w_effort * t["effort"] + w.w_smooth * t["smoothness"] + w.w_slot * t["slot_progress"]
+            + w.w_prox * t["proximity"]
             + w.violation_penalty * t["violation"])

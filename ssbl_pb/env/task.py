@@ -29,14 +29,17 @@ class TaskParams:
     social_zone: float = 3.6  # m, Hall; the field-of-view metric counts time within it
     turn: bool = False  # action includes turning; by default the robot faces the group centre (ref)
     heading_gain: float = 2.0  # 1/s, proportional turn toward the centre when ``turn`` is False
-    route_margin: float = 0.0  # extra m kept beyond the intimate zone by the shaping's way around the group
-    #                             (0.4 m was tried against corner cutting in `mixed`: no change, 86 %)
+    proximity_band: float = 0.3  # m beyond the intimate zone where closing in costs (reward.proximity_cost):
+    #                              Pepper's braking distance from 0.35 m/s at 0.3 m/s^2 (0.2 m) plus 0.1 m
+    route_margin: float = 0.15  # extra m kept beyond the intimate zone by the shaping's way around the group:
+    #                              learned policies follow that way closely, so it needs slack (about half the
+    #                              footprint's corner-to-side difference plus a control step at full speed)
 
     def __post_init__(self) -> None:
         _check(isinstance(self.max_steps, int) and self.max_steps >= 1, "task", "max_steps", self.max_steps,
                "an integer >= 1")
         _positive("task", self, "slot_tolerance", "heading_tolerance_deg", "stop_speed", "intimate_zone",
-                  "personal_zone", "social_zone", "heading_gain")
+                  "personal_zone", "social_zone", "heading_gain", "proximity_band")
         _check(isinstance(self.route_margin, int | float) and self.route_margin >= 0, "task", "route_margin",
                self.route_margin, "a number >= 0")
         _check(isinstance(self.turn, bool), "task", "turn", self.turn, "true or false")

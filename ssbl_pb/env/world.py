@@ -38,9 +38,8 @@ class Collision:
 def box_circle_distance(pose: np.ndarray, half: tuple[float, float], centres: np.ndarray) -> np.ndarray:
     """Distance (m) from points (k, 2) to a box footprint with half-extents ``half`` at ``pose`` (0 inside)."""
     c, s = math.cos(pose[2]), math.sin(pose[2])
-    d = centres - pose[None, :2]
-    local = np.stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]], axis=1)
-    out = np.maximum(np.abs(local) - np.array(half), 0.0)
+    local = (centres - pose[None, :2]) @ np.array([[c, -s], [s, c]])  # world -> body frame
+    out = np.maximum(np.abs(local) - half, 0.0)
     return np.hypot(out[:, 0], out[:, 1])
 
 
@@ -171,6 +170,11 @@ class World:
         c, s = abs(math.cos(yaw)), abs(math.sin(yaw))
         ex, ey = hl * c + hw * s, hl * s + hw * c  # the footprint's half-extent along x and y
         return np.array([sx / 2 - x - ex, x - ex + sx / 2, sy / 2 - y - ey, y - ey + sy / 2])
+
+    def in_contact(self, clearance: np.ndarray | None = None) -> bool:
+        """Whether ``collisions`` would list anything (cheaper; ``clearance`` as there)."""
+        clearance = self.human_clearance() if clearance is None else clearance
+        return bool(clearance.min(initial=np.inf) <= 0.0 or self.wall_clearance().min() <= 0.0)
 
     def collisions(self, clearance: np.ndarray | None = None) -> list[Collision]:
         """Robot-human and robot-wall contacts right now (``clearance``: a ``human_clearance()`` already made)."""
