@@ -140,3 +140,50 @@ def test_camera_speed_cnn_trains(tmp_path):
     assert pol.predict(obs)[0].shape == (2,)
     with pytest.raises(ValueError, match="trained for observations"):
         load_trained(str(out), make_env().observation_space)
+
+
+def test_bounded_mean_policy_keeps_the_mean_in_the_box_and_loads_back(tmp_path):
+    import torch
+    from stable_baselines3 import PPO
+
+    from ssbl_pb.env.approach import make_env
+    from ssbl_pb.training.policies import BoundedMlpPolicy
+
+    model = PPO(BoundedMlpPolicy, make_env(), n_steps=64, batch_size=64, seed=0, device="cpu")
+    with torch.no_grad():  # a head that would put the plain mean far outside [-1, 1]
+        model.policy.action_net[0].weight.fill_(0.0)
+        model.policy.action_net[0].bias.copy_(torch.tensor([50.0, -50.0]))
+    obs = torch.ones((4, model.observation_space.shape[0]))
+    mean = model.policy.get_distribution(obs).distribution.mean
+    assert torch.allclose(mean, torch.tensor([1.0, -1.0]).expand(4, 2))  # tanh(+-50), not +-50
+    model.save(tmp_path / "m.zip")
+    back = PPO.load(tmp_path / "m.zip", device="cpu")
+    assert type(back.policy) is BoundedMlpPolicy
+    assert torch.allclose(back.policy.get_distribution(obs).distribution.mean, mean)
+
+
+def test_build_model_bounded_by_default_plain_on_request(tmp_path):
+    from stable_baselines3.common.policies import ActorCriticPolicy
+
+    from ssbl_pb.training.policies import BoundedMlpPolicy
+    from ssbl_pb.training.run import build_model, make_vec_env
+
+    for bounded, cls in ((True, BoundedMlpPolicy), (False, ActorCriticPolicy)):
+        cfg = load_config(None, {"n_envs": 1, "ppo": {"bounded_mean": bounded}})
+        model = build_model(cfg, make_vec_env(cfg, 0), tmp_path / "tb")
+        assert type(model.policy) is cls
+    with pytest.raises(ConfigError, match="bounded_mean"):
+        load_config(None, {"ppo": {"bounded_mean": "yes"}})
+
+
+def test_fine_tuning_across_plain_and_bounded_heads_keeps_the_weights():
+    import torch
+
+    from ssbl_pb.training.run import RunError, _match_action_head
+
+    w, b = torch.ones(2, 8), torch.zeros(2)
+    target = {"action_net.0.weight": torch.zeros(2, 8), "action_net.0.bias": torch.zeros(2), "log_std": torch.zeros(2)}
+    out = _match_action_head({"action_net.weight": w, "action_net.bias": b, "log_std": torch.ones(2)}, target)
+    assert out["action_net.0.weight"] is w and "action_net.weight" not in out
+    with pytest.raises(RunError, match="net_arch"):
+        _match_action_head({"action_net.weight": torch.ones(2, 16), "action_net.bias": b, "log_std": b}, target)

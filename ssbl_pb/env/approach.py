@@ -108,8 +108,8 @@ class ApproachGroupEnv(gym.Env):
 
     def heading_error(self) -> float:
         """Angle (rad) from the robot's heading to the conversation centre."""
-        d = self.world.group.centre - self.world.robot_pose[:2]
-        return math.remainder(math.atan2(d[1], d[0]) - self.world.robot_pose[2], 2.0 * math.pi)
+        (cx, cy), (x, y, yaw) = self.world.group.centre.tolist(), self.world.robot_pose[:3].tolist()
+        return math.remainder(math.atan2(cy - y, cx - x) - yaw, 2.0 * math.pi)
 
     def _snapshot(self) -> dict[str, Any]:
         g = self.world.group
@@ -139,7 +139,7 @@ class ApproachGroupEnv(gym.Env):
         The action is (toward the centre, to the left of that) in the approach frame (``observation``), or
         (forward, left, turn) in the body frame when the policy steers (``TaskParams.turn``).
         """
-        a = np.minimum(np.maximum(np.asarray(action, dtype=float), -1.0), 1.0)
+        a = [min(max(v, -1.0), 1.0) for v in np.asarray(action, dtype=float).ravel().tolist()]
         rp = self.robot_params
         if self.task.turn:
             return np.array([a[0] * rp.max_speed, a[1] * rp.max_speed, a[2] * rp.max_yaw_rate])
@@ -150,17 +150,19 @@ class ApproachGroupEnv(gym.Env):
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
         w, g = self.world, self.world.group
-        a = np.minimum(np.maximum(np.asarray(action, dtype=float).reshape(self.action_space.shape), -1.0), 1.0)
-        robot_before, members_before, vel_before = w.robot_pose[:2].copy(), g.pos.copy(), w.base.vel[:2].copy()
+        a = np.asarray(action, dtype=float).reshape(self.action_space.shape)  # ``command`` clips it
+        # stepping replaces these arrays (never writes into them), so the old ones are the "before" states
+        robot_before, members_before, vel_before = w.base.pose[:2], g.pos, w.base.vel[:2]
         potential_before = self._potential  # the state's potential, computed at the end of the previous step
         w.step(self.command(a))
         self._steps += 1
-        self._slot = g.free_slot(w.robot_pose[:2])
-        slot_after = math.hypot(*(self._slot - w.robot_pose[:2]))
+        xy = w.robot_pose[:2]
+        self._slot = g.free_slot(xy)
+        slot_after = math.dist(self._slot.tolist(), xy.tolist())
         clearance = w.human_clearance()
         collided = w.in_contact(clearance)
         violation = collided or bool(clearance.min() < self.task.intimate_zone)
-        speed = math.hypot(*w.base.vel[:2])
+        speed = math.hypot(*w.base.vel[:2].tolist())
         success = (not violation and slot_after < self.task.slot_tolerance and speed < self.task.stop_speed
                    and abs(self.heading_error()) < math.radians(self.task.heading_tolerance_deg))
         accel = (w.base.vel[:2] - vel_before) / self.dt

@@ -174,7 +174,7 @@ class World:
     def in_contact(self, clearance: np.ndarray | None = None) -> bool:
         """Whether ``collisions`` would list anything (cheaper; ``clearance`` as there)."""
         clearance = self.human_clearance() if clearance is None else clearance
-        return bool(clearance.min(initial=np.inf) <= 0.0 or self.wall_clearance().min() <= 0.0)
+        return bool((len(clearance) and clearance.min() <= 0.0) or self.wall_clearance().min() <= 0.0)
 
     def collisions(self, clearance: np.ndarray | None = None) -> list[Collision]:
         """Robot-human and robot-wall contacts right now (``clearance``: a ``human_clearance()`` already made)."""

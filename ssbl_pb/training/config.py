@@ -14,6 +14,7 @@ gamma / lambda     0.99 / 0.95         same
 clip / entropy     0.2 / 1e-3          same
 obs normalisation  on                  on (VecNormalize; reward normalisation on too)
 LSTM               memory 256, seq 64  hidden 128 (``policy: lstm``)
+action mean        not given           tanh-bounded (``ppo.bounded_mean``, training/policies.py)
 =================  ==================  ===========================================================
 """
 
@@ -48,6 +49,7 @@ class PPOConfig:
     net_arch: tuple[int, ...] = (128, 128)
     lstm_hidden_size: int = 128
     log_std_init: float = -0.5  # SB3 default 0 (std 1) saturates [-1, 1] actions and makes stopping rare
+    bounded_mean: bool = True  # tanh on the Gaussian mean (training/policies.py): keeps saturated axes exploring
 
     def __post_init__(self) -> None:
         for name in ("learning_rate", "gamma", "gae_lambda", "clip_range"):
@@ -58,6 +60,7 @@ class PPOConfig:
             _check(isinstance(v, int) and v >= 1, "ppo", name, v, "an integer >= 1")
         _check(all(isinstance(h, int) and h > 0 for h in self.net_arch), "ppo", "net_arch", self.net_arch,
                "a list of positive layer sizes")
+        _check(isinstance(self.bounded_mean, bool), "ppo", "bounded_mean", self.bounded_mean, "true or false")
 
 
 @dataclasses.dataclass(frozen=True)

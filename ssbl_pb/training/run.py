@@ -78,10 +78,15 @@ def build_model(cfg: TrainConfig, venv: Any, tb_dir: Path) -> Any:
     kwargs: dict[str, Any] = {"net_arch": list(p.net_arch), "log_std_init": p.log_std_init}
     if cfg.policy == "lstm":
         kwargs["lstm_hidden_size"] = p.lstm_hidden_size
-        policy = {"vector": "MlpLstmPolicy", "camera": "CnnLstmPolicy", "camera_speed": "MultiInputLstmPolicy"}
+        names = {"vector": "MlpLstmPolicy", "camera": "CnnLstmPolicy", "camera_speed": "MultiInputLstmPolicy"}
     else:
-        policy = {"vector": "MlpPolicy", "camera": "CnnPolicy", "camera_speed": "MultiInputPolicy"}
-    return _algo(cfg)(policy[cfg.obs_mode], venv, learning_rate=p.learning_rate, n_steps=p.n_steps,
+        names = {"vector": "MlpPolicy", "camera": "CnnPolicy", "camera_speed": "MultiInputPolicy"}
+    policy: Any = names[cfg.obs_mode]
+    if p.bounded_mean:
+        from .policies import bounded_policy
+
+        policy = bounded_policy(cfg.obs_mode, cfg.policy == "lstm")
+    return _algo(cfg)(policy, venv, learning_rate=p.learning_rate, n_steps=p.n_steps,
                       batch_size=p.batch_size, n_epochs=p.n_epochs, gamma=p.gamma, gae_lambda=p.gae_lambda,
                       clip_range=p.clip_range, ent_coef=p.ent_coef, vf_coef=p.vf_coef,
                       max_grad_norm=p.max_grad_norm, policy_kwargs=kwargs, seed=cfg.seed, device=cfg.device,
@@ -175,13 +180,31 @@ def _init_from(model: Any, venv: Any, source: Path) -> Any:
         raise RunError(f"{source}: no vecnormalize.pkl to start from")
     try:
         params = _algo(load_config(source / "config.yaml")).load(str(src_model), device="cpu").get_parameters()
-        model.set_parameters({"policy": params["policy"]}, exact_match=False)
+        model.set_parameters({"policy": _match_action_head(params["policy"], model.policy.state_dict())},
+                             exact_match=False)
         new = VecNormalize.load(str(src_norm), venv.venv)
     except Exception as exc:
         raise RunError(f"{source}: cannot start from this run ({type(exc).__name__}: {exc})") from exc
     new.training, new.norm_reward = True, venv.norm_reward
     model.set_env(new)
     return new
+
+
+def _match_action_head(source: dict[str, Any], target: dict[str, Any]) -> dict[str, Any]:
+    """Rename the action head's weights between a plain and a bounded-mean policy (``action_net.weight`` <->
+    ``action_net.0.weight``) so fine-tuning across the two keeps them; raise when layers still do not match."""
+    out = dict(source)
+    for key in list(out):
+        for a, b in (("action_net.", "action_net.0."), ("action_net.0.", "action_net.")):
+            if key.startswith(a) and key not in target and b + key[len(a):] in target:
+                out[b + key[len(a):]] = out.pop(key)
+                break
+    missing = sorted(k for k in target if k not in out)
+    bad = sorted(k for k in target if k in out and tuple(out[k].shape) != tuple(target[k].shape))
+    if missing or bad:
+        raise RunError(f"the source policy does not fit this config's network (missing {missing}, different shapes "
+                       f"{bad}): use the same ppo.net_arch and observation mode")
+    return out
 
 
 def latest_checkpoint(run_dir: Path) -> tuple[Path, Path, int]:
