@@ -32,8 +32,7 @@ class TaskParams:
     proximity_band: float = 0.3  # m beyond the intimate zone where closing in costs (reward.proximity_cost):
     #                              Pepper's braking distance from 0.35 m/s at 0.3 m/s^2 (0.2 m) plus 0.1 m
     route_margin: float = 0.15  # extra m kept beyond the intimate zone by the shaping's way around the group:
-    #                              learned policies follow that way closely, so it needs slack (about half the
-    #                              footprint's corner-to-side difference plus a control step at full speed)
+    #                              about four control steps at full speed (0.035 m each), room to correct
 
     def __post_init__(self) -> None:
         _check(isinstance(self.max_steps, int) and self.max_steps >= 1, "task", "max_steps", self.max_steps,

@@ -12,6 +12,7 @@ import numpy as np
 import yaml
 
 from ..policies import SHIPPED
+from .observation import OBS_SIZE
 from .policies import Policy
 
 MODEL_FILES = ("model.zip", "best/model.zip")  # a run directory: its final model, else its best one
@@ -48,7 +49,11 @@ def resolve_model(spec: str) -> tuple[Path, Path | None, dict[str, Any]]:
 class TrainedPolicy(Policy):
     """An SB3 model behind the common ``predict`` signature; observations are normalised as in training."""
 
-    def __init__(self, model: Any, normalizer: Any = None, recurrent: bool = False, smoothing: float = 1.0) -> None:
+    def __init__(self, model: Any, normalizer: Any = None, recurrent: bool = False, smoothing: float = 1.0,
+                 shield: bool = False) -> None:
+        """``smoothing`` and ``shield`` are the agent's action stages as in training (config ``action_smoothing``,
+        ``safety_shield``); the shield needs Vector observations."""
+        from .shield import SafetyShield
         from .wrappers import ActionFilter
 
         self.model = model
@@ -56,6 +61,10 @@ class TrainedPolicy(Policy):
         self.recurrent = recurrent
         self.observation_space = model.observation_space
         self.filter = ActionFilter(smoothing) if smoothing < 1.0 else None
+        vector = isinstance(model.observation_space, gym.spaces.Box) and model.observation_space.shape == (OBS_SIZE,)
+        if shield and not vector:
+            raise ModelError("the safety shield needs a Vector-observation model")
+        self.shield = SafetyShield() if shield else None
 
     def reset(self) -> None:
         """Start of an episode: clears the action filter."""
@@ -73,7 +82,8 @@ class TrainedPolicy(Policy):
                                                deterministic=deterministic)
         else:
             action, state = self.model.predict(obs, deterministic=deterministic)[0], None
-        return (action if self.filter is None else self.filter(action)), state
+        action = action if self.filter is None else self.filter(action)
+        return (action if self.shield is None else self.shield(observation, action)), state
 
 
 def _channel_first(space: gym.Space) -> gym.Space:
@@ -116,4 +126,5 @@ def load_trained(spec: str, observation_space: gym.Space | None = None) -> Train
         except Exception as exc:
             raise ModelError(f"{norm_path}: cannot read the normalisation statistics ({exc})") from exc
         normalizer.training = False
-    return TrainedPolicy(model, normalizer, recurrent, float(config.get("action_smoothing", 1.0)))
+    shield = bool(config.get("safety_shield", False)) and config.get("obs_mode", "vector") == "vector"
+    return TrainedPolicy(model, normalizer, recurrent, float(config.get("action_smoothing", 1.0)), shield)

@@ -1,9 +1,12 @@
-"""Observation modes as wrappers of the one core env (paper III-B: Vector, CameraOnly, CameraSpeed)."""
+"""Observation modes as wrappers of the one core env (paper III-B: Vector, CameraOnly, CameraSpeed), and the
+agent-side action stages used in training (smoothing, safety shield)."""
 
 from __future__ import annotations
 
 import gymnasium as gym
 import numpy as np
+
+from .shield import ShieldParams, shield_action
 
 OBS_MODES = ("vector", "camera", "camera_speed")
 
@@ -61,6 +64,30 @@ class ActionSmoothing(gym.ActionWrapper):
 
     def action(self, action: np.ndarray) -> np.ndarray:
         return self.filter(action)
+
+
+class ShieldWrapper(gym.Wrapper):
+    """Applies the safety shield (``env.shield``) to every action, from the latest Vector observation.
+
+    Wraps the Vector-mode env directly (the agent's smoothing goes outside it, so the shield acts last)."""
+
+    def __init__(self, env: gym.Env, params: ShieldParams | None = None) -> None:
+        super().__init__(env)
+        core = env.unwrapped
+        self.params = params or ShieldParams.from_env(core.robot_params, core.social, core.task)
+        self._obs: np.ndarray | None = None
+
+    def reset(self, **kwargs):  # type: ignore[override]
+        obs, info = self.env.reset(**kwargs)
+        self._obs = obs
+        return obs, info
+
+    def step(self, action: np.ndarray):  # type: ignore[override]
+        if self._obs is None:
+            raise RuntimeError("ShieldWrapper.step called before reset")
+        obs, r, terminated, truncated, info = self.env.step(shield_action(self._obs, action, self.params))
+        self._obs = obs
+        return obs, r, terminated, truncated, info
 
 
 class ActionFilter:

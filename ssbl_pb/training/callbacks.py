@@ -79,14 +79,14 @@ class EvalCheckpointCallback(BaseCallback):
     normalisation in ``best/``; every ``checkpoint_every`` steps: a resumable checkpoint."""
 
     def __init__(self, run_dir: Path, make_eval_env: Any, eval_every: int, eval_episodes: int, eval_seed: int,
-                 checkpoint_every: int, recurrent: bool, smoothing: float = 1.0) -> None:
+                 checkpoint_every: int, recurrent: bool, smoothing: float = 1.0, shield: bool = False) -> None:
         super().__init__()
         self.run_dir = run_dir
         self.make_eval_env = make_eval_env
         self.eval_every, self.eval_episodes, self.eval_seed = eval_every, eval_episodes, eval_seed
         self.checkpoint_every = checkpoint_every
         self.recurrent = recurrent
-        self.smoothing = smoothing
+        self.smoothing, self.shield = smoothing, shield
         self.best = -math.inf
         state = run_dir / "best" / "eval.json"
         if state.exists():
@@ -99,7 +99,7 @@ class EvalCheckpointCallback(BaseCallback):
 
     def evaluate(self) -> dict[str, float]:
         env = self.make_eval_env()
-        policy = TrainedPolicy(self.model, self.training_env, self.recurrent, self.smoothing)
+        policy = TrainedPolicy(self.model, self.training_env, self.recurrent, self.smoothing, self.shield)
         try:
             res = [run_episode(env, policy, self.eval_seed + i, keep_trajectory=False).metrics
                    for i in range(self.eval_episodes)]

@@ -91,6 +91,8 @@ class TrainConfig:
     baseline_episodes: int = 20  # episodes of the random and SFFM baselines drawn on the learning curve
     camera_size: int = 84
     action_smoothing: float = 0.4  # agent-side action filter (env.wrappers.ActionSmoothing); 1.0 = off
+    safety_shield: bool = True  # agent-side safety shield (env.shield), the last action stage; it reads the
+    #                             Vector observation, so camera modes train without it
 
     def __post_init__(self) -> None:
         _check(self.obs_mode in OBS_MODES, "config", "obs_mode", self.obs_mode, f"one of {OBS_MODES}")
@@ -107,6 +109,7 @@ class TrainConfig:
             v = getattr(self, name)
             _check(isinstance(v, int) and v >= 1, "config", name, v, "an integer >= 1")
         _check(isinstance(self.seed, int), "config", "seed", self.seed, "an integer")
+        _check(isinstance(self.safety_shield, bool), "config", "safety_shield", self.safety_shield, "true or false")
         _check(isinstance(self.action_smoothing, int | float) and 0 < self.action_smoothing <= 1, "config",
                "action_smoothing", self.action_smoothing, "a number in (0, 1] (1 = off)")
         from ..env.reward import RewardWeights

@@ -32,11 +32,16 @@ def _env_kwargs(cfg: TrainConfig) -> dict[str, Any]:
 class EnvFactory:
     """Picklable env constructor for SubprocVecEnv workers (the agent's action smoothing included)."""
 
-    def __init__(self, kwargs: dict[str, Any], monitor: bool = True, smoothing: float = 1.0) -> None:
-        self.kwargs, self.monitor, self.smoothing = kwargs, monitor, smoothing
+    def __init__(self, kwargs: dict[str, Any], monitor: bool = True, smoothing: float = 1.0,
+                 shield: bool = False) -> None:
+        self.kwargs, self.monitor, self.smoothing, self.shield = kwargs, monitor, smoothing, shield
 
     def __call__(self) -> Any:
         env = make_env(**self.kwargs)
+        if self.shield:  # innermost: the shield acts on the smoothed action
+            from ..env.wrappers import ShieldWrapper
+
+            env = ShieldWrapper(env)
         if self.smoothing < 1.0:
             from ..env.wrappers import ActionSmoothing
 
@@ -52,7 +57,8 @@ def make_vec_env(cfg: TrainConfig, seed: int) -> Any:
     """The training VecEnv (Dummy or Subproc), seeded, with VecNormalize."""
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
 
-    factory = EnvFactory(_env_kwargs(cfg), smoothing=cfg.action_smoothing)
+    shield = cfg.safety_shield and cfg.obs_mode == "vector"
+    factory = EnvFactory(_env_kwargs(cfg), smoothing=cfg.action_smoothing, shield=shield)
     fns = [factory] * cfg.n_envs
     venv = SubprocVecEnv(fns, start_method="forkserver") if cfg.vec_env == "subproc" else DummyVecEnv(fns)
     venv.seed(seed)
@@ -121,7 +127,7 @@ def _callbacks(cfg: TrainConfig, run_dir: Path) -> list[Any]:
     return ramp + [ProgressCallback(cfg.total_steps), EpisodeLogCallback(run_dir / "learning_curve.csv"),
             EvalCheckpointCallback(run_dir, EnvFactory(eval_kwargs, monitor=False), cfg.eval_every,
                                    cfg.eval_episodes, cfg.eval_seed, cfg.checkpoint_every, cfg.policy == "lstm",
-                                   cfg.action_smoothing)]
+                                   cfg.action_smoothing, cfg.safety_shield and cfg.obs_mode == "vector")]
 
 
 def _learn(cfg: TrainConfig, run_dir: Path, model: Any, venv: Any, resumed_from: int | None) -> dict[str, Any]:

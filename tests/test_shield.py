@@ -1,0 +1,106 @@
+"""The safety shield: footprint geometry, the closing-speed limit, and the closed loop never entering a zone."""
+
+import math
+
+import numpy as np
+import pytest
+
+from ssbl_pb.env.approach import ApproachGroupEnv
+from ssbl_pb.env.observation import OBS_SIZE, POS_SCALE
+from ssbl_pb.env.shield import ShieldParams, footprint_clearance, shield_action
+from ssbl_pb.env.world import box_circle_distance
+from ssbl_pb.params import ConfigError
+
+P = ShieldParams()
+
+
+def obs_with(members, members_vel=None, heading=0.0):
+    """A Vector observation holding only what the shield reads: members (approach frame, m) and heading."""
+    obs = np.zeros(OBS_SIZE, dtype=np.float32)
+    members_vel = np.zeros((len(members), 2)) if members_vel is None else members_vel
+    for i, (p, v) in enumerate(zip(members, members_vel, strict=True)):
+        obs[14 + 5 * i: 19 + 5 * i] = (p[0] / POS_SCALE, p[1] / POS_SCALE, v[0], v[1], 1.0)
+    obs[39] = heading / math.pi
+    return obs
+
+
+def test_footprint_clearance_matches_the_worlds_box_geometry():
+    rng = np.random.default_rng(0)
+    pts = rng.uniform(-2, 2, (50, 2))
+    for heading in (0.0, 0.4, -2.0):
+        ours, toward = footprint_clearance(pts, heading, P)
+        ref = box_circle_distance(np.array([0.0, 0.0, heading]), (0.24, 0.215), pts) - 0.28
+        assert np.allclose(ours, ref)
+        assert np.allclose(np.hypot(toward[:, 0], toward[:, 1]), 1.0)
+    # straight ahead: the direction is +x and the clearance is the gap from the front face
+    c, u = footprint_clearance(np.array([[1.0, 0.0]]), 0.0, P)
+    assert c[0] == pytest.approx(1.0 - 0.24 - 0.28) and np.allclose(u[0], [1.0, 0.0])
+
+
+def test_closing_speed_is_limited_to_what_the_base_can_still_brake():
+    # a member straight ahead with 0.6 m between the front face and its body
+    member = np.array([[0.24 + 0.28 + 0.6, 0.0]])
+    out = shield_action(obs_with(member), np.array([1.0, 0.0]), P)
+    allow = math.sqrt(2 * 0.2 * (0.6 - 0.5))  # 0.2 m/s
+    assert out[0] * 0.35 == pytest.approx(allow) and out[1] == 0.0
+    # sideways motion past the member is untouched; moving away is untouched
+    assert np.allclose(shield_action(obs_with(member), np.array([0.0, 1.0]), P), [0.0, 1.0])
+    assert np.allclose(shield_action(obs_with(member), np.array([-0.9, 0.3]), P), [-0.9, 0.3])
+    # at the limit: no closing at all, and a diagonal command keeps only its sideways part
+    at_limit = np.array([[0.24 + 0.28 + 0.5, 0.0]])
+    assert np.allclose(shield_action(obs_with(at_limit), np.array([0.7, 0.7]), P), [0.0, 0.7], atol=1e-6)
+    # a member walking toward the robot: the robot must back off
+    out = shield_action(obs_with(at_limit, np.array([[-0.1, 0.0]])), np.zeros(2), P)
+    assert out[0] == pytest.approx(-0.1 / 0.35)
+
+
+def test_far_members_and_no_members_leave_the_action_alone():
+    a = np.array([0.9, -0.4], dtype=np.float32)
+    assert np.allclose(shield_action(obs_with(np.array([[3.0, 1.0]])), a, P), a)
+    assert np.allclose(shield_action(obs_with(np.zeros((0, 2))), a, P), a)
+
+
+def test_shielded_robot_driving_at_a_member_stops_outside_the_intimate_zone():
+    from ssbl_pb.env.wrappers import ShieldWrapper
+
+    for shielded in (False, True):
+        core = ApproachGroupEnv()
+        env = ShieldWrapper(core) if shielded else core
+        env.reset(seed=2)
+        w, g = core.world, core.world.group
+        u = (g.pos[0] - g.centre) / np.linalg.norm(g.pos[0] - g.centre)
+        w.base.reset(np.array([*(g.pos[0] + 1.5 * u), math.atan2(-u[1], -u[0])]))
+        if shielded:
+            env._obs = core._obs()
+        info = {}
+        for _ in range(60):  # full speed toward the centre, through member 0
+            _, _, term, _, info = env.step(np.array([1.0, 0.0], dtype=np.float32))
+            if term:
+                break
+        assert info["violation"] is (not shielded)
+        if shielded:
+            assert w.human_clearance().min() >= 0.45
+
+
+def test_safety_shield_config_and_loading(tmp_path):
+    from ssbl_pb.training.config import load_config
+
+    with pytest.raises(ConfigError, match="safety_shield"):
+        load_config(None, {"safety_shield": "on"})
+    with pytest.raises(ConfigError, match="brake_accel"):
+        ShieldParams(brake_accel=1.0)
+    # a run whose config has the shield on loads with it (and acts through it), one without loads without
+    import yaml
+    from stable_baselines3 import PPO
+
+    from ssbl_pb.env.trained import load_trained
+
+    env = ApproachGroupEnv()
+    PPO("MlpPolicy", env, n_steps=64, batch_size=64, seed=0, device="cpu").save(tmp_path / "model.zip")
+    for on in (True, False):
+        (tmp_path / "config.yaml").write_text(yaml.safe_dump({"obs_mode": "vector", "safety_shield": on}))
+        policy = load_trained(str(tmp_path), env.observation_space)
+        assert (policy.shield is not None) is on
+    obs, _ = env.reset(seed=0)
+    action, _ = policy.predict(obs)
+    assert action.shape == (2,)
