@@ -30,14 +30,16 @@ class Setup:
     obs_mode: str = "vector"
     scenario: str = "default"
     env_kwargs: tuple[tuple[str, Any], ...] = ()
+    shield: bool | None = None  # a trained policy's safety shield: None = as trained, else forced on/off
 
     def __call__(self) -> tuple[gym.Env, Policy]:
         env = make_env(obs_mode=self.obs_mode, scenario=self.scenario, **dict(self.env_kwargs))
-        return env, build_policy(self.policy, env)
+        return env, build_policy(self.policy, env, self.shield)
 
 
-def build_policy(spec: str, env: gym.Env) -> Policy:
-    """A baseline by name, the shipped model by name, or a trained model from a path."""
+def build_policy(spec: str, env: gym.Env, shield: bool | None = None) -> Policy:
+    """A baseline by name, the shipped model by name, or a trained model from a path (``shield``: see
+    ``Setup``; baselines never use it)."""
     core = env.unwrapped
     if spec in BASELINES:
         if spec != "random" and env.observation_space != core.observation_space:
@@ -45,7 +47,7 @@ def build_policy(spec: str, env: gym.Env) -> Policy:
         return make_policy(spec, core.robot_params, core.social, seed=0)
     from .env.trained import load_trained
 
-    return load_trained(spec, env.observation_space)
+    return load_trained(spec, env.observation_space, shield)
 
 
 def check_policy_spec(spec: str) -> None:

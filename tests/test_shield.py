@@ -104,3 +104,22 @@ def test_safety_shield_config_and_loading(tmp_path):
     obs, _ = env.reset(seed=0)
     action, _ = policy.predict(obs)
     assert action.shape == (2,)
+
+
+def test_shipped_policy_uses_the_shield_unless_told_not_to():
+    from ssbl_pb.env.trained import load_trained
+
+    space = ApproachGroupEnv().observation_space
+    assert load_trained("vector", space).shield is not None
+    assert load_trained("vector", space, shield=False).shield is None
+
+
+def test_evaluate_shield_flag_is_checked():
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    tool = Path(__file__).resolve().parents[1] / "tools" / "evaluate.py"
+    res = subprocess.run([sys.executable, str(tool), "--policy", "vector", "--shield", "maybe", "--out", "x"],
+                         capture_output=True, text=True)
+    assert res.returncode == 2 and "--shield" in res.stderr

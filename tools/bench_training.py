@@ -4,7 +4,8 @@ both measured in one run, in two settings:
 
 * ``sb3``: SB3's own defaults (``PPO("MlpPolicy", env)``: one env, 64x64 net, 2048 steps per update, 10 epochs);
 * ``config``: our training config (configs/vector_ff.yaml: 8 envs in one process, 2x128 net, VecNormalize,
-  the agent's action smoothing and SB3's Monitor on every env; the trivial env gets the same wrappers).
+  the agent's action smoothing and SB3's Monitor on every env; the trivial env gets the same wrappers, all but
+  the safety shield, which is part of our agent's cost).
 
 The trivial env returns a stored observation (no sampling), so its figure is SB3's own cost per step.
 Writes results/bench_training.json.
@@ -14,6 +15,7 @@ Writes results/bench_training.json.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 import time
 from pathlib import Path
@@ -72,11 +74,12 @@ def measure(setting: str, steps: int) -> dict[str, float]:
             venv = DummyVecEnv([trivial if name == "trivial" else make_env])
             model = PPO("MlpPolicy", venv, device="cpu", seed=0)
         else:
-            real_make_env = run.make_env
-            if name == "trivial":  # the same wrappers and VecEnv around the trivial env
+            real_make_env, env_cfg = run.make_env, cfg
+            if name == "trivial":  # the same wrappers and VecEnv around the trivial env (the shield is ours)
                 run.make_env = lambda **kw: trivial()
+                env_cfg = dataclasses.replace(cfg, safety_shield=False)
             try:
-                venv = run.make_vec_env(cfg, 0)
+                venv = run.make_vec_env(env_cfg, 0)
             finally:
                 run.make_env = real_make_env
             model = run.build_model(cfg, venv, Path("/tmp/ssbl_bench_tb"))

@@ -30,6 +30,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, required=True, help="output directory")
     ap.add_argument("--workers", type=int, default=0, help="processes (default: all cores when episodes >= 40)")
     ap.add_argument("--paths", type=int, default=6, help="episodes drawn in paths.png (default 6)")
+    ap.add_argument("--shield", choices=["auto", "on", "off"], default="auto",
+                    help="a trained policy's safety shield: as trained (auto, default), or forced on/off")
     for name, what in (("camera", "tools/calibrate_camera.py"), ("robot", "tools/identify_dynamics.py"),
                        ("social", "tools/calibrate_humans.py"), ("room", "tools/import_map.py")):
         ap.add_argument(f"--{name}-yaml", help=f"calibrated {name} parameters ({what}'s output)")
@@ -40,7 +42,8 @@ def main(argv: list[str] | None = None) -> int:
     workers = args.workers or ((os.cpu_count() or 1) if args.episodes >= 40 else 1)
     calib = tuple((f"{k}_yaml", v) for k in ("camera", "robot", "social", "room")
                   if (v := getattr(args, f"{k}_yaml")) is not None)
-    setup = Setup(args.policy, args.obs_mode, args.scenario, calib)
+    shield = {"auto": None, "on": True, "off": False}[args.shield]
+    setup = Setup(args.policy, args.obs_mode, args.scenario, calib, shield)
     try:
         with progress_bar(args.episodes, f"evaluate {args.policy}") as bar:
             summary, _ = evaluate(setup, args.episodes, args.seed, args.out, workers, args.paths, bar)

@@ -100,8 +100,11 @@ def _compatible(model_space: gym.Space, env_space: gym.Space) -> bool:
     return model_space == env_space or model_space == _channel_first(env_space)
 
 
-def load_trained(spec: str, observation_space: gym.Space | None = None) -> TrainedPolicy:
-    """Load a trained model (shipped name, run directory or .zip); checks it fits ``observation_space``."""
+def load_trained(spec: str, observation_space: gym.Space | None = None, shield: bool | None = None) -> TrainedPolicy:
+    """Load a trained model (shipped name, run directory or .zip); checks it fits ``observation_space``.
+
+    ``shield``: the safety shield on or off; None (default) uses it as the model was trained (config
+    ``safety_shield``)."""
     model_path, norm_path, config = resolve_model(spec)
     if not zipfile.is_zipfile(model_path):
         raise ModelError(f"{model_path}: not a saved SB3 model (expected a .zip archive)")
@@ -126,5 +129,6 @@ def load_trained(spec: str, observation_space: gym.Space | None = None) -> Train
         except Exception as exc:
             raise ModelError(f"{norm_path}: cannot read the normalisation statistics ({exc})") from exc
         normalizer.training = False
-    shield = bool(config.get("safety_shield", False)) and config.get("obs_mode", "vector") == "vector"
+    if shield is None:
+        shield = bool(config.get("safety_shield", False)) and config.get("obs_mode", "vector") == "vector"
     return TrainedPolicy(model, normalizer, recurrent, float(config.get("action_smoothing", 1.0)), shield)
