@@ -83,7 +83,8 @@ def shield_action(obs: np.ndarray, action: np.ndarray, p: ShieldParams) -> np.nd
 
 
 class SafetyShield:
-    """Stateful use of ``shield_action``: remembers the latest Vector observation (for ``TrainedPolicy``)."""
+    """``shield_action`` with fixed parameters (Pepper's defaults unless given), as ``TrainedPolicy`` applies it
+    after its smoothing filter; any action shape, one observation."""
 
     def __init__(self, params: ShieldParams | None = None) -> None:
         self.params = params or ShieldParams()
