@@ -50,7 +50,8 @@ class RewardWeights:
     not for joining at the free slot. Our defaults keep every term and its sign but make time cost more than
     moving along the field earns, make success worth more than any shaping, add progress toward the free slot
     (potential-based, so it does not change the optimum) and a smoothness cost (the paper's hypothesis is a
-    robot that accelerates and decelerates gently), and penalise collisions and intimate-zone intrusions.
+    robot that accelerates and decelerates gently), charge closing in on a member near its intimate zone, and
+    penalise collisions and intimate-zone intrusions.
     """
 
     w1: float = 0.05  # R1 group forming
