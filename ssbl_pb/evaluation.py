@@ -45,9 +45,12 @@ def build_policy(spec: str, env: gym.Env, shield: bool | None = None) -> Policy:
         if spec != "random" and env.observation_space != core.observation_space:
             raise UsageError(f"policy '{spec}' reads the vector observation; use --obs-mode vector")
         return make_policy(spec, core.robot_params, core.social, seed=0)
+    from .env.shield import ShieldParams
     from .env.trained import load_trained
 
-    return load_trained(spec, env.observation_space, shield)
+    # the shield brakes within this env's (possibly calibrated) robot limits
+    return load_trained(spec, env.observation_space, shield, ShieldParams.from_env(core.robot_params, core.social,
+                                                                                   core.task))
 
 
 def check_policy_spec(spec: str) -> None:

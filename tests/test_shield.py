@@ -123,3 +123,14 @@ def test_evaluate_shield_flag_is_checked():
     res = subprocess.run([sys.executable, str(tool), "--policy", "vector", "--shield", "maybe", "--out", "x"],
                          capture_output=True, text=True)
     assert res.returncode == 2 and "--shield" in res.stderr
+
+
+def test_evaluation_shield_follows_a_calibrated_robot(tmp_path):
+    from ssbl_pb.evaluation import Setup
+
+    robot = tmp_path / "robot.yaml"
+    robot.write_text("max_accel: 0.15\n")
+    _, policy = Setup("vector", env_kwargs=(("robot_yaml", str(robot)),))()
+    assert policy.shield.params.brake_accel == pytest.approx(0.1)  # 2/3 of the calibrated limit
+    _, policy = Setup("vector")()
+    assert policy.shield.params.brake_accel == pytest.approx(0.2)

@@ -50,9 +50,10 @@ class TrainedPolicy(Policy):
     """An SB3 model behind the common ``predict`` signature; observations are normalised as in training."""
 
     def __init__(self, model: Any, normalizer: Any = None, recurrent: bool = False, smoothing: float = 1.0,
-                 shield: bool = False) -> None:
+                 shield: bool = False, shield_params: Any = None) -> None:
         """``smoothing`` and ``shield`` are the agent's action stages as in training (config ``action_smoothing``,
-        ``safety_shield``); the shield needs Vector observations."""
+        ``safety_shield``); the shield needs Vector observations and uses ``shield_params`` (a ``ShieldParams``;
+        default: Pepper's default limits)."""
         from .shield import SafetyShield
         from .wrappers import ActionFilter
 
@@ -64,7 +65,7 @@ class TrainedPolicy(Policy):
         vector = isinstance(model.observation_space, gym.spaces.Box) and model.observation_space.shape == (OBS_SIZE,)
         if shield and not vector:
             raise ModelError("the safety shield needs a Vector-observation model")
-        self.shield = SafetyShield() if shield else None
+        self.shield = SafetyShield(shield_params) if shield else None
 
     def reset(self) -> None:
         """Start of an episode: clears the action filter."""
@@ -100,11 +101,12 @@ def _compatible(model_space: gym.Space, env_space: gym.Space) -> bool:
     return model_space == env_space or model_space == _channel_first(env_space)
 
 
-def load_trained(spec: str, observation_space: gym.Space | None = None, shield: bool | None = None) -> TrainedPolicy:
+def load_trained(spec: str, observation_space: gym.Space | None = None, shield: bool | None = None,
+                 shield_params: Any = None) -> TrainedPolicy:
     """Load a trained model (shipped name, run directory or .zip); checks it fits ``observation_space``.
 
     ``shield``: the safety shield on or off; None (default) uses it as the model was trained (config
-    ``safety_shield``)."""
+    ``safety_shield``). ``shield_params``: its limits (``ShieldParams.from_env`` for a calibrated robot)."""
     model_path, norm_path, config = resolve_model(spec)
     if not zipfile.is_zipfile(model_path):
         raise ModelError(f"{model_path}: not a saved SB3 model (expected a .zip archive)")
@@ -131,4 +133,5 @@ def load_trained(spec: str, observation_space: gym.Space | None = None, shield: 
         normalizer.training = False
     if shield is None:
         shield = bool(config.get("safety_shield", False)) and config.get("obs_mode", "vector") == "vector"
-    return TrainedPolicy(model, normalizer, recurrent, float(config.get("action_smoothing", 1.0)), shield)
+    return TrainedPolicy(model, normalizer, recurrent, float(config.get("action_smoothing", 1.0)), shield,
+                         shield_params)

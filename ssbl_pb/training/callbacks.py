@@ -98,8 +98,12 @@ class EvalCheckpointCallback(BaseCallback):
         self.last_ckpt = self.num_timesteps // self.checkpoint_every
 
     def evaluate(self) -> dict[str, float]:
+        from ..env.shield import ShieldParams
+
         env = self.make_eval_env()
-        policy = TrainedPolicy(self.model, self.training_env, self.recurrent, self.smoothing, self.shield)
+        core = env.unwrapped  # the shield brakes within the training env's robot limits, as in training
+        policy = TrainedPolicy(self.model, self.training_env, self.recurrent, self.smoothing, self.shield,
+                               ShieldParams.from_env(core.robot_params, core.social, core.task))
         try:
             res = [run_episode(env, policy, self.eval_seed + i, keep_trajectory=False).metrics
                    for i in range(self.eval_episodes)]
