@@ -96,3 +96,39 @@ def test_shared_pairwise_gives_same_result():
     P = rng.uniform(-2, 2, size=(5, 2))
     pair = forces.pairwise(P)
     assert np.allclose(forces.equality(P, 5.0)[0], forces.equality(P, 5.0, pair=pair)[0])
+
+
+def test_a_batch_of_padded_scenes_matches_each_scene_alone():
+    rng = np.random.default_rng(3)
+    sizes, k = [2, 3, 6, 4], 6
+    P = rng.uniform(-2.0, 2.0, (len(sizes), k, 2))
+    mask = np.ones((len(sizes), k, k), dtype=bool)
+    own_masks = []
+    for b, n in enumerate(sizes):
+        mask[b, n:, :] = mask[b, :, n:] = False  # padding: nobody's neighbour, no neighbours
+        own = np.ones((n, n), dtype=bool)
+        own[:, -1] = False  # as in the env: the last agent (the robot) is not a participant
+        mask[b, :n, :n] = own
+        own_masks.append(own)
+    o = rng.uniform(-0.5, 0.5, (len(sizes), 1, 2))
+    s = rng.uniform(0.8, 1.3, (len(sizes), 1))
+    pad_only = mask.copy()
+    for b, n in enumerate(sizes):
+        pad_only[b, :n, :n] = True
+    batched = {
+        "repulsion": forces.repulsion(P, 1.2, pad_only),
+        "equality": forces.equality(P, 5.0, mask),
+        "cohesion": forces.cohesion(P, o, s, 5.0, 8.0, mask),
+    }
+    for b, n in enumerate(sizes):
+        q, own = P[b, :n], own_masks[b]
+        alone = {
+            "repulsion": forces.repulsion(q, 1.2),
+            "equality": forces.equality(q, 5.0, own),
+            "cohesion": forces.cohesion(q, o[b, 0], float(s[b, 0]), 5.0, 8.0, own),
+        }
+        for name, ref in alone.items():
+            got = batched[name]
+            for g, r in zip(got if isinstance(got, tuple) else (got,), ref if isinstance(ref, tuple) else (ref,),
+                            strict=True):
+                assert np.allclose(g[b, :n], r, atol=1e-12), (name, b)

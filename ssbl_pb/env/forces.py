@@ -2,7 +2,9 @@
 
 All agents live in one array ``P`` of shape (k, 2) (metres, world frame). ``mask[i, j]`` says whether agent
 ``j`` may count as a neighbour of agent ``i`` (default: every other agent); the zone radius then decides who
-actually does. Each force returns an array (k, 2); orientations likewise. Degenerate cases return zeros, never
+actually does. Each force returns an array (k, 2); orientations likewise. Every function also takes a batch
+of independent scenes, ``P`` (..., k, 2) and ``mask`` (..., k, k), and answers per scene (groups of different
+sizes: pad ``P`` and mask the padding out), so many envs can share one call. Degenerate cases return zeros, never
 NaN: an agent with nobody in a zone feels no force from it, and coincident agents (zero separation, so no
 defined direction) exert none. ``pair`` lets a caller that evaluates several forces share one
 ``pairwise(P)``; it never changes a result.
@@ -31,8 +33,8 @@ def soft_normalize(v: np.ndarray, scale: float) -> np.ndarray:
 
 
 def pairwise(P: np.ndarray) -> Pair:
-    """``diff[i, j] = p_j - p_i`` (k, k, 2) and ``dist[i, j]`` (k, k)."""
-    diff = P[None, :, :] - P[:, None, :]
+    """``diff[i, j] = p_j - p_i`` (k, k, 2) and ``dist[i, j]`` (k, k) (with P's leading batch axes, if any)."""
+    diff = P[..., None, :, :] - P[..., :, None, :]
     return diff, np.hypot(diff[..., 0], diff[..., 1])
 
 
@@ -42,13 +44,13 @@ def _off_diagonal(k: int) -> np.ndarray:
 
 
 def _neighbours(dist: np.ndarray, radius: float, mask: np.ndarray | None) -> np.ndarray:
-    inside = (dist < radius) & _off_diagonal(len(dist))
+    inside = (dist < radius) & _off_diagonal(dist.shape[-1])
     return inside if mask is None else inside & mask
 
 
 def _sum_toward(W: np.ndarray, P: np.ndarray) -> np.ndarray:
     """``sum_j W[i, j] (p_j - p_i)`` for each i."""
-    return W @ P - W.sum(axis=1)[:, None] * P
+    return W @ P - W.sum(axis=-1)[..., None] * P
 
 
 def repulsion(P: np.ndarray, d_p: float, mask: np.ndarray | None = None, pair: Pair | None = None) -> np.ndarray:
@@ -61,9 +63,9 @@ def repulsion(P: np.ndarray, d_p: float, mask: np.ndarray | None = None, pair: P
     if not inside.any():
         return np.zeros_like(P)
     p_r = _sum_toward(inside.astype(P.dtype), P)
-    d_min = np.where(inside, dist, d_p).min(axis=1)
+    d_min = np.where(inside, dist, d_p).min(axis=-1)
     unit, _ = normalize(p_r)
-    return -((d_p - d_min) ** 2)[:, None] * unit
+    return -((d_p - d_min) ** 2)[..., None] * unit
 
 
 def equality(P: np.ndarray, d_s: float, mask: np.ndarray | None = None,
@@ -75,16 +77,16 @@ def equality(P: np.ndarray, d_s: float, mask: np.ndarray | None = None,
     """
     _, dist = pair if pair is not None else pairwise(P)
     W = _neighbours(dist, d_s, mask).astype(P.dtype)
-    WP, count = W @ P, W.sum(axis=1)
-    count1 = (count + 1.0)[:, None]
+    WP, count = W @ P, W.sum(axis=-1)
+    count1 = (count + 1.0)[..., None]
     c = (P + WP) / count1
-    to_c = c[:, None, :] - P[None, :, :]  # [i, j] = c_i - p_j
+    to_c = c[..., :, None, :] - P[..., None, :, :]  # [i, j] = c_i - p_j
     d_to_c = np.hypot(to_c[..., 0], to_c[..., 1])
-    self_d = np.diagonal(d_to_c)
-    m = (self_d + (W * d_to_c).sum(axis=1)) / count1[:, 0]
+    self_d = np.diagonal(d_to_c, axis1=-2, axis2=-1)
+    m = (self_d + (W * d_to_c).sum(axis=-1)) / count1[..., 0]
     ok = self_d > _EPS
     scale = np.where(ok, 1.0 - m / np.where(ok, self_d, 1.0), 0.0)
-    return scale[:, None] * (c - P), WP - count[:, None] * P
+    return scale[..., None] * (c - P), WP - count[..., None] * P
 
 
 def cohesion(P: np.ndarray, o: np.ndarray, s: float, d_s: float, d_pub: float, mask: np.ndarray | None = None,
@@ -93,14 +95,15 @@ def cohesion(P: np.ndarray, o: np.ndarray, s: float, d_s: float, d_pub: float, m
 
     ``o`` is the conversation centre (2,) or one per agent (k, 2), ``s`` the o-space radius; ``N_a`` counts the
     agents inside the public zone ``d_pub`` and ``N_s`` those inside the social zone ``d_s``. An agent exactly
-    at ``o`` has no defined direction and feels no cohesion.
+    at ``o`` has no defined direction and feels no cohesion. Batched: ``o`` (..., 1, 2) and ``s`` (..., 1) give
+    each scene its own centre and radius.
     """
     _, dist = pair if pair is not None else pairwise(P)
     A = _neighbours(dist, d_pub, mask).astype(P.dtype)
-    n_a = A.sum(axis=1)
-    alpha = n_a / (np.count_nonzero(_neighbours(dist, d_s, mask), axis=1) + 1.0)
+    n_a = A.sum(axis=-1)
+    alpha = n_a / (np.count_nonzero(_neighbours(dist, d_s, mask), axis=-1) + 1.0)
     op = o - P
-    d = np.hypot(op[:, 0], op[:, 1])
+    d = np.hypot(op[..., 0], op[..., 1])
     ok = d > _EPS
     scale = np.where(ok, alpha * (1.0 - s / np.where(ok, d, 1.0)), 0.0)
-    return scale[:, None] * op, A @ P - n_a[:, None] * P
+    return scale[..., None] * op, A @ P - n_a[..., None] * P
