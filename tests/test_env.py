@@ -225,3 +225,16 @@ def test_calibration_yamls_overlay_the_defaults(tmp_path):
         make_env(robot_yaml=str(tmp_path / "bad.yaml"))
     with pytest.raises(ConfigError, match="world"):
         make_env(room_yaml=str(tmp_path / "dyn.yaml"))
+
+
+def test_step_replaces_state_arrays_without_writing_into_them():
+    # approach.step keeps the previous arrays as the "before" states for the reward (no copies)
+    env = ApproachGroupEnv(scenario="mixed")
+    env.reset(seed=4)
+    w, g = env.world, env.world.group
+    for _ in range(30):
+        old = (w.base.pose, w.base.vel, g.pos, g.vel)
+        saved = [a.copy() for a in old]
+        env.step(np.array([1.0, 0.5], dtype=np.float32))
+        for a, b in zip(old, saved, strict=True):
+            assert np.array_equal(a, b)
