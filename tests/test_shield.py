@@ -87,6 +87,9 @@ def test_safety_shield_config_and_loading(tmp_path):
 
     with pytest.raises(ConfigError, match="safety_shield"):
         load_config(None, {"safety_shield": "on"})
+    # on by default for the Vector mode; camera modes cannot feed it and train without it
+    assert load_config(None).shield_active
+    assert not load_config(None, {"obs_mode": "camera", "encoder": "cnn"}).shield_active
     with pytest.raises(ConfigError, match="brake_accel"):
         ShieldParams(brake_accel=1.0)
     # a run whose config has the shield on loads with it (and acts through it), one without loads without

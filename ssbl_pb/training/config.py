@@ -94,6 +94,11 @@ class TrainConfig:
     safety_shield: bool = True  # agent-side safety shield (env.shield), the last action stage; it reads the
     #                             Vector observation, so camera modes train without it
 
+    @property
+    def shield_active(self) -> bool:
+        """Whether training (and its evaluations) put the safety shield in the loop."""
+        return self.safety_shield and self.obs_mode == "vector"
+
     def __post_init__(self) -> None:
         _check(self.obs_mode in OBS_MODES, "config", "obs_mode", self.obs_mode, f"one of {OBS_MODES}")
         _check(self.encoder in ENCODERS, "config", "encoder", self.encoder, f"one of {ENCODERS}")

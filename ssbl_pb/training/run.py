@@ -57,8 +57,7 @@ def make_vec_env(cfg: TrainConfig, seed: int) -> Any:
     """The training VecEnv (Dummy or Subproc), seeded, with VecNormalize."""
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
 
-    shield = cfg.safety_shield and cfg.obs_mode == "vector"
-    factory = EnvFactory(_env_kwargs(cfg), smoothing=cfg.action_smoothing, shield=shield)
+    factory = EnvFactory(_env_kwargs(cfg), smoothing=cfg.action_smoothing, shield=cfg.shield_active)
     fns = [factory] * cfg.n_envs
     venv = SubprocVecEnv(fns, start_method="forkserver") if cfg.vec_env == "subproc" else DummyVecEnv(fns)
     venv.seed(seed)
@@ -127,7 +126,7 @@ def _callbacks(cfg: TrainConfig, run_dir: Path) -> list[Any]:
     return ramp + [ProgressCallback(cfg.total_steps), EpisodeLogCallback(run_dir / "learning_curve.csv"),
             EvalCheckpointCallback(run_dir, EnvFactory(eval_kwargs, monitor=False), cfg.eval_every,
                                    cfg.eval_episodes, cfg.eval_seed, cfg.checkpoint_every, cfg.policy == "lstm",
-                                   cfg.action_smoothing, cfg.safety_shield and cfg.obs_mode == "vector")]
+                                   cfg.action_smoothing, cfg.shield_active)]
 
 
 def _learn(cfg: TrainConfig, run_dir: Path, model: Any, venv: Any, resumed_from: int | None) -> dict[str, Any]:
