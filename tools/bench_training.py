@@ -3,9 +3,11 @@
 both measured in one run, in two settings:
 
 * ``sb3``: SB3's own defaults (``PPO("MlpPolicy", env)``: one env, 64x64 net, 2048 steps per update, 10 epochs);
-* ``config``: our training config (configs/vector_ff.yaml: 8 envs in one process, 2x128 net, VecNormalize,
-  the agent's action smoothing and SB3's Monitor on every env; the trivial env gets the same wrappers, all but
-  the safety shield, which is part of our agent's cost).
+* ``config``: our training config (configs/vector_ff.yaml: 8 envs, 2x128 net, VecNormalize, the agent's action
+  smoothing, the safety shield and episode monitoring). The Vector env runs as training runs it, batched
+  (``training.vec_env.BatchedVecEnv``: all 8 copies in one array step); the trivial env runs in SB3's own
+  ``DummyVecEnv`` with ``Monitor`` and the smoothing wrapper (all but the shield, which is part of our agent's
+  cost). ``vector_env_dummy`` is our env in ``DummyVecEnv`` too (one env object per copy), for reference.
 
 The trivial env returns a stored observation (no sampling), so its figure is SB3's own cost per step.
 Writes results/bench_training.json.
@@ -55,7 +57,7 @@ def _trivial_env_class():  # noqa: ANN202 - built lazily so --help stays fast
     return Trivial
 
 
-def measure(setting: str, steps: int) -> dict[str, float]:
+def measure(setting: str, steps: int, overrides: dict | None = None) -> dict[str, float]:
     """Env steps per second of PPO learning on the trivial env and on the Vector env (same setting)."""
     import torch
     from stable_baselines3 import PPO
@@ -65,19 +67,22 @@ def measure(setting: str, steps: int) -> dict[str, float]:
     from ssbl_pb.env.approach import make_env
     from ssbl_pb.training.config import load_config
 
-    cfg = load_config(ROOT / "configs" / "vector_ff.yaml")
+    cfg = load_config(ROOT / "configs" / "vector_ff.yaml", overrides)
     torch.set_num_threads(cfg.torch_threads)
     trivial = _trivial_env_class()
     out: dict[str, float] = {}
-    for name in ("trivial", "vector_env"):
+    names = ("trivial", "vector_env") if setting == "sb3" else ("trivial", "vector_env", "vector_env_dummy")
+    for name in names:
         if setting == "sb3":
             venv = DummyVecEnv([trivial if name == "trivial" else make_env])
             model = PPO("MlpPolicy", venv, device="cpu", seed=0)
         else:
-            real_make_env, env_cfg = run.make_env, cfg
-            if name == "trivial":  # the same wrappers and VecEnv around the trivial env (the shield is ours)
-                run.make_env = lambda **kw: trivial()
-                env_cfg = dataclasses.replace(cfg, safety_shield=False)
+            real_make_env, env_cfg = run.make_env, cfg  # vector_env: as training builds it (batched)
+            if name == "trivial":  # SB3's DummyVecEnv with the same wrappers around the trivial env (the shield
+                run.make_env = lambda **kw: trivial()  # is part of our agent's cost, so not here)
+                env_cfg = dataclasses.replace(cfg, safety_shield=False, vec_env="dummy")
+            elif name == "vector_env_dummy":  # our env in SB3's DummyVecEnv, one env object per copy
+                env_cfg = dataclasses.replace(cfg, vec_env="dummy")
             try:
                 venv = run.make_vec_env(env_cfg, 0)
             finally:
@@ -98,6 +103,8 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--steps", type=int, default=40_000, help="learning steps per measurement (default 40000)")
     ap.add_argument("--settings", default=",".join(SETTINGS), help=f"comma list of {SETTINGS} (default both)")
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                    help="override a key of configs/vector_ff.yaml for the config setting, e.g. n_envs=16")
     ap.add_argument("--out", type=Path, default=ROOT / "results" / "bench_training.json")
     args = ap.parse_args(argv)
     settings = [s.strip() for s in args.settings.split(",") if s.strip()]
@@ -106,11 +113,19 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: --settings {args.settings!r}: expected a comma list of {SETTINGS}", file=sys.stderr)
         return 2
 
+    from ssbl_pb.params import ConfigError
     from ssbl_pb.report import write_json
+    from ssbl_pb.training.config import parse_overrides
 
-    results = {"steps": args.steps}
+    try:
+        overrides = parse_overrides(args.set)
+    except ConfigError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+
+    results = {"steps": args.steps, "overrides": overrides}
     for s in settings:
-        r = measure(s, args.steps)
+        r = measure(s, args.steps, overrides)
         results[s] = r
         print(f"{s:7s} trivial env {r['trivial_steps_per_s']:6.0f} steps/s, Vector env "
               f"{r['vector_env_steps_per_s']:6.0f} steps/s: {r['ratio']:.0%} "

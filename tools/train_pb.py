@@ -15,27 +15,10 @@ import argparse
 import sys
 from pathlib import Path
 
-import yaml
-
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from ssbl_pb.cli import fail  # noqa: E402
-
-
-def parse_set(items: list[str]) -> dict:
-    """``a.b=value`` pairs (values parsed as YAML) into a nested dict."""
-    out: dict = {}
-    for item in items:
-        key, sep, raw = item.partition("=")
-        if not sep or not key:
-            raise ValueError(f"--set {item!r}: expected KEY=VALUE, e.g. reward.w1=0.1")
-        node = out
-        parts = key.split(".")
-        for p in parts[:-1]:
-            node = node.setdefault(p, {})
-        node[parts[-1]] = yaml.safe_load(raw)
-    return out
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -46,7 +29,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--policy", choices=["ff", "lstm"], help="ff = PPO, lstm = RecurrentPPO")
     ap.add_argument("--scenario", help="default | mixed | behind | FORMATION[-N] | a,b,...")
     ap.add_argument("--n-envs", type=int, help="parallel environments")
-    ap.add_argument("--vec-env", choices=["dummy", "subproc"])
+    ap.add_argument("--vec-env", choices=["auto", "batched", "dummy", "subproc"],
+                    help="auto (default): batched for the Vector mode (all envs in one array step), else dummy")
     ap.add_argument("--total-steps", type=int)
     ap.add_argument("--seed", type=int)
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
@@ -58,6 +42,7 @@ def main(argv: list[str] | None = None) -> int:
                     help="start from another run's final weights (fine-tuning with this config)")
     args = ap.parse_args(argv)
 
+    from ssbl_pb.training.config import parse_overrides
     from ssbl_pb.training.run import ConfigError, RunError, load_config, resume, train
 
     try:
@@ -68,7 +53,7 @@ def main(argv: list[str] | None = None) -> int:
             over = {k: v for k, v in {"obs_mode": args.obs_mode, "encoder": args.encoder, "policy": args.policy,
                                       "scenario": args.scenario, "n_envs": args.n_envs, "vec_env": args.vec_env,
                                       "total_steps": args.total_steps, "seed": args.seed}.items() if v is not None}
-            over.update(parse_set(args.set))
+            over.update(parse_overrides(args.set))
             cfg = load_config(args.config, over)
             out = args.out or ROOT / "runs" / cfg.name
             summary = train(cfg, out, args.overwrite, args.init_from)

@@ -167,7 +167,7 @@ class ApproachGroupEnv(gym.Env):
                    and abs(self.heading_error()) < math.radians(self.task.heading_tolerance_deg))
         accel = (w.base.vel[:2] - vel_before) / self.dt
         self._potential = slot_potential(self._route(w.robot_pose[:2]), speed)
-        proximity = proximity_cost(self._clearance, clearance, self.task.intimate_zone, self.task.proximity_band)
+        proximity = float(proximity_cost(self._clearance, clearance, self.task.intimate_zone, self.task.proximity_band))
         self._clearance = clearance
         terms = reward_terms(g.robot_force, w.robot_pose[:2] - robot_before, g.force, g.pos - members_before,
                              g.repulsion, self.dt, accel, self._prev_accel, potential_before, self._potential,
@@ -236,6 +236,16 @@ def make_env(obs_mode: str = "vector", camera_width: int = 84, camera_height: in
 
     if obs_mode not in OBS_MODES:
         raise ValueError(f"obs_mode {obs_mode!r}: expected one of {OBS_MODES}")
+    kwargs, projection = core_kwargs(camera_width, camera_height, camera_yaml, robot_yaml, social_yaml, room_yaml,
+                                     **kwargs)
+    return wrap_obs_mode(ApproachGroupEnv(**kwargs), obs_mode, camera_width, camera_height, projection)
+
+
+def core_kwargs(camera_width: int = 84, camera_height: int = 84, camera_yaml: str | None = None,
+                robot_yaml: str | None = None, social_yaml: str | None = None, room_yaml: str | None = None,
+                **kwargs: Any) -> tuple[dict[str, Any], list[float] | None]:
+    """``make_env``'s calibration files folded into the core env's keyword arguments, and the calibrated
+    camera's projection (None without ``camera_yaml``)."""
     _merge_yaml(kwargs, "robot", robot_yaml)
     _merge_yaml(kwargs, "social", social_yaml)
     _merge_yaml(kwargs, "world", room_yaml, "world")
@@ -248,4 +258,4 @@ def make_env(obs_mode: str = "vector", camera_width: int = 84, camera_height: in
         robot = dataclasses.asdict(robot) if isinstance(robot, RobotParams) else dict(robot)
         kwargs["robot"] = {**robot, **cam.robot_overrides()}
         projection = sim_projection_from_yaml(camera_yaml, camera_width, camera_height)
-    return wrap_obs_mode(ApproachGroupEnv(**kwargs), obs_mode, camera_width, camera_height, projection)
+    return kwargs, projection

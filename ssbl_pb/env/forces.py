@@ -61,7 +61,7 @@ def repulsion(P: np.ndarray, d_p: float, mask: np.ndarray | None = None, pair: P
     _, dist = pair if pair is not None else pairwise(P)
     inside = _neighbours(dist, d_p, mask)
     if not inside.any():
-        return np.zeros_like(P)
+        return np.zeros(P.shape)
     p_r = _sum_toward(inside.astype(P.dtype), P)
     d_min = np.where(inside, dist, d_p).min(axis=-1)
     unit, _ = normalize(p_r)
@@ -101,7 +101,7 @@ def cohesion(P: np.ndarray, o: np.ndarray, s: float, d_s: float, d_pub: float, m
     _, dist = pair if pair is not None else pairwise(P)
     A = _neighbours(dist, d_pub, mask).astype(P.dtype)
     n_a = A.sum(axis=-1)
-    alpha = n_a / (np.count_nonzero(_neighbours(dist, d_s, mask), axis=-1) + 1.0)
+    alpha = n_a / (_neighbours(dist, d_s, mask).sum(axis=-1) + 1.0)
     op = o - P
     d = np.hypot(op[..., 0], op[..., 1])
     ok = d > _EPS

@@ -43,6 +43,41 @@ def box_circle_distance(pose: np.ndarray, half: tuple[float, float], centres: np
     return np.hypot(out[:, 0], out[:, 1])
 
 
+def spawn_layout(rng: np.random.Generator, world: WorldParams, robot: RobotParams, social: SocialParams, n: int,
+                 formation: str, start: str = "any") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A group's centre (2,) and members' angles (n,) and the robot's pose (x, y, yaw) for one episode.
+
+    The group (an F-formation at a random place and rotation) keeps ``wall_margin`` from the walls even once
+    the robot has joined; the robot starts ``robot_spawn_min``..``robot_spawn_max`` from its centre, anywhere
+    around it or (``start="behind"``) behind a member, facing a random way.
+    """
+    if not isinstance(n, int | np.integer) or not 2 <= n <= MAX_HUMANS:
+        raise ConfigError(f"n_humans = {n!r}: expected an integer in [2, {MAX_HUMANS}]")
+    if start not in ("any", "behind"):
+        raise ConfigError(f"start = {start!r}: expected 'any' or 'behind'")
+    sx, sy = world.room_size
+    joined_r = max(social.ospace_radius_for(n), social.ospace_radius_for(n + 1))
+    margin = joined_r + social.human_radius + world.wall_margin
+    robot_margin = robot.length / 2 + world.wall_margin
+    angles = formation_angles(formation, n, social) + rng.uniform(0, 2 * math.pi)
+    for _ in range(1000):
+        centre = np.array([rng.uniform(-sx / 2 + margin, sx / 2 - margin),
+                           rng.uniform(-sy / 2 + margin, sy / 2 - margin)])
+        if start == "behind":
+            k = int(rng.integers(n))
+            theta = angles[k] + rng.uniform(-0.3, 0.3)
+        else:
+            theta = rng.uniform(0, 2 * math.pi)
+        dist = rng.uniform(world.robot_spawn_min, world.robot_spawn_max)
+        xy = centre + dist * np.array([math.cos(theta), math.sin(theta)])
+        if abs(xy[0]) <= sx / 2 - robot_margin and abs(xy[1]) <= sy / 2 - robot_margin:
+            break
+    else:  # pragma: no cover - prevented by WorldParams.check_fits
+        raise ConfigError(f"world.room_size = {world.room_size}: could not place a group of {n} and "
+                          f"the robot after 1000 tries")
+    return centre, angles, np.array([xy[0], xy[1], rng.uniform(-math.pi, math.pi)])
+
+
 class World:
     """Pepper and one conversation group in a walled room; ``reset`` spawns, ``step`` advances by ``dt``."""
 
@@ -110,33 +145,9 @@ class World:
         """Spawn a group (F-formation at a random place and rotation) and the robot outside it."""
         n = self.params.n_humans if n_humans is None else n_humans
         form = self.params.formation if formation is None else formation
-        if not isinstance(n, int | np.integer) or not 2 <= n <= MAX_HUMANS:
-            raise ConfigError(f"n_humans = {n!r}: expected an integer in [2, {MAX_HUMANS}]")
-        if start not in ("any", "behind"):
-            raise ConfigError(f"start = {start!r}: expected 'any' or 'behind'")
-        sx, sy = self.params.room_size
-        s = self.social
-        joined_r = max(s.ospace_radius_for(n), s.ospace_radius_for(n + 1))
-        margin = joined_r + s.human_radius + self.params.wall_margin
-        robot_margin = self.robot_params.length / 2 + self.params.wall_margin
-        angles = formation_angles(form, n, s) + rng.uniform(0, 2 * math.pi)
-        for _ in range(1000):
-            centre = np.array([rng.uniform(-sx / 2 + margin, sx / 2 - margin),
-                               rng.uniform(-sy / 2 + margin, sy / 2 - margin)])
-            if start == "behind":
-                k = int(rng.integers(n))
-                theta = angles[k] + rng.uniform(-0.3, 0.3)
-            else:
-                theta = rng.uniform(0, 2 * math.pi)
-            dist = rng.uniform(self.params.robot_spawn_min, self.params.robot_spawn_max)
-            xy = centre + dist * np.array([math.cos(theta), math.sin(theta)])
-            if abs(xy[0]) <= sx / 2 - robot_margin and abs(xy[1]) <= sy / 2 - robot_margin:
-                break
-        else:  # pragma: no cover - prevented by WorldParams.check_fits
-            raise ConfigError(f"world.room_size = {self.params.room_size}: could not place a group of {n} and "
-                              f"the robot after 1000 tries")
-        self.group = Group(s, centre, angles)
-        self.base.reset(np.array([xy[0], xy[1], rng.uniform(-math.pi, math.pi)]))
+        centre, angles, pose = spawn_layout(rng, self.params, self.robot_params, self.social, n, form, start)
+        self.group = Group(self.social, centre, angles)
+        self.base.reset(pose)
         self.group.update_centre(self.base.pose[:2])
         self.t = 0.0
         self._synced = False

@@ -91,18 +91,31 @@ class ShieldWrapper(gym.Wrapper):
 
 
 class ActionFilter:
-    """The stateful filter behind ``ActionSmoothing`` (also used by trained policies at inference)."""
+    """The stateful filter behind ``ActionSmoothing`` (also used by trained policies at inference and, one row
+    per copy, by the batched training env)."""
 
     def __init__(self, alpha: float) -> None:
         self.alpha = float(alpha)
         self.state: np.ndarray | None = None
+        self._fresh: np.ndarray | None = None  # rows (of a batch of actions) whose episode has just begun
 
-    def reset(self) -> None:
-        self.state = None
+    def reset(self, rows: list[int] | None = None) -> None:
+        """Forget the past actions (of the given rows of a batch only, when ``rows`` is given)."""
+        if rows is None or self.state is None:
+            self.state, self._fresh = None, None
+            return
+        if self._fresh is None:
+            self._fresh = np.zeros(len(self.state), dtype=bool)
+        self._fresh[rows] = True
 
     def __call__(self, action: np.ndarray) -> np.ndarray:
         a = np.clip(np.asarray(action, dtype=np.float32), -1.0, 1.0)
-        self.state = a if self.state is None else (self.state + self.alpha * (a - self.state)).astype(np.float32)
+        if self.state is None:
+            self.state = a
+        else:
+            new = (self.state + self.alpha * (a - self.state)).astype(np.float32)
+            self.state = new if self._fresh is None else np.where(self._fresh[:, None], a, new)
+            self._fresh = None
         return self.state
 
 

@@ -32,6 +32,7 @@ OBS_MODES = ("vector", "camera", "camera_speed")
 ENCODERS = ("none", "cnn", "conv", "saev")
 AVAILABLE_ENCODERS = ("none", "cnn")  # conv / saev autoencoders are not built yet
 POLICIES = ("ff", "lstm")
+VEC_ENVS = ("auto", "batched", "dummy", "subproc")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -73,7 +74,8 @@ class TrainConfig:
     policy: str = "ff"
     scenario: str = "default"
     n_envs: int = 8
-    vec_env: str = "dummy"  # dummy (one process) or subproc (one process per env)
+    vec_env: str = "auto"  # batched (Vector mode: all copies in one array step), dummy (one process, one env
+    #                        object per copy), subproc (one process per copy); auto = batched where it applies
     total_steps: int = 300_000
     seed: int = 0
     device: str = "cpu"
@@ -95,6 +97,13 @@ class TrainConfig:
     #                             Vector observation, so camera modes train without it
 
     @property
+    def vec_env_kind(self) -> str:
+        """The VecEnv training builds: ``vec_env``, with auto resolved (batched for the Vector mode)."""
+        if self.vec_env != "auto":
+            return self.vec_env
+        return "batched" if self.obs_mode == "vector" else "dummy"
+
+    @property
     def shield_active(self) -> bool:
         """Whether training (and its evaluations) put the safety shield in the loop."""
         return self.safety_shield and self.obs_mode == "vector"
@@ -109,7 +118,10 @@ class TrainConfig:
                    self.encoder, f"an encoder that exists for obs_mode {self.obs_mode}: 'cnn' (end-to-end "
                    f"NatureCNN); 'conv' and 'saev' need the autoencoder work first")
         _check(self.policy in POLICIES, "config", "policy", self.policy, f"one of {POLICIES}")
-        _check(self.vec_env in ("dummy", "subproc"), "config", "vec_env", self.vec_env, "'dummy' or 'subproc'")
+        _check(self.vec_env in VEC_ENVS, "config", "vec_env", self.vec_env, f"one of {VEC_ENVS}")
+        if self.vec_env == "batched":
+            _check(self.obs_mode == "vector", "config", "vec_env", self.vec_env,
+                   f"'auto', 'dummy' or 'subproc' for obs_mode {self.obs_mode} (batched steps the Vector mode only)")
         for name in ("n_envs", "total_steps", "eval_every", "eval_episodes", "checkpoint_every", "torch_threads"):
             v = getattr(self, name)
             _check(isinstance(v, int) and v >= 1, "config", name, v, "an integer >= 1")
@@ -131,6 +143,21 @@ class TrainConfig:
     @property
     def steps_per_update(self) -> int:
         return self.ppo.n_steps * self.n_envs
+
+
+def parse_overrides(items: list[str]) -> dict[str, Any]:
+    """Command-line ``a.b=value`` pairs (values parsed as YAML) as a nested dict of config overrides."""
+    out: dict[str, Any] = {}
+    for item in items:
+        key, sep, raw = item.partition("=")
+        if not sep or not key:
+            raise ConfigError(f"--set {item!r}: expected KEY=VALUE, e.g. reward.w1=0.1")
+        node = out
+        parts = key.split(".")
+        for part in parts[:-1]:
+            node = node.setdefault(part, {})
+        node[parts[-1]] = yaml.safe_load(raw)
+    return out
 
 
 def load_config(path: str | Path | None, overrides: dict[str, Any] | None = None) -> TrainConfig:

@@ -54,12 +54,22 @@ class EnvFactory:
 
 
 def make_vec_env(cfg: TrainConfig, seed: int) -> Any:
-    """The training VecEnv (Dummy or Subproc), seeded, with VecNormalize."""
-    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
+    """The training VecEnv (batched, Dummy or Subproc, ``cfg.vec_env_kind``), seeded, with VecNormalize."""
+    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor, VecNormalize
 
-    factory = EnvFactory(_env_kwargs(cfg), smoothing=cfg.action_smoothing, shield=cfg.shield_active)
-    fns = [factory] * cfg.n_envs
-    venv = SubprocVecEnv(fns, start_method="forkserver") if cfg.vec_env == "subproc" else DummyVecEnv(fns)
+    kind = cfg.vec_env_kind
+    if kind == "batched":
+        from ..env.approach import core_kwargs
+        from .vec_env import BatchedVecEnv
+
+        kwargs = {k: v for k, v in _env_kwargs(cfg).items() if k != "obs_mode"}
+        env_kwargs, _ = core_kwargs(**kwargs)
+        venv = VecMonitor(BatchedVecEnv(cfg.n_envs, cfg.action_smoothing, cfg.shield_active, **env_kwargs),
+                          info_keywords=("is_success",))
+    else:
+        factory = EnvFactory(_env_kwargs(cfg), smoothing=cfg.action_smoothing, shield=cfg.shield_active)
+        fns = [factory] * cfg.n_envs
+        venv = SubprocVecEnv(fns, start_method="forkserver") if kind == "subproc" else DummyVecEnv(fns)
     venv.seed(seed)
     if cfg.obs_mode == "vector":
         return VecNormalize(venv, norm_obs=True, norm_reward=True, gamma=cfg.ppo.gamma)

@@ -1,0 +1,109 @@
+"""``BatchedVecEnv``: SB3's VecEnv interface over ``env.batched.BatchedApproach`` (Vector observation).
+
+It does what ``DummyVecEnv`` over N ``EnvFactory`` envs does, action stages included (the agent's smoothing,
+then the safety shield), with one array step for all copies instead of N Python steps. Seeding follows SB3:
+``seed(s)`` gives copy i the seed ``s + i`` at the next ``reset()``, later episodes continue its generator,
+as a single env's do. Wrap it in SB3's ``VecMonitor`` (episode returns and lengths, ``is_success``) and
+``VecNormalize`` as usual (``training.run.make_vec_env`` does).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices
+
+from ..env import observation as ob
+from ..env.batched import BatchedApproach
+from ..env.shield import ShieldParams, shield_actions
+from ..env.wrappers import ActionFilter
+
+
+class BatchedVecEnv(VecEnv):
+    """``num`` copies of the Vector-mode task; ``env_kwargs`` as for ``BatchedApproach`` (scenario, weights...)."""
+
+    def __init__(self, num: int, smoothing: float = 1.0, shield: bool = False, **env_kwargs: Any) -> None:
+        self.batch = BatchedApproach(num, **env_kwargs)
+        b = self.batch
+        if not 0.0 < smoothing <= 1.0:
+            raise ValueError(f"action smoothing alpha {smoothing!r}: expected a number in (0, 1]")
+        self.filter = ActionFilter(smoothing) if smoothing < 1.0 else None
+        self.shield = ShieldParams.from_env(b.robot_params, b.social, b.task) if shield else None
+        self.render_mode = None
+        obs_space = gym.spaces.Box(-ob.OBS_LIMIT, ob.OBS_LIMIT, shape=(ob.OBS_SIZE,), dtype=np.float32)
+        act_space = gym.spaces.Box(-1.0, 1.0, shape=(b.n_act,), dtype=np.float32)
+        super().__init__(num, obs_space, act_space)
+        self._obs = np.zeros((num, ob.OBS_SIZE), dtype=np.float32)
+        self._actions = np.zeros((num, b.n_act), dtype=np.float32)
+
+    def _start(self, i: int) -> dict[str, Any]:
+        if self._seeds[i] is not None:
+            self.batch.seed(i, self._seeds[i])
+        info = self.batch.reset(i)
+        if self.filter is not None:
+            self.filter.reset(rows=[i])
+        return info
+
+    def reset(self) -> np.ndarray:
+        self.reset_infos = [self._start(i) for i in range(self.num_envs)]
+        self._reset_seeds()
+        self._reset_options()
+        self._obs = self.batch.observations()
+        return self._obs.copy()
+
+    def step_async(self, actions: np.ndarray) -> None:
+        self._actions = np.asarray(actions, dtype=np.float32).reshape(self.num_envs, -1)
+
+    def step_wait(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[dict[str, Any]]]:
+        b = self.batch
+        a = self._actions
+        if self.filter is not None:
+            a = self.filter(a)
+        if self.shield is not None:
+            a = shield_actions(self._obs, a, self.shield)
+        rewards, terminated, truncated = b.step(a)
+        obs = b.observations()
+        done = terminated | truncated
+        infos: list[dict[str, Any]] = [{} for _ in range(self.num_envs)]
+        for i in np.flatnonzero(done).tolist():
+            infos[i] = {"is_success": bool(b.success[i]), "episode_terms": b.episode_terms(i),
+                        "terminal_observation": obs[i].copy(), "TimeLimit.truncated": bool(truncated[i])}
+            self.reset_infos[i] = self._start(i)
+        if done.any():
+            obs = b.observations()
+        self._obs = obs
+        return obs.copy(), rewards.astype(np.float32), done, infos
+
+    def close(self) -> None:
+        pass
+
+    # -- attribute access (SB3 callbacks reach envs through these) ----------------------------------------
+    def _target(self, attr: str) -> Any:
+        for obj in (self.batch, self):
+            if hasattr(obj, attr):
+                return obj
+        raise AttributeError(f"BatchedVecEnv has no attribute {attr!r}")
+
+    def get_attr(self, attr_name: str, indices: VecEnvIndices = None) -> list[Any]:
+        value = getattr(self._target(attr_name), attr_name)
+        return [value for _ in self._get_indices(indices)]
+
+    def set_attr(self, attr_name: str, value: Any, indices: VecEnvIndices = None) -> None:
+        self._all(indices, f"set_attr({attr_name!r})")
+        setattr(self._target(attr_name), attr_name, value)
+
+    def env_method(self, method_name: str, *method_args: Any, indices: VecEnvIndices = None,
+                   **method_kwargs: Any) -> list[Any]:
+        self._all(indices, f"env_method({method_name!r})")
+        out = getattr(self.batch, method_name)(*method_args, **method_kwargs)  # shared by every copy
+        return [out for _ in range(self.num_envs)]
+
+    def env_is_wrapped(self, wrapper_class: type[gym.Wrapper], indices: VecEnvIndices = None) -> Sequence[bool]:
+        return [False for _ in self._get_indices(indices)]
+
+    def _all(self, indices: VecEnvIndices, what: str) -> None:
+        if sorted(self._get_indices(indices)) != list(range(self.num_envs)):
+            raise ValueError(f"BatchedVecEnv.{what}: the copies share their parameters; address all of them")

@@ -1,0 +1,73 @@
+"""``BatchedVecEnv`` behaves as SB3's DummyVecEnv over our single envs, action stages included."""
+
+import numpy as np
+import pytest
+from stable_baselines3.common.vec_env import DummyVecEnv
+
+from ssbl_pb.env.policies import SFFMPolicy
+from ssbl_pb.params import ConfigError
+from ssbl_pb.training.config import TrainConfig
+from ssbl_pb.training.run import EnvFactory, make_vec_env
+from ssbl_pb.training.vec_env import BatchedVecEnv
+
+
+def test_batched_vec_env_matches_dummy_vec_env():
+    kwargs = {"scenario": "mixed", "reward": {"w_prox": 2.0}}
+    ref = DummyVecEnv([EnvFactory({"obs_mode": "vector", **kwargs}, monitor=False, smoothing=0.4, shield=True)] * 4)
+    venv = BatchedVecEnv(4, smoothing=0.4, shield=True, **kwargs)
+    for v in (ref, venv):
+        v.seed(11)
+    obs_ref, obs = ref.reset(), venv.reset()
+    assert np.allclose(obs, obs_ref, atol=1e-6)
+    policy, rng = SFFMPolicy(), np.random.default_rng(0)
+    ended = successes = 0
+    for _ in range(900):
+        act = np.clip(np.stack([policy.act(o) for o in obs]) + rng.normal(0, 0.15, (4, 2)), -1, 1).astype(np.float32)
+        obs_ref, r_ref, d_ref, i_ref = ref.step(act)
+        obs, r, d, info = venv.step(act)
+        assert np.allclose(obs, obs_ref, atol=1e-5)
+        assert np.allclose(r, r_ref, atol=1e-6) and np.array_equal(d, d_ref)
+        for a, b in zip(info, i_ref, strict=True):
+            if "terminal_observation" in b:
+                ended += 1
+                successes += b["is_success"]
+                assert a["is_success"] == b["is_success"]
+                assert a["TimeLimit.truncated"] == b["TimeLimit.truncated"]
+                assert np.allclose(a["terminal_observation"], b["terminal_observation"], atol=1e-5)
+                assert a["episode_terms"]["reward"] == pytest.approx(b["episode_terms"]["reward"], abs=1e-5)
+    assert ended >= 8 and successes >= 1  # resets and their seeding were compared too
+
+
+def test_batched_vec_env_attribute_access():
+    venv = BatchedVecEnv(3)
+    assert venv.get_attr("render_mode") == [None, None, None]
+    venv.env_method("set_reward_weights", w_smooth=0.25)
+    assert venv.get_attr("weights")[0].w_smooth == 0.25
+    with pytest.raises(ValueError, match="address all of them"):
+        venv.env_method("set_reward_weights", indices=[0], w_smooth=0.3)
+    with pytest.raises(AttributeError, match="no attribute 'nope'"):
+        venv.get_attr("nope")
+    with pytest.raises(ValueError, match="smoothing alpha"):
+        BatchedVecEnv(2, smoothing=0.0)
+
+
+def test_config_chooses_the_vec_env():
+    assert TrainConfig().vec_env_kind == "batched"
+    assert TrainConfig(obs_mode="camera", encoder="cnn").vec_env_kind == "dummy"
+    assert TrainConfig(vec_env="dummy").vec_env_kind == "dummy"
+    with pytest.raises(ConfigError, match="vec_env.*batched steps the Vector mode only"):
+        TrainConfig(obs_mode="camera", encoder="cnn", vec_env="batched")
+    with pytest.raises(ConfigError, match="vec_env"):
+        TrainConfig(vec_env="threads")
+
+
+def test_make_vec_env_batched_reports_episodes():
+    cfg = TrainConfig(n_envs=2, env={"task": {"max_steps": 5}})
+    venv = make_vec_env(cfg, 3)
+    venv.reset()
+    infos = []
+    for _ in range(5):
+        _, _, done, infos = venv.step(np.zeros((2, 2), dtype=np.float32))
+    assert done.all()
+    assert all(info["episode"]["l"] == 5 and info["is_success"] is False for info in infos)  # VecMonitor's record
+    venv.close()
