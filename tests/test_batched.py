@@ -5,20 +5,12 @@ import math
 import numpy as np
 import pytest
 
+from ssbl_pb.env import kernels
 from ssbl_pb.env import observation as ob
 from ssbl_pb.env.approach import ApproachGroupEnv
 from ssbl_pb.env.batched import BatchedApproach
 from ssbl_pb.env.policies import SFFMPolicy, StraightPolicy
-from ssbl_pb.env.reward import (
-    TERMS,
-    RewardWeights,
-    reward_term_matrix,
-    reward_terms,
-    route_distance,
-    route_distances,
-    total_reward,
-    weight_vector,
-)
+from ssbl_pb.env.reward import TERMS, RewardWeights, route_distance, total_reward, weight_vector
 from ssbl_pb.env.shield import ShieldParams, shield_action, shield_actions
 from ssbl_pb.env.wrappers import ActionFilter
 
@@ -65,9 +57,9 @@ def test_batch_matches_single_env(kwargs):
             assert r == pytest.approx(rew[i], abs=1e-9)
             assert (te, tr) == (bool(term[i]), bool(trunc[i]))
             assert info["success"] == batch.success[i] and info["violation"] == batch.violation[i]
-            assert np.allclose(batch.base.pose[i], singles[i].world.robot_pose, atol=1e-9)
+            assert np.allclose(batch.pose[i], singles[i].world.robot_pose, atol=1e-9)
             n = singles[i].world.group.n
-            assert np.allclose(batch.group.pos[i, :n], singles[i].world.group.pos, atol=1e-9)
+            assert np.allclose(batch.pos[i, :n], singles[i].world.group.pos, atol=1e-9)
             if te or tr:
                 got = batch.episode_terms(i)
                 for k, v in info["episode_terms"].items():
@@ -99,27 +91,24 @@ def test_batch_rejects_bad_arguments():
         BatchedApproach(2).set_reward_weights(w_smooth=-1.0)
 
 
-def test_route_distances_match_scalar():
+def test_route_kernel_matches_reward_route_distance():
     rng = np.random.default_rng(3)
     p, slot, centre = rng.uniform(-4, 4, (200, 2)), rng.uniform(-1.5, 1.5, (200, 2)), rng.uniform(-1, 1, (200, 2))
     keep = rng.uniform(0.5, 2.5, 200)
+    got = [kernels._route(*p[i], *slot[i], *centre[i], keep[i]) for i in range(200)]
     want = [route_distance(p[i], slot[i], centre[i], keep[i]) for i in range(200)]
-    assert np.allclose(route_distances(p, slot, centre, keep), want, atol=1e-9)
+    assert np.allclose(got, want, atol=1e-9)
     inside = np.hypot(*(p - centre).T) < np.maximum(keep, np.hypot(*(slot - centre).T))
     assert 10 < inside.sum() < 190  # both branches were compared
 
 
-def test_reward_matrix_and_weight_vector_match_eq15():
+def test_weight_vector_is_eq15():
     rng = np.random.default_rng(4)
     w = RewardWeights(w1=0.3, w_e=0.5, w_a=0.7, w_rep=2.0, violation_penalty=4.0)
-    args = [rng.normal(size=(6, 2)), rng.normal(size=(6, 2)), rng.normal(size=(6, 3, 2)), rng.normal(size=(6, 3, 2)),
-            rng.normal(size=(6, 3, 2)), 0.1, rng.normal(size=(6, 2)), rng.normal(size=(6, 2)), rng.normal(size=6),
-            rng.normal(size=6), rng.random(6) < 0.5, rng.random(6) < 0.5, rng.random(6)]
-    mat = reward_term_matrix(*args)
-    for i in range(6):
-        one = reward_terms(*[a[i] if isinstance(a, np.ndarray) else a for a in args[:-1]], float(args[-1][i]))
-        assert np.allclose(mat[i], [one[k] for k in TERMS], atol=1e-12)
-        assert mat[i] @ weight_vector(w) == pytest.approx(total_reward(one, w), abs=1e-12)
+    for _ in range(5):
+        terms = dict(zip(TERMS, rng.normal(size=len(TERMS)), strict=True))
+        assert np.array([terms[k] for k in TERMS]) @ weight_vector(w) == pytest.approx(total_reward(terms, w),
+                                                                                       abs=1e-12)
 
 
 def _random_obs(rng: np.random.Generator, n: int) -> np.ndarray:

@@ -3,9 +3,11 @@
 both measured in one run, in two settings:
 
 * ``sb3``: SB3's own defaults (``PPO("MlpPolicy", env)``: one env, 64x64 net, 2048 steps per update, 10 epochs);
+  the trivial env in SB3's ``DummyVecEnv``, the Vector env as training runs it (``BatchedVecEnv`` of one copy)
+  and, for reference, as a plain Gymnasium env in ``DummyVecEnv`` (``vector_env_dummy``);
 * ``config``: our training config (configs/vector_ff.yaml: 8 envs, 2x128 net, VecNormalize, the agent's action
   smoothing, the safety shield and episode monitoring). The Vector env runs as training runs it, batched
-  (``training.vec_env.BatchedVecEnv``: all 8 copies in one array step); the trivial env runs in SB3's own
+  (``training.vec_env.BatchedVecEnv``: all 8 copies in one compiled step); the trivial env runs in SB3's own
   ``DummyVecEnv`` with ``Monitor`` and the smoothing wrapper (all but the shield, which is part of our agent's
   cost). ``vector_env_dummy`` is our env in ``DummyVecEnv`` too (one env object per copy), for reference.
 
@@ -66,15 +68,16 @@ def measure(setting: str, steps: int, overrides: dict | None = None) -> dict[str
     import ssbl_pb.training.run as run
     from ssbl_pb.env.approach import make_env
     from ssbl_pb.training.config import load_config
+    from ssbl_pb.training.vec_env import BatchedVecEnv
 
     cfg = load_config(ROOT / "configs" / "vector_ff.yaml", overrides)
     torch.set_num_threads(cfg.torch_threads)
     trivial = _trivial_env_class()
     out: dict[str, float] = {}
-    names = ("trivial", "vector_env") if setting == "sb3" else ("trivial", "vector_env", "vector_env_dummy")
-    for name in names:
-        if setting == "sb3":
-            venv = DummyVecEnv([trivial if name == "trivial" else make_env])
+    for name in ("trivial", "vector_env", "vector_env_dummy"):
+        if setting == "sb3":  # the Vector env as training runs it (batched, one copy), and as a plain gym env
+            venv = BatchedVecEnv(1) if name == "vector_env" else DummyVecEnv([trivial if name == "trivial" else
+                                                                             make_env])
             model = PPO("MlpPolicy", venv, device="cpu", seed=0)
         else:
             real_make_env, env_cfg = run.make_env, cfg  # vector_env: as training builds it (batched)
@@ -129,7 +132,8 @@ def main(argv: list[str] | None = None) -> int:
         results[s] = r
         print(f"{s:7s} trivial env {r['trivial_steps_per_s']:6.0f} steps/s, Vector env "
               f"{r['vector_env_steps_per_s']:6.0f} steps/s: {r['ratio']:.0%} "
-              f"({'PASS' if r['ratio'] >= 0.8 else 'MISS'} >= 80 %); env adds {r['env_us_per_step']:.0f} us/step")
+              f"({'PASS' if r['ratio'] >= 0.8 else 'MISS'} >= 80 %); env adds {r['env_us_per_step']:.0f} us/step; "
+              f"as a plain gym env in DummyVecEnv {r['vector_env_dummy_steps_per_s']:6.0f} steps/s")
     args.out.parent.mkdir(parents=True, exist_ok=True)
     write_json(args.out, results)
     print(f"-> {args.out}")

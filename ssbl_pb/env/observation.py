@@ -31,8 +31,6 @@ import math
 
 import numpy as np
 
-from .angles import wrap
-
 MAX_MEMBERS = 5
 MEMBER_FIELDS = 5
 OBS_SIZE = 14 + MAX_MEMBERS * MEMBER_FIELDS + 1
@@ -81,63 +79,6 @@ def vector_observation(
     block[:k, 2:4] = body[k:]
     block[:k, 4] = 1.0
     obs[39] = math.remainder(yaw - frame_yaw, 2.0 * math.pi) / math.pi
-    np.maximum(obs, -OBS_LIMIT, out=obs)
-    return np.minimum(obs, OBS_LIMIT, out=obs)
-
-
-def vector_observations(
-    robot_pose: np.ndarray,
-    robot_vel: np.ndarray,
-    members_pos: np.ndarray,
-    members_vel: np.ndarray,
-    present: np.ndarray,
-    centre: np.ndarray,
-    radius: np.ndarray,
-    slot: np.ndarray,
-    walls: np.ndarray,
-    max_speed: float,
-    max_yaw_rate: float,
-    frame_yaw: np.ndarray | None = None,
-) -> np.ndarray:
-    """``vector_observation`` for N states at once (arrays lead with N; members padded, ``present`` (N, m))."""
-    n, m = present.shape
-    x, y, yaw = robot_pose[:, 0], robot_pose[:, 1], robot_pose[:, 2]
-    if frame_yaw is None:
-        frame_yaw = np.arctan2(centre[:, 1] - y, centre[:, 0] - x)
-    c, s = np.cos(frame_yaw)[:, None], np.sin(frame_yaw)[:, None]
-    rel = members_pos - robot_pose[:, None, :2]
-    d2 = rel[..., 0] * rel[..., 0] + rel[..., 1] * rel[..., 1]
-    d2[~present] = np.inf
-    order = np.argsort(d2, axis=1, kind="stable")
-    rows = np.arange(n)[:, None]
-    # every vector the frame turns, one rotation: slot, centre, velocity, members' positions and velocities
-    vecs = np.empty((n, 3 + 2 * m, 2))
-    vecs[:, 0] = slot - robot_pose[:, :2]
-    vecs[:, 1] = centre - robot_pose[:, :2]
-    vecs[:, 2] = robot_vel[:, :2]
-    vecs[:, 3:3 + m] = rel[rows, order]
-    vecs[:, 3 + m:] = members_vel[rows, order]
-    bx = c * vecs[..., 0] + s * vecs[..., 1]
-    by = c * vecs[..., 1] - s * vecs[..., 0]
-    obs = np.zeros((n, OBS_SIZE), dtype=np.float32)
-    obs[:, 0:4:2] = bx[:, :2] / POS_SCALE
-    obs[:, 1:4:2] = by[:, :2] / POS_SCALE
-    obs[:, 4] = radius / POS_SCALE
-    obs[:, 5] = bx[:, 2] / max_speed
-    obs[:, 6] = by[:, 2] / max_speed
-    obs[:, 7] = robot_vel[:, 2] / max_yaw_rate
-    obs[:, 8], obs[:, 9] = c[:, 0], s[:, 0]
-    obs[:, 10:14] = walls / POS_SCALE
-    here = present[rows, order]
-    k = min(m, MAX_MEMBERS)
-    block = obs[:, 14:14 + MAX_MEMBERS * MEMBER_FIELDS].reshape(n, MAX_MEMBERS, MEMBER_FIELDS)
-    block[:, :k, 0] = bx[:, 3:3 + k] * (1.0 / POS_SCALE) * here[:, :k]
-    block[:, :k, 1] = by[:, 3:3 + k] * (1.0 / POS_SCALE) * here[:, :k]
-    block[:, :k, 2] = bx[:, 3 + m:3 + m + k] * here[:, :k]
-    block[:, :k, 3] = by[:, 3 + m:3 + m + k] * here[:, :k]
-    block[:, :k, 4] = here[:, :k]
-    d = yaw - frame_yaw
-    obs[:, 39] = wrap(d) * (1.0 / math.pi)
     np.maximum(obs, -OBS_LIMIT, out=obs)
     return np.minimum(obs, OBS_LIMIT, out=obs)
 

@@ -31,7 +31,6 @@ import math
 import numpy as np
 
 from ..params import _check, _nonneg
-from .angles import wrap
 
 TERMS = ("r1_group_forming", "r2_non_increasing", "r3_time", "r4_success", "r5_altruism", "r5_repulsion",
          "effort", "smoothness", "slot_progress", "proximity", "violation")
@@ -106,22 +105,12 @@ def route_distance(p: np.ndarray, slot: np.ndarray, centre: np.ndarray, keep_out
     return to_rim + (R - rq)
 
 
-def route_distances(p: np.ndarray, slot: np.ndarray, centre: np.ndarray, keep_out: np.ndarray) -> np.ndarray:
-    """``route_distance`` for N cases at once: ``p``, ``slot``, ``centre`` (N, 2), ``keep_out`` (N,)."""
-    rel, q = p - centre, slot - centre
-    r, rq = np.hypot(rel[:, 0], rel[:, 1]), np.hypot(q[:, 0], q[:, 1])
-    dth = np.abs(wrap(np.arctan2(rel[:, 1], rel[:, 0]) - np.arctan2(q[:, 1], q[:, 0])))
-    R = np.maximum(keep_out, rq)
-    inside = r < R
-    r_out = np.where(inside, R, r)  # keeps arccos and sqrt in range where the other branch is taken
-    beta = np.arccos(R / r_out)
-    rim = np.where(dth <= beta, np.sqrt(np.maximum(r_out * r_out + R * R - 2.0 * r_out * R * np.cos(dth), 0.0)),
-                   np.sqrt(r_out * r_out - R * R) + R * (dth - beta))
-    through = np.hypot(rel[:, 0] - q[:, 0], rel[:, 1] - q[:, 1]) + R * dth
-    return np.where(inside, through, rim + (R - rq))
+BRAKE_GAIN = 5.0  # s: slot_potential's weight on speed near the slot
+BRAKE_RADIUS = 1.0  # m: within this distance of the slot
 
 
-def slot_potential(distance: float, speed: float, brake_gain: float = 5.0, brake_radius: float = 1.0) -> float:
+def slot_potential(distance: float, speed: float, brake_gain: float = BRAKE_GAIN,
+                   brake_radius: float = BRAKE_RADIUS) -> float:
     """Potential of the robot's state for shaping (ours): minus the distance to the free slot, and minus its
     speed (times ``brake_gain`` seconds) within ``brake_radius`` of the slot, so arriving slowly pays. Its
     difference between steps is potential-based shaping (Ng et al. 1999): it does not change the optimum.
@@ -190,42 +179,7 @@ def total_reward(t: dict[str, float], w: RewardWeights) -> float:
             + w.violation_penalty * t["violation"])
 
 
-def reward_term_matrix(
-    robot_force: np.ndarray,
-    robot_du: np.ndarray,
-    member_forces: np.ndarray,
-    member_du: np.ndarray,
-    member_repulsion: np.ndarray,
-    dt: float,
-    accel: np.ndarray,
-    prev_accel: np.ndarray,
-    potential_before: np.ndarray,
-    potential_after: np.ndarray,
-    success: np.ndarray,
-    violation: np.ndarray,
-    proximity: np.ndarray,
-) -> np.ndarray:
-    """``reward_terms`` for N steps at once: one row per step, columns in ``TERMS`` order (arrays lead with N;
-    members (N, m, 2), padding zero)."""
-    along = robot_force[:, 0] * robot_du[:, 0] + robot_force[:, 1] * robot_du[:, 1]
-    dx, dy = robot_du[:, 0], robot_du[:, 1]
-    jerk = accel - prev_accel
-    out = np.empty((len(along), len(TERMS)))
-    out[:, 0] = along
-    out[:, 1] = np.where(along > 0.0, dt, 0.0)
-    out[:, 2] = -dt
-    out[:, 3] = success
-    out[:, 4] = -(member_forces * member_du).sum(axis=(1, 2))
-    out[:, 5] = -np.hypot(member_repulsion[..., 0], member_repulsion[..., 1]).sum(axis=1) * dt
-    out[:, 6] = -(dx * dx + dy * dy) / dt
-    out[:, 7] = -np.hypot(jerk[:, 0], jerk[:, 1])
-    out[:, 8] = potential_after - potential_before
-    out[:, 9] = -proximity
-    out[:, 10] = -1.0 * violation
-    return out
-
-
 def weight_vector(w: RewardWeights) -> np.ndarray:
-    """Eq. 15 as weights on ``TERMS`` (``reward_term_matrix(...) @ weight_vector(w)`` = ``total_reward``)."""
+    """Eq. 15 as weights on ``TERMS``: the terms (in ``TERMS`` order) dotted with it give ``total_reward``."""
     return np.array([w.w_e * w.w1, w.w_e * w.w2, w.w_e * w.w3, w.w4, w.w_a * w.w5, w.w_a * w.w_rep, w.w_effort,
                      w.w_smooth, w.w_slot, w.w_prox, w.violation_penalty])

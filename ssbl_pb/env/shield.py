@@ -18,7 +18,7 @@ import math
 import numpy as np
 
 from ..params import RobotParams, SocialParams, _check, _positive
-from .observation import MAX_MEMBERS, MEMBER_FIELDS, POS_SCALE, decode_members
+from .observation import decode_members
 from .task import TaskParams
 
 
@@ -83,61 +83,14 @@ def shield_action(obs: np.ndarray, action: np.ndarray, p: ShieldParams) -> np.nd
 
 
 def shield_actions(obs: np.ndarray, actions: np.ndarray, p: ShieldParams) -> np.ndarray:
-    """``shield_action`` for N observations (N, OBS_SIZE) and actions (N, A) at once."""
-    n = len(obs)
-    a = np.asarray(actions, dtype=np.float32)
-    block = obs[:, 14:39].astype(float).reshape(n, MAX_MEMBERS, MEMBER_FIELDS)
-    present = block[..., 4] > 0.5
-    v = a[:, :2].astype(float) * p.max_speed
-    speed = np.hypot(v[:, 0], v[:, 1])
-    over = speed > p.max_speed
-    if over.any():
-        v[over] *= (p.max_speed / speed[over])[:, None]
-    heading = obs[:, 39].astype(float) * math.pi
-    c, s = np.cos(heading)[:, None], np.sin(heading)[:, None]
-    px, py = block[..., 0] * POS_SCALE, block[..., 1] * POS_SCALE
-    lx, ly = px * c + py * s, py * c - px * s  # frame -> body
-    dx = lx - np.minimum(np.maximum(lx, -p.half_length), p.half_length)
-    dy = ly - np.minimum(np.maximum(ly, -p.half_width), p.half_width)
-    dist = np.hypot(dx, dy)
-    clearance = np.where(present, dist - p.human_radius, np.inf)
-    allow = np.sqrt(2.0 * p.brake_accel * np.maximum(np.where(present, clearance, 0.0) - p.clearance_min, 0.0))
-    mvx, mvy = block[..., 2], block[..., 3]
-    # no member can be closed on faster than |v| + its own speed: where that is within ``allow`` for every
-    # member, the command passes unchanged (exactly; the loop below would cut nothing)
-    bound = np.hypot(v[:, 0], v[:, 1])[:, None] + np.hypot(mvx, mvy)
-    need = present & (bound > allow)
-    if need.any():
-        rows = np.flatnonzero(need.any(axis=1))
-        _cut_closing(v, rows, present, dist, lx, ly, dx, dy, c, s, clearance, allow, mvx, mvy)
-    out = a.copy()
-    out[:, :2] = np.minimum(np.maximum(v / p.max_speed, -1.0), 1.0)
-    alone = ~present.any(axis=1)  # nobody to keep clear of: unchanged, as shield_action
-    if alone.any():
-        out[alone] = a[alone]
+    """``shield_action`` for N observations (N, OBS_SIZE) and actions (N, A) at once (compiled, ``kernels``)."""
+    from .kernels import shield
+
+    a = np.ascontiguousarray(actions, dtype=np.float32)
+    out = np.empty_like(a)
+    shield(np.ascontiguousarray(obs, dtype=np.float32), a, p.clearance_min, p.brake_accel, p.max_speed,
+           p.half_length, p.half_width, p.human_radius, out)
     return out
-
-
-def _cut_closing(v: np.ndarray, rows: np.ndarray, present: np.ndarray, dist: np.ndarray, lx: np.ndarray,
-                 ly: np.ndarray, dx: np.ndarray, dy: np.ndarray, c: np.ndarray, s: np.ndarray, clearance: np.ndarray,
-                 allow: np.ndarray, mvx: np.ndarray, mvy: np.ndarray) -> None:
-    """``shield_actions``' loop over members, nearest first, on the rows that need it (``v`` changed in place)."""
-    inside = dist[rows] < 1e-9
-    dx, dy = np.where(inside, lx[rows], dx[rows]), np.where(inside, ly[rows], dy[rows])
-    norm = np.maximum(np.hypot(dx, dy), 1e-9)
-    ux, uy = dx / norm, dy / norm
-    cr, sr = c[rows], s[rows]
-    tx, ty = ux * cr - uy * sr, ux * sr + uy * cr  # body -> frame
-    order = np.argsort(clearance[rows], axis=1)
-    idx = (np.arange(len(rows))[:, None], order)
-    tx, ty, mvx, mvy, allow, here = tx[idx], ty[idx], mvx[rows][idx], mvy[rows][idx], allow[rows][idx], \
-        present[rows][idx]
-    vx, vy = v[rows, 0], v[rows, 1]
-    for j in range(int(here.sum(axis=1).max())):
-        closing = (vx - mvx[:, j]) * tx[:, j] + (vy - mvy[:, j]) * ty[:, j]
-        cut = np.where(here[:, j] & (closing > allow[:, j]), closing - allow[:, j], 0.0)
-        vx, vy = vx - cut * tx[:, j], vy - cut * ty[:, j]
-    v[rows, 0], v[rows, 1] = vx, vy
 
 
 class SafetyShield:

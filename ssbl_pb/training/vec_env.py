@@ -73,7 +73,7 @@ class BatchedVecEnv(VecEnv):
                         "terminal_observation": obs[i].copy(), "TimeLimit.truncated": bool(truncated[i])}
             self.reset_infos[i] = self._start(i)
         if done.any():
-            obs = b.observations()
+            obs = b.observations(np.flatnonzero(done))
         self._obs = obs
         return obs.copy(), rewards.astype(np.float32), done, infos
 
