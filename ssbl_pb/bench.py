@@ -21,7 +21,8 @@ def rate(fn: Callable[[], None], n: int, repeats: int = 5) -> float:
 
 
 def simulator_rates(n_steps: int = 20_000, n_frames: int = 500, seed: int = 0) -> dict[str, float]:
-    """raw_step_per_s, raw_render_fps_84, world_step_per_s, camera_fps_84, camera_fps_128, env_step_per_s."""
+    """raw_step_per_s, raw_render_fps_84, world_step_per_s, camera_fps_84, camera_fps_128, env_step_per_s,
+    batched_env_step_per_s (env steps of the 8-copy training env, smoothing and shield included)."""
     from .env.approach import ApproachGroupEnv
     from .env.cameras import first_person_view, perspective
     from .env.world import World
@@ -64,4 +65,19 @@ def simulator_rates(n_steps: int = 20_000, n_frames: int = 500, seed: int = 0) -
 
     out["env_step_per_s"] = rate(env_step, n_steps // 2)
     env.close()
+
+    from .training.vec_env import BatchedVecEnv
+
+    venv = BatchedVecEnv(8, smoothing=0.4, shield=True)  # as training runs it (configs/vector_ff.yaml)
+    venv.seed(seed)
+    venv.reset()
+    batch_actions = actions[: (n_steps // 8) * 8].reshape(-1, 8, 2)
+    j = [0]
+
+    def batched_step() -> None:
+        venv.step(batch_actions[j[0] % len(batch_actions)])
+        j[0] += 1
+
+    batched_step()  # compiles the kernels (or loads them from the cache) outside the timing
+    out["batched_env_step_per_s"] = 8 * rate(batched_step, n_steps // 8)
     return out

@@ -43,7 +43,7 @@ def main(argv: list[str] | None = None) -> int:
               "env_step_per_s >= 5000": r["env_step_per_s"] >= 5_000}
     print(f"{'measure':24s} {'per second':>12s}")
     for k in ("raw_step_per_s", "raw_render_fps_84", "world_step_per_s", "camera_fps_84", "camera_fps_128",
-              "env_step_per_s"):
+              "env_step_per_s", "batched_env_step_per_s"):
         print(f"{k:24s} {r[k]:12.0f}")
     for k, ok in checks.items():
         print(f"{'PASS' if ok else 'MISS'}  {k}")

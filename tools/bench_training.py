@@ -13,7 +13,7 @@ both measured in one run, in two settings:
 
 The trivial env returns a stored observation (no sampling), so its figure is SB3's own cost per step.
 Writes results/bench_training.json.
-    python tools/bench_training.py --steps 40000
+    python tools/bench_training.py
 """
 
 from __future__ import annotations
@@ -59,8 +59,10 @@ def _trivial_env_class():  # noqa: ANN202 - built lazily so --help stays fast
     return Trivial
 
 
-def measure(setting: str, steps: int, overrides: dict | None = None) -> dict[str, float]:
-    """Env steps per second of PPO learning on the trivial env and on the Vector env (same setting)."""
+def measure(setting: str, steps: int, overrides: dict | None = None, repeats: int = 3) -> dict[str, float]:
+    """Env steps per second of PPO learning on the trivial env and on the Vector env (same setting); each env
+    measured ``repeats`` times, interleaved, and the median kept (runs on this machine vary by ~15 %)."""
+    import numpy as np
     import torch
     from stable_baselines3 import PPO
     from stable_baselines3.common.vec_env import DummyVecEnv
@@ -73,8 +75,8 @@ def measure(setting: str, steps: int, overrides: dict | None = None) -> dict[str
     cfg = load_config(ROOT / "configs" / "vector_ff.yaml", overrides)
     torch.set_num_threads(cfg.torch_threads)
     trivial = _trivial_env_class()
-    out: dict[str, float] = {}
-    for name in ("trivial", "vector_env", "vector_env_dummy"):
+    runs: dict[str, list[float]] = {}
+    for name in ("trivial", "vector_env", "vector_env_dummy") * repeats:
         if setting == "sb3":  # the Vector env as training runs it (batched, one copy), and as a plain gym env
             venv = BatchedVecEnv(1) if name == "vector_env" else DummyVecEnv([trivial if name == "trivial" else
                                                                              make_env])
@@ -94,8 +96,9 @@ def measure(setting: str, steps: int, overrides: dict | None = None) -> dict[str
             model.tensorboard_log = None
         t0 = time.perf_counter()
         model.learn(steps)
-        out[f"{name}_steps_per_s"] = model.num_timesteps / (time.perf_counter() - t0)
+        runs.setdefault(f"{name}_steps_per_s", []).append(model.num_timesteps / (time.perf_counter() - t0))
         venv.close()
+    out = {k: float(np.median(v)) for k, v in runs.items()}
     out["ratio"] = out["vector_env_steps_per_s"] / out["trivial_steps_per_s"]
     # what the env adds to each step, on top of SB3's own per-step cost
     out["env_us_per_step"] = 1e6 * (1 / out["vector_env_steps_per_s"] - 1 / out["trivial_steps_per_s"])
@@ -104,7 +107,8 @@ def measure(setting: str, steps: int, overrides: dict | None = None) -> dict[str
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--steps", type=int, default=40_000, help="learning steps per measurement (default 40000)")
+    ap.add_argument("--steps", type=int, default=20_000, help="learning steps per measurement (default 20000)")
+    ap.add_argument("--repeats", type=int, default=3, help="measurements per env, median kept (default 3)")
     ap.add_argument("--settings", default=",".join(SETTINGS), help=f"comma list of {SETTINGS} (default both)")
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                     help="override a key of configs/vector_ff.yaml for the config setting, e.g. n_envs=16")
@@ -126,9 +130,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return 2
 
-    results = {"steps": args.steps, "overrides": overrides}
+    results = {"steps": args.steps, "repeats": args.repeats, "overrides": overrides}
     for s in settings:
-        r = measure(s, args.steps, overrides)
+        r = measure(s, args.steps, overrides, args.repeats)
         results[s] = r
         print(f"{s:7s} trivial env {r['trivial_steps_per_s']:6.0f} steps/s, Vector env "
               f"{r['vector_env_steps_per_s']:6.0f} steps/s: {r['ratio']:.0%} "

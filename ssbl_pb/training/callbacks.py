@@ -79,10 +79,13 @@ class EvalCheckpointCallback(BaseCallback):
     normalisation in ``best/``; every ``checkpoint_every`` steps: a resumable checkpoint."""
 
     def __init__(self, run_dir: Path, make_eval_env: Any, eval_every: int, eval_episodes: int, eval_seed: int,
-                 checkpoint_every: int, recurrent: bool, smoothing: float = 1.0, shield: bool = False) -> None:
+                 checkpoint_every: int, recurrent: bool, smoothing: float = 1.0, shield: bool = False,
+                 make_eval_venv: Any = None) -> None:
+        """``make_eval_venv(n)``, when given, builds a seedable ``BatchedVecEnv`` of ``n`` copies (smoothing and
+        shield inside) that plays all evaluation episodes at once instead of ``make_eval_env`` one by one."""
         super().__init__()
         self.run_dir = run_dir
-        self.make_eval_env = make_eval_env
+        self.make_eval_env, self.make_eval_venv = make_eval_env, make_eval_venv
         self.eval_every, self.eval_episodes, self.eval_seed = eval_every, eval_episodes, eval_seed
         self.checkpoint_every = checkpoint_every
         self.recurrent = recurrent
@@ -99,6 +102,15 @@ class EvalCheckpointCallback(BaseCallback):
 
     def evaluate(self) -> dict[str, float]:
         from ..env.shield import ShieldParams
+
+        if self.make_eval_venv is not None:
+            from .vec_env import evaluate_first_episodes
+
+            venv = self.make_eval_venv(self.eval_episodes)
+            venv.seed(self.eval_seed)
+            success, returns = evaluate_first_episodes(self.model, self.training_env, self.recurrent, venv)
+            return {"step": self.num_timesteps, "success_rate": float(success.mean()),
+                    "mean_return": float(returns.mean())}
 
         env = self.make_eval_env()
         core = env.unwrapped  # the shield brakes within the training env's robot limits, as in training

@@ -53,19 +53,28 @@ class EnvFactory:
         return env
 
 
+class BatchedFactory:
+    """``BatchedVecEnv(n)`` for env keyword arguments (``_env_kwargs``) with the config's action stages."""
+
+    def __init__(self, kwargs: dict[str, Any], cfg: TrainConfig) -> None:
+        from ..env.approach import core_kwargs
+
+        self.env_kwargs, _ = core_kwargs(**{k: v for k, v in kwargs.items() if k != "obs_mode"})
+        self.smoothing, self.shield = cfg.action_smoothing, cfg.shield_active
+
+    def __call__(self, n: int) -> Any:
+        from .vec_env import BatchedVecEnv
+
+        return BatchedVecEnv(n, self.smoothing, self.shield, **self.env_kwargs)
+
+
 def make_vec_env(cfg: TrainConfig, seed: int) -> Any:
     """The training VecEnv (batched, Dummy or Subproc, ``cfg.vec_env_kind``), seeded, with VecNormalize."""
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor, VecNormalize
 
     kind = cfg.vec_env_kind
     if kind == "batched":
-        from ..env.approach import core_kwargs
-        from .vec_env import BatchedVecEnv
-
-        kwargs = {k: v for k, v in _env_kwargs(cfg).items() if k != "obs_mode"}
-        env_kwargs, _ = core_kwargs(**kwargs)
-        venv = VecMonitor(BatchedVecEnv(cfg.n_envs, cfg.action_smoothing, cfg.shield_active, **env_kwargs),
-                          info_keywords=("is_success",))
+        venv = VecMonitor(BatchedFactory(_env_kwargs(cfg), cfg)(cfg.n_envs), info_keywords=("is_success",))
     else:
         factory = EnvFactory(_env_kwargs(cfg), smoothing=cfg.action_smoothing, shield=cfg.shield_active)
         fns = [factory] * cfg.n_envs
@@ -136,7 +145,8 @@ def _callbacks(cfg: TrainConfig, run_dir: Path) -> list[Any]:
     return ramp + [ProgressCallback(cfg.total_steps), EpisodeLogCallback(run_dir / "learning_curve.csv"),
             EvalCheckpointCallback(run_dir, EnvFactory(eval_kwargs, monitor=False), cfg.eval_every,
                                    cfg.eval_episodes, cfg.eval_seed, cfg.checkpoint_every, cfg.policy == "lstm",
-                                   cfg.action_smoothing, cfg.shield_active)]
+                                   cfg.action_smoothing, cfg.shield_active,
+                                   BatchedFactory(eval_kwargs, cfg) if cfg.vec_env_kind == "batched" else None)]
 
 
 def _learn(cfg: TrainConfig, run_dir: Path, model: Any, venv: Any, resumed_from: int | None) -> dict[str, Any]:

@@ -107,3 +107,27 @@ class BatchedVecEnv(VecEnv):
     def _all(self, indices: VecEnvIndices, what: str) -> None:
         if sorted(self._get_indices(indices)) != list(range(self.num_envs)):
             raise ValueError(f"BatchedVecEnv.{what}: the copies share their parameters; address all of them")
+
+
+def evaluate_first_episodes(model: Any, normalizer: Any, recurrent: bool, venv: BatchedVecEnv
+                            ) -> tuple[np.ndarray, np.ndarray]:
+    """Success (N,) and return (N,) of each copy's first episode under ``model`` acting deterministically on
+    observations normalised by ``normalizer`` (a ``VecNormalize``; None: raw). Seed ``venv`` first: copy i then
+    plays the episode a single env reset with seed ``s + i`` plays, as ``rollout.run_episode`` would run it with
+    the same model (the agent's smoothing and shield act inside ``venv``)."""
+    from ..env.trained import TrainedPolicy
+
+    policy = TrainedPolicy(model, normalizer, recurrent)
+    n = venv.num_envs
+    obs = venv.reset()
+    active, success, returns = np.ones(n, dtype=bool), np.zeros(n, dtype=bool), np.zeros(n)
+    state, start = None, np.ones(n, dtype=bool)
+    while active.any():
+        action, state = policy.predict(obs, state, start, deterministic=True)
+        obs, rewards, done, infos = venv.step(action)
+        returns += np.where(active, rewards, 0.0)
+        for i in np.flatnonzero(done & active).tolist():
+            success[i] = infos[i]["is_success"]
+        active &= ~done
+        start = done
+    return success, returns
