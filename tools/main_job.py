@@ -25,7 +25,7 @@ from ssbl_pb.cli import fail, progress_bar  # noqa: E402
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--out", type=Path, default=ROOT / "results" / "quickstart")
-    ap.add_argument("--steps", type=int, default=150_000, help="training steps (default 150k, about 90 s)")
+    ap.add_argument("--steps", type=int, default=150_000, help="training steps (default 150k, about 25 s)")
     ap.add_argument("--episodes", type=int, default=60, help="evaluation episodes per policy")
     ap.add_argument("--seed", type=int, default=0)
     args = ap.parse_args(argv)
