@@ -89,3 +89,13 @@ def test_batched_evaluation_matches_single_env_episodes():
     assert success.tolist() == [bool(m["success"]) for m in want]
     assert np.allclose(returns, [m["return"] for m in want], atol=1e-3)
     assert success.sum() >= 4
+
+
+def test_dummy_and_batched_training_envs_start_alike():
+    obs = {}
+    for kind in ("dummy", "batched"):
+        venv = make_vec_env(TrainConfig(n_envs=3, vec_env=kind, scenario="mixed"), 5)
+        obs[kind] = venv.venv.reset()
+        assert type(venv.venv).__name__ == ("DummyVecEnv" if kind == "dummy" else "VecMonitor")
+        venv.close()
+    assert np.allclose(obs["dummy"], obs["batched"], atol=1e-6)
