@@ -2,7 +2,7 @@
 
 ``BatchedApproach`` is ``ApproachGroupEnv`` (Vector observation) for N independent copies, without PyBullet: its
 state lives in arrays (groups padded to ``MAX_HUMANS`` members) and ``kernels`` step, observe and shield every
-copy in one call each, with the single env's arithmetic. One step of 8 copies costs ~20 us where 8 single envs
+copy in one call each, with the single env's arithmetic. One step of 8 copies costs ~35 us where 8 single envs
 cost ~1.5 ms (numpy's fixed cost per call on arrays of 2-6 agents). Resets (rare) spawn through the single env's
 own code (``world.spawn_layout``, ``humans.Group``), so a copy seeded like a single env plays the same episode:
 ``tests/test_batched.py`` steps both with the same actions and compares every state, reward and ending.

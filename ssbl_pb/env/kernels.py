@@ -4,9 +4,10 @@ Each kernel loops over the copies and runs, per copy, the same scalar arithmetic
 (``base.HolonomicBase.step``, ``humans.Group.step`` with ``forces`` eqs. 8-10, ``humans.widest_gap``,
 ``ApproachGroupEnv.step`` with ``reward`` eqs. 11-15, ``observation.vector_observation`` and
 ``shield.shield_action``): numpy's fixed cost per call on arrays of 2-6 agents made an array-operation version
-cost ~500 us per step of 8 copies, these cost ~20 us. ``tests/test_batched.py`` holds them to the single env step
-for step; change both together. Parameters travel as float arrays packed by ``pack_params`` (indices below).
-Compiled on first use and cached next to this file (``cache=True``), so later processes start at once.
+cost ~500 us per step of 8 copies, these ~35 us (shield and smoothing included). ``tests/test_batched.py``
+holds them to the single env step for step; change both together. Parameters travel as one float array packed
+by ``pack_params`` (indices below). Compiled on first use and cached next to this file (``cache=True``), so
+later processes start at once.
 """
 
 from __future__ import annotations
