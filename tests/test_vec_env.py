@@ -99,3 +99,26 @@ def test_dummy_and_batched_training_envs_start_alike():
         assert type(venv.venv).__name__ == ("DummyVecEnv" if kind == "dummy" else "VecMonitor")
         venv.close()
     assert np.allclose(obs["dummy"], obs["batched"], atol=1e-6)
+
+
+def test_batched_evaluation_of_a_recurrent_policy_matches_single_env():
+    from sb3_contrib import RecurrentPPO
+
+    from ssbl_pb.env.approach import make_env
+    from ssbl_pb.env.rollout import run_episode
+    from ssbl_pb.env.trained import TrainedPolicy
+    from ssbl_pb.training.policies import bounded_policy
+    from ssbl_pb.training.vec_env import evaluate_first_episodes
+
+    kwargs = {"scenario": "mixed", "task": {"max_steps": 40}}
+    venv = BatchedVecEnv(3, smoothing=0.4, shield=True, **kwargs)
+    model = RecurrentPPO(bounded_policy("vector", True), venv, n_steps=16, batch_size=16, seed=3, device="cpu",
+                         policy_kwargs={"lstm_hidden_size": 16, "net_arch": [16]})
+    single = TrainedPolicy(model, None, recurrent=True, smoothing=0.4, shield=True)
+    env = make_env(**kwargs)
+    want = [run_episode(env, single, 70 + i, keep_trajectory=False).metrics for i in range(3)]
+    env.close()
+    venv.seed(70)
+    success, returns = evaluate_first_episodes(model, None, True, venv)
+    assert np.allclose(returns, [m["return"] for m in want], atol=1e-4)
+    assert success.tolist() == [bool(m["success"]) for m in want]
