@@ -167,7 +167,7 @@ class ApproachGroupEnv(gym.Env):
                    and abs(self.heading_error()) < math.radians(self.task.heading_tolerance_deg))
         accel = (w.base.vel[:2] - vel_before) / self.dt
         self._potential = slot_potential(self._route(w.robot_pose[:2]), speed)
-        proximity = float(proximity_cost(self._clearance, clearance, self.task.intimate_zone, self.task.proximity_band))
+        proximity = proximity_cost(self._clearance, clearance, self.task.intimate_zone, self.task.proximity_band)
         self._clearance = clearance
         terms = reward_terms(g.robot_force, w.robot_pose[:2] - robot_before, g.force, g.pos - members_before,
                              g.repulsion, self.dt, accel, self._prev_accel, potential_before, self._potential,

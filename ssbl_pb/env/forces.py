@@ -61,7 +61,7 @@ def repulsion(P: np.ndarray, d_p: float, mask: np.ndarray | None = None, pair: P
     _, dist = pair if pair is not None else pairwise(P)
     inside = _neighbours(dist, d_p, mask)
     if not inside.any():
-        return np.zeros(P.shape)
+        return np.zeros_like(P)
     p_r = _sum_toward(inside.astype(P.dtype), P)
     d_min = np.where(inside, dist, d_p).min(axis=-1)
     unit, _ = normalize(p_r)

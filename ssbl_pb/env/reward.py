@@ -113,13 +113,12 @@ def slot_potential(distance: float, speed: float, brake_gain: float = BRAKE_GAIN
                    brake_radius: float = BRAKE_RADIUS) -> float:
     """Potential of the robot's state for shaping (ours): minus the distance to the free slot, and minus its
     speed (times ``brake_gain`` seconds) within ``brake_radius`` of the slot, so arriving slowly pays. Its
-    difference between steps is potential-based shaping (Ng et al. 1999): it does not change the optimum.
-    Arrays of distances and speeds give arrays."""
-    return -(distance + brake_gain * speed * np.maximum(0.0, 1.0 - distance / brake_radius))
+    difference between steps is potential-based shaping (Ng et al. 1999): it does not change the optimum."""
+    return -(distance + brake_gain * speed * max(0.0, 1.0 - distance / brake_radius))
 
 
 def proximity_cost(clearance_before: np.ndarray, clearance_after: np.ndarray, intimate: float,
-                   band: float) -> np.ndarray:
+                   band: float) -> float:
     """Metres the robot closed on members near their intimate zone this step, each weighted by how deep it is in
     the ``band`` beyond the zone (linear: 0 at ``intimate + band``, 1 at ``intimate``); >= 0.
 
@@ -131,7 +130,7 @@ def proximity_cost(clearance_before: np.ndarray, clearance_after: np.ndarray, in
     after = np.asarray(clearance_after)
     closed = np.maximum(np.asarray(clearance_before) - after, 0.0)
     depth = np.minimum(np.maximum((intimate + band - after) * (1.0 / band), 0.0), 1.0)
-    return (closed * depth).sum(axis=-1)  # (..., k) clearances give one cost per leading index
+    return float(closed @ depth)
 
 
 def reward_terms(
