@@ -122,3 +122,15 @@ def test_batched_evaluation_of_a_recurrent_policy_matches_single_env():
     success, returns = evaluate_first_episodes(model, None, True, venv)
     assert np.allclose(returns, [m["return"] for m in want], atol=1e-4)
     assert success.tolist() == [bool(m["success"]) for m in want]
+
+
+def test_bench_training_rejects_unknown_config_keys(tmp_path):
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    out = tmp_path / "bench.json"
+    res = subprocess.run([sys.executable, str(root / "tools" / "bench_training.py"), "--set", "n_envz=3", "--out",
+                          str(out)], capture_output=True, text=True, timeout=120)
+    assert res.returncode == 2 and "n_envz" in res.stderr and not out.exists()

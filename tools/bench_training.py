@@ -122,10 +122,11 @@ def main(argv: list[str] | None = None) -> int:
 
     from ssbl_pb.params import ConfigError
     from ssbl_pb.report import write_json
-    from ssbl_pb.training.config import parse_overrides
+    from ssbl_pb.training.config import load_config, parse_overrides
 
     try:
         overrides = parse_overrides(args.set)
+        load_config(ROOT / "configs" / "vector_ff.yaml", overrides)  # unknown keys and bad values fail here
     except ConfigError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
