@@ -74,7 +74,7 @@ class TrainConfig:
     policy: str = "ff"
     scenario: str = "default"
     n_envs: int = 8
-    vec_env: str = "auto"  # batched (Vector mode: all copies in one array step), dummy (one process, one env
+    vec_env: str = "auto"  # batched (Vector mode: all copies in one compiled step), dummy (one process, one env
     #                        object per copy), subproc (one process per copy); auto = batched where it applies
     total_steps: int = 300_000
     seed: int = 0
