@@ -31,6 +31,19 @@ def _params(cls: type, value: Any, name: str) -> Any:
     raise TypeError(f"{name}: expected a {cls.__name__} or a dict, got {type(value).__name__}")
 
 
+def parse_env_params(scenario: str, world: Any, robot: Any, social: Any, reward: Any, task: Any
+                     ) -> tuple[ScenarioMix, WorldParams, RobotParams, SocialParams, RewardWeights, TaskParams]:
+    """The env's parameters from dataclasses, dicts or None (defaults), checked: the room must hold the largest
+    group the scenario may spawn."""
+    mix = ScenarioMix(scenario)
+    world_p, social_p = _params(WorldParams, world, "world"), _params(SocialParams, social, "social")
+    world_p.check_fits(social_p)
+    biggest = max(max(sc.sizes) for sc in mix.members)
+    WorldParams(**{**world_p.__dict__, "n_humans": biggest}).check_fits(social_p)
+    return (mix, world_p, _params(RobotParams, robot, "robot"), social_p, _params(RewardWeights, reward, "reward"),
+            _params(TaskParams, task, "task"))
+
+
 class ApproachGroupEnv(gym.Env):
     """Pepper approaches a conversation group and joins it at the free slot."""
 
@@ -49,21 +62,14 @@ class ApproachGroupEnv(gym.Env):
         record: bool = False,
     ) -> None:
         """``record`` keeps every step's state in ``trajectory`` (metrics, plots; on when rendering)."""
-        self.scenario = ScenarioMix(scenario)
-        self.world_params = _params(WorldParams, world, "world")
-        self.robot_params = _params(RobotParams, robot, "robot")
-        self.social = _params(SocialParams, social, "social")
-        self.weights = _params(RewardWeights, reward, "reward")
-        self.task = _params(TaskParams, task, "task")
+        self.scenario, self.world_params, self.robot_params, self.social, self.weights, self.task = \
+            parse_env_params(scenario, world, robot, social, reward, task)
         if render_mode not in (None, "rgb_array"):
             raise ValueError(f"render_mode {render_mode!r}: expected None or 'rgb_array'")
         self.render_mode = render_mode
         self.render_width = render_width
         self.record = record or render_mode is not None
         self.world = World(self.world_params, self.robot_params, self.social)
-        # the room must hold the largest group the scenario may spawn
-        biggest = max(max(sc.sizes) for sc in self.scenario.members)
-        WorldParams(**{**self.world_params.__dict__, "n_humans": biggest}).check_fits(self.social)
         n_act = 3 if self.task.turn else 2
         self.action_space = gym.spaces.Box(-1.0, 1.0, shape=(n_act,), dtype=np.float32)
         self.observation_space = gym.spaces.Box(-ob.OBS_LIMIT, ob.OBS_LIMIT, shape=(ob.OBS_SIZE,),

@@ -23,10 +23,9 @@ from gymnasium.utils import seeding
 from ..params import RobotParams, SocialParams, WorldParams, from_dict
 from . import kernels
 from . import observation as ob
-from .approach import _params
+from .approach import parse_env_params
 from .humans import Group
 from .reward import TERMS, RewardWeights, weight_vector
-from .scenarios import ScenarioMix
 from .task import TaskParams
 from .world import MAX_HUMANS, box_circle_distance, spawn_layout
 
@@ -40,15 +39,8 @@ class BatchedApproach:
         if not isinstance(num, int) or num < 1:
             raise ValueError(f"number of copies {num!r}: expected an integer >= 1")
         self.num = num
-        self.scenario = ScenarioMix(scenario)
-        self.world_params = _params(WorldParams, world, "world")
-        self.robot_params = _params(RobotParams, robot, "robot")
-        self.social = _params(SocialParams, social, "social")
-        self.weights = _params(RewardWeights, reward, "reward")
-        self.task = _params(TaskParams, task, "task")
-        self.world_params.check_fits(self.social)
-        biggest = max(max(sc.sizes) for sc in self.scenario.members)
-        WorldParams(**{**self.world_params.__dict__, "n_humans": biggest}).check_fits(self.social)
+        self.scenario, self.world_params, self.robot_params, self.social, self.weights, self.task = \
+            parse_env_params(scenario, world, robot, social, reward, task)
         self.dt = self.world_params.dt
         self.n_act = 3 if self.task.turn else 2
         self._p = kernels.pack_params(self.world_params, self.robot_params, self.social, self.task)
