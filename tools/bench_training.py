@@ -119,6 +119,9 @@ def main(argv: list[str] | None = None) -> int:
     if bad or not settings:
         print(f"error: --settings {args.settings!r}: expected a comma list of {SETTINGS}", file=sys.stderr)
         return 2
+    if args.steps < 1 or args.repeats < 1:
+        print(f"error: --steps {args.steps} / --repeats {args.repeats}: expected integers >= 1", file=sys.stderr)
+        return 2
 
     from ssbl_pb.params import ConfigError
     from ssbl_pb.report import write_json
