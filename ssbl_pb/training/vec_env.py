@@ -1,7 +1,7 @@
 """``BatchedVecEnv``: SB3's VecEnv interface over ``env.batched.BatchedApproach`` (Vector observation).
 
 It does what ``DummyVecEnv`` over N ``EnvFactory`` envs does, action stages included (the agent's smoothing,
-then the safety shield), with one array step for all copies instead of N Python steps. Seeding follows SB3:
+then the safety shield), with one compiled step for all copies instead of N Python steps. Seeding follows SB3:
 ``seed(s)`` gives copy i the seed ``s + i`` at the next ``reset()``, later episodes continue its generator,
 as a single env's do. Wrap it in SB3's ``VecMonitor`` (episode returns and lengths, ``is_success``) and
 ``VecNormalize`` as usual (``training.run.make_vec_env`` does).
