@@ -6,7 +6,8 @@ import time
 from collections.abc import Callable
 
 import numpy as np
-import pybullet as p
+
+from .env.bullet import pybullet as p
 
 
 def rate(fn: Callable[[], None], n: int, repeats: int = 5) -> float:

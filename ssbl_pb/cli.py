@@ -1,26 +1,103 @@
-"""Small helpers shared by the command-line tools: error exit and progress bars."""
+"""What every command-line tool shares: the error exit, signals, progress bars.
+
+A tool's ``if __name__ == "__main__": run(main)`` gives it the contract the README promises: a ``UserError`` is
+one line on stderr and exit 2; Ctrl-C exits 130 and SIGTERM 143 with one line (code that must save or stop
+first catches ``KeyboardInterrupt``, which SIGTERM raises too, as ``Terminated``); any other exception is a bug
+and keeps its traceback.
+"""
 
 from __future__ import annotations
 
 import contextlib
+import os
+import signal
 import sys
+import time
 from collections.abc import Callable, Iterator
+from typing import Any, NoReturn
 
-EXIT_USAGE = 2
+from .errors import EXIT_SIGINT, EXIT_SIGTERM, EXIT_USAGE, Terminated, UserError
+
+__all__ = ["EXIT_USAGE", "UserError", "fail", "run", "progress_bar", "make_bar"]
 
 
 def fail(exc: BaseException | str) -> int:
     """Print a one-line error to stderr; returns the usage exit code (2)."""
-    print(f"error: {exc}", file=sys.stderr)
+    text = " ".join(str(exc).split()) if not isinstance(exc, str) else exc
+    print(f"error: {text}", file=sys.stderr)
     return EXIT_USAGE
 
 
-@contextlib.contextmanager
-def progress_bar(total: int, desc: str) -> Iterator[Callable[[int], None]]:
-    """A tqdm bar as a callable ``advance(n)`` (silent when stderr is not a terminal and CI is set)."""
+def _raise_terminated(signum: int, frame: Any) -> None:
+    raise Terminated()
+
+
+def run(main: Callable[..., int], argv: list[str] | None = None) -> NoReturn:
+    """Run a tool's ``main(argv) -> exit code`` under the contract above and exit with its code."""
+    with contextlib.suppress(ValueError):  # not the main thread (tests calling run): leave SIGTERM alone
+        signal.signal(signal.SIGTERM, _raise_terminated)
+    try:
+        code = main(argv)
+    except UserError as exc:
+        code = fail(exc)
+    except Terminated:
+        print("terminated (SIGTERM)", file=sys.stderr)
+        code = EXIT_SIGTERM
+    except KeyboardInterrupt:
+        print("interrupted (Ctrl-C)", file=sys.stderr)
+        code = EXIT_SIGINT
+    sys.exit(code)
+
+
+def stderr_is_tty() -> bool:
+    return hasattr(sys.stderr, "isatty") and sys.stderr.isatty()
+
+
+class PlainBar:
+    """A progress bar for logs: one plain line at every 10 % (and at most every 30 s otherwise), no ``\\r``."""
+
+    def __init__(self, total: int, desc: str, unit: str, initial: int = 0) -> None:
+        self.total, self.desc, self.unit, self.n = max(int(total), 0), desc, unit, int(initial)
+        self.postfix, self._t0 = "", time.monotonic()
+        self._last_t, self._last_decile = self._t0, self._decile()
+
+    def _decile(self) -> int:
+        return 10 * self.n // self.total if self.total else 0
+
+    def update(self, k: int = 1) -> None:
+        self.n += int(k)
+        now = time.monotonic()
+        if self._decile() > self._last_decile or now - self._last_t >= 30.0:
+            self._last_decile, self._last_t = self._decile(), now
+            self._emit()
+
+    def set_postfix_str(self, text: str) -> None:
+        self.postfix = text
+
+    def _emit(self) -> None:
+        pct = f"{100 * self.n / self.total:3.0f} %" if self.total else ""
+        extra = f", {self.postfix}" if self.postfix else ""
+        print(f"{self.desc}: {pct} ({self.n}/{self.total} {self.unit}, {time.monotonic() - self._t0:.0f} s{extra})",
+              file=sys.stderr, flush=True)
+
+    def close(self) -> None:
+        if self.n and self._last_decile < 10:
+            self._emit()
+
+
+def make_bar(total: int, desc: str, unit: str = "it", initial: int = 0) -> Any:
+    """A tqdm bar on a terminal, a ``PlainBar`` otherwise (``update``, ``set_postfix_str``, ``close``)."""
+    if not stderr_is_tty() or os.environ.get("SSBL_PLAIN_PROGRESS"):
+        return PlainBar(total, desc, unit, initial)
     from tqdm import tqdm
 
-    bar = tqdm(total=total, desc=desc, unit="ep", dynamic_ncols=True, mininterval=0.5)
+    return tqdm(total=total, initial=initial, desc=desc, unit=unit, dynamic_ncols=True, mininterval=0.5)
+
+
+@contextlib.contextmanager
+def progress_bar(total: int, desc: str, unit: str = "ep") -> Iterator[Callable[[int], None]]:
+    """``make_bar`` as a callable ``advance(n)``, closed on exit."""
+    bar = make_bar(total, desc, unit)
     try:
         yield bar.update
     finally:

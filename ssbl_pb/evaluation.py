@@ -14,11 +14,12 @@ import gymnasium as gym
 from .env.approach import make_env
 from .env.policies import BASELINES, Policy, make_policy
 from .env.rollout import EpisodeResult, run_episodes
+from .errors import UserError
 from .policies import SHIPPED
 from .report import plot_paths, summarize, write_csv, write_json
 
 
-class UsageError(ValueError):
+class UsageError(UserError):
     """Bad command-line input; tools print the message and exit with code 2."""
 
 

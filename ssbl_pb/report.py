@@ -3,16 +3,18 @@
 from __future__ import annotations
 
 import csv
-import json
 import math
 import os
-import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from scipy import stats
+
+from .files import write_json, write_text
+
+__all__ = ["mean_ci", "summarize", "write_csv", "write_json", "plot_paths"]
 
 SUMMARY_ALIASES = {"success_rate": "success", "collision_rate": "collision", "violation_rate": "violation",
                    "mean_return": "return"}
@@ -46,19 +48,6 @@ def summarize(rows: list[dict[str, float]], extra: dict[str, Any] | None = None)
     return out
 
 
-def atomic_write_text(path: Path, text: str) -> None:
-    """Write a file so that readers see either the old file or the whole new one."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w") as fh:
-            fh.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
 def write_csv(path: Path, rows: list[dict[str, float]]) -> None:
     """One row per episode, columns in the rows' key order."""
     import io
@@ -68,11 +57,7 @@ def write_csv(path: Path, rows: list[dict[str, float]]) -> None:
     writer.writeheader()
     for r in rows:
         writer.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
-    atomic_write_text(path, buf.getvalue())
-
-
-def write_json(path: Path, data: dict[str, Any]) -> None:
-    atomic_write_text(path, json.dumps(data, indent=2, sort_keys=False, default=float) + "\n")
+    write_text(path, buf.getvalue())
 
 
 def plot_paths(path: Path, trajectories: list[list[dict[str, Any]]], titles: list[str], room: tuple[float, float],

@@ -19,11 +19,13 @@ from typing import Any
 import numpy as np
 from scipy import stats
 
+from .errors import UserError
+
 ITEMS = ("polite", "sociable", "rude", "human_like")
 REQUIRED = ("participant", "condition", "item", "rating")
 
 
-class StudyError(ValueError):
+class StudyError(UserError):
     """The ratings file is not in the documented layout; the message names the file, line and field."""
 
 

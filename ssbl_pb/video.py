@@ -9,9 +9,10 @@ import cv2
 import numpy as np
 
 from .env.policies import Policy
+from .errors import UserError
 
 
-class VideoError(ValueError):
+class VideoError(UserError):
     """A video cannot be written; the message names the file."""
 
 

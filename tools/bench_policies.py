@@ -10,13 +10,11 @@ from __future__ import annotations
 
 import argparse
 import os
-import sys
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
+from ssbl_pb.cli import fail, progress_bar, run
 
-from ssbl_pb.cli import fail, progress_bar  # noqa: E402
+ROOT = Path(__file__).resolve().parents[1]
 
 SCENARIOS = "default,vis_a_vis,l_shape,side_by_side,circular,behind,mixed"
 
@@ -32,7 +30,8 @@ def main(argv: list[str] | None = None) -> int:
 
     from ssbl_pb.env.rollout import run_episodes
     from ssbl_pb.evaluation import Setup, UsageError, check_policy_spec
-    from ssbl_pb.report import atomic_write_text, summarize, write_json
+    from ssbl_pb.files import write_text
+    from ssbl_pb.report import summarize, write_json
 
     table: dict[str, dict[str, dict]] = {}
     try:
@@ -61,10 +60,10 @@ def main(argv: list[str] | None = None) -> int:
     text = (f"Success rate (and share of episodes ended by a collision or intimate-zone intrusion, 'v') over "
             f"{args.episodes} episodes per scenario, seeds {args.seed}-{args.seed + args.episodes - 1}.\n\n"
             + "\n".join(lines) + "\n")
-    atomic_write_text(args.out.with_suffix(".md"), text)
+    write_text(args.out.with_suffix(".md"), text)
     print(text)
     return 0
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run(main)

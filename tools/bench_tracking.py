@@ -24,19 +24,20 @@ import tempfile
 import time
 from pathlib import Path
 
+import numpy as np
+
+from ssbl_pb.cli import run
+from ssbl_pb.files import write_json, write_text
+from ssbl_pb.perception.bench import time_pipeline, time_tracker_update
+from ssbl_pb.perception.detectors import HogParams
+from ssbl_pb.perception.pets import load_ground_truth
+from ssbl_pb.perception.pipeline import detect_raw, read_frames
+from ssbl_pb.perception.sim_eval import SimEvalParams, evaluate_sim
+from ssbl_pb.perception.tracking_io import evaluate_dir, track_video
+from ssbl_pb.perception.tsai import TsaiCamera
+from ssbl_pb.perception.tuning import ALL_SCALES, UNTUNED, PipelineParams, score, tune
+
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-
-import numpy as np  # noqa: E402
-
-from ssbl_pb.perception.bench import time_pipeline, time_tracker_update  # noqa: E402
-from ssbl_pb.perception.detectors import HogParams  # noqa: E402
-from ssbl_pb.perception.pets import load_ground_truth  # noqa: E402
-from ssbl_pb.perception.pipeline import detect_raw, read_frames  # noqa: E402
-from ssbl_pb.perception.sim_eval import SimEvalParams, evaluate_sim  # noqa: E402
-from ssbl_pb.perception.tracking_io import evaluate_dir, track_video, write_atomic, write_json  # noqa: E402
-from ssbl_pb.perception.tsai import TsaiCamera  # noqa: E402
-from ssbl_pb.perception.tuning import ALL_SCALES, UNTUNED, PipelineParams, score, tune  # noqa: E402
 
 PETS = ROOT.parent / "shared" / "data" / "video" / "pets2009_s2l1"
 PETS_FPS = 7.0  # PETS 2009 frame rate (vtest.avi's header says 10; 7 gives ~1 m/s walking in the GT)
@@ -58,7 +59,7 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     data, out = Path(args.data), Path(args.out)
     if args.report_only:
-        write_atomic(args.doc, markdown(json.loads((out / "bench.json").read_text())))
+        write_text(args.doc, markdown(json.loads((out / "bench.json").read_text())))
         return 0
     video, gt_path = data / "vtest.avi", data / "PETS2009-S2L1.xml"
     calib = data / "View_001_tsai_calibration.xml"
@@ -127,7 +128,7 @@ def main(argv: list[str] | None = None) -> int:
         write_json(out / "sim.json", sim)
     report["seconds"] = time.time() - t_all
     write_json(out / "bench.json", report)
-    write_atomic(args.doc, markdown(report))
+    write_text(args.doc, markdown(report))
     print(f"done in {report['seconds']:.0f} s -> {out}, {args.doc}")
     return 0
 
@@ -231,4 +232,4 @@ def markdown(r: dict) -> str:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run(main)

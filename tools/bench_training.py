@@ -24,8 +24,9 @@ import sys
 import time
 from pathlib import Path
 
+from ssbl_pb.cli import run
+
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
 
 SETTINGS = ("sb3", "config")
 
@@ -149,4 +150,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run(main)

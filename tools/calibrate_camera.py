@@ -13,11 +13,9 @@ import shlex
 import sys
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from ssbl_pb.calib import reports  # noqa: E402
-from ssbl_pb.calib.cli import run  # noqa: E402
-from ssbl_pb.calib.intrinsics import calibrate, leave_k_out, parse_board  # noqa: E402
+from ssbl_pb.calib import reports
+from ssbl_pb.calib.intrinsics import calibrate, leave_k_out, parse_board
+from ssbl_pb.cli import run
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -58,4 +56,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(run(main))
+    run(main)

@@ -14,13 +14,11 @@ import shlex
 import sys
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from ssbl_pb.calib import reports  # noqa: E402
-from ssbl_pb.calib.cli import run  # noqa: E402
-from ssbl_pb.calib.humans import SCENES, fit_social, real_stats, sim_stats  # noqa: E402
-from ssbl_pb.calib.io import write_yaml  # noqa: E402
-from ssbl_pb.params import SocialParams, from_dict  # noqa: E402
+from ssbl_pb.calib import reports
+from ssbl_pb.calib.humans import SCENES, fit_social, real_stats, sim_stats
+from ssbl_pb.calib.io import write_yaml
+from ssbl_pb.cli import UserError, run
+from ssbl_pb.params import SocialParams, from_dict
 
 DEFAULT_DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "trajectories" / "eth_ucy_raw"
 
@@ -34,7 +32,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=0)
     args = ap.parse_args(argv)
     if not args.data.is_dir():
-        raise FileNotFoundError(f"{args.data}: data folder not found (give --data)")
+        raise UserError(f"{args.data}: data folder not found (give --data)")
     real = real_stats(args.data, tuple(args.scenes))
     fields, notes = fit_social(real["all"])
     fitted = from_dict(SocialParams, fields, f"fitted from {args.data}")
@@ -49,4 +47,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(run(main))
+    run(main)

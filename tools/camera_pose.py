@@ -10,15 +10,12 @@ Exit code 2 on bad input.
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from ssbl_pb.calib.cli import run  # noqa: E402
-from ssbl_pb.calib.extrinsics import pose_from_image  # noqa: E402
-from ssbl_pb.calib.intrinsics import parse_board, read_grey  # noqa: E402
-from ssbl_pb.perception.camera import PinholeCamera  # noqa: E402
+from ssbl_pb.calib.extrinsics import pose_from_image
+from ssbl_pb.calib.intrinsics import parse_board, read_grey
+from ssbl_pb.cli import run
+from ssbl_pb.perception.camera import PinholeCamera
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -50,4 +47,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(run(main))
+    run(main)

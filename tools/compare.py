@@ -13,13 +13,11 @@ from __future__ import annotations
 
 import argparse
 import os
-import sys
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
+from ssbl_pb.cli import fail, progress_bar, run
 
-from ssbl_pb.cli import fail, progress_bar  # noqa: E402
+ROOT = Path(__file__).resolve().parents[1]
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -38,7 +36,8 @@ def main(argv: list[str] | None = None) -> int:
     from ssbl_pb.env.approach import make_env
     from ssbl_pb.env.rollout import run_episodes
     from ssbl_pb.evaluation import Setup, UsageError, build_policy, check_policy_spec, prepare_out
-    from ssbl_pb.report import atomic_write_text, plot_paths, write_json
+    from ssbl_pb.files import write_text
+    from ssbl_pb.report import plot_paths, write_json
     from ssbl_pb.video import record_episode, write_mp4
 
     workers = args.workers or os.cpu_count() or 1
@@ -93,10 +92,10 @@ def main(argv: list[str] | None = None) -> int:
             f"Learned better (p < 0.05) on: {', '.join(better) or 'none'}; worse on: {', '.join(worse) or 'none'}.",
             f"Target (better on >= 3, worse on none): {'met' if verdict['target_met'] else 'NOT met'}.", "",
             "Files: `paths.png`, `speed_vs_distance.png`, `videos/`."]
-    atomic_write_text(args.out / "report.md", "\n".join(text) + "\n")
+    write_text(args.out / "report.md", "\n".join(text) + "\n")
     print("\n".join(text[4:-1]))
     return 0
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run(main)

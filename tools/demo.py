@@ -8,12 +8,9 @@ Writes OUT/demo_topdown.mp4 (top-down, zones drawn) and OUT/demo_first_person.pn
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from ssbl_pb.cli import fail  # noqa: E402
+from ssbl_pb.cli import fail, run
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -45,4 +42,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run(main)

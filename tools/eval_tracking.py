@@ -15,10 +15,10 @@ import argparse
 import sys
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from ssbl_pb.perception.evaluation import to_markdown  # noqa: E402
-from ssbl_pb.perception.tracking_io import InputError, evaluate_dir, write_atomic, write_json  # noqa: E402
+from ssbl_pb.cli import run
+from ssbl_pb.files import write_json, write_text
+from ssbl_pb.perception.evaluation import to_markdown
+from ssbl_pb.perception.tracking_io import InputError, evaluate_dir
 
 
 def parse_range(text: str) -> tuple[int, int | None]:
@@ -49,7 +49,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     d = Path(args.tracks)
     write_json(args.json or d / "metrics.json", res)
-    write_atomic(args.md or d / "metrics.md", to_markdown(res, f"Tracking: {d}"))
+    write_text(args.md or d / "metrics.md", to_markdown(res, f"Tracking: {d}"))
     for name, r in res.items():
         print(f"{name}: MOTA {r['mota']:.3f}  IDF1 {r['idf1']:.3f}  IDsw {r['num_switches']:.0f}  "
               f"ground err median {r.get('ground_err_median_m', float('nan')):.3f} m "
@@ -58,4 +58,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run(main)

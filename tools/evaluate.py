@@ -11,12 +11,9 @@ from __future__ import annotations
 
 import argparse
 import os
-import sys
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from ssbl_pb.cli import fail, progress_bar  # noqa: E402
+from ssbl_pb.cli import fail, progress_bar, run
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -56,4 +53,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run(main)

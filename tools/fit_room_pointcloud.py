@@ -14,11 +14,9 @@ import shlex
 import sys
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from ssbl_pb.calib.cli import run  # noqa: E402
-from ssbl_pb.calib.io import write_text, write_yaml  # noqa: E402
-from ssbl_pb.calib.pointcloud import analyse, load_points, parse_up, scan_figure, scan_yaml  # noqa: E402
+from ssbl_pb.calib.io import write_text, write_yaml
+from ssbl_pb.calib.pointcloud import analyse, load_points, parse_up, scan_figure, scan_yaml
+from ssbl_pb.cli import run
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -55,4 +53,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(run(main))
+    run(main)

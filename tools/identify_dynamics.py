@@ -14,14 +14,12 @@ import shlex
 import sys
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from ssbl_pb.calib import reports  # noqa: E402
-from ssbl_pb.calib.cli import run  # noqa: E402
-from ssbl_pb.calib.dynamics import identify  # noqa: E402
-from ssbl_pb.calib.dynamics_log import excitation_plan, read_log, simulate_log, write_log  # noqa: E402
-from ssbl_pb.calib.io import write_yaml  # noqa: E402
-from ssbl_pb.params import RobotParams, from_dict, load_yaml  # noqa: E402
+from ssbl_pb.calib import reports
+from ssbl_pb.calib.dynamics import identify
+from ssbl_pb.calib.dynamics_log import excitation_plan, read_log, simulate_log, write_log
+from ssbl_pb.calib.io import write_yaml
+from ssbl_pb.cli import run
+from ssbl_pb.params import RobotParams, from_dict, load_yaml
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -66,4 +64,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(run(main))
+    run(main)

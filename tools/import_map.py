@@ -10,14 +10,11 @@ The room frame is centred on the room with the map image's axes; deploy maps env
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from ssbl_pb.calib.cli import run  # noqa: E402
-from ssbl_pb.calib.io import write_yaml  # noqa: E402
-from ssbl_pb.calib.room_map import extract_room, read_map, room_figure, room_yaml  # noqa: E402
+from ssbl_pb.calib.io import write_yaml
+from ssbl_pb.calib.room_map import extract_room, read_map, room_figure, room_yaml
+from ssbl_pb.cli import run
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -48,4 +45,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(run(main))
+    run(main)

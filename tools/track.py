@@ -18,9 +18,8 @@ import sys
 import tempfile
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from ssbl_pb.perception.tracking_io import InputError, track_video  # noqa: E402
+from ssbl_pb.cli import run
+from ssbl_pb.perception.tracking_io import InputError, track_video
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -67,4 +66,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run(main)

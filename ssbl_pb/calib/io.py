@@ -1,4 +1,4 @@
-"""Small file helpers shared by the calibration tools: atomic writes and a bad-input exception.
+"""File helpers of the calibration tools (YAML in the ROS layout, images, figures) and their error type.
 
 Every output is written to a temporary file in the destination folder and renamed over the target, so a crash
 or a bad input never leaves a half-written file behind.
@@ -6,43 +6,17 @@ or a bad input never leaves a half-written file behind.
 
 from __future__ import annotations
 
-import os
-import tempfile
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import yaml
 
+from ..files import atomic_write, write_text
 from ..params import ConfigError
 
 
 class CalibrationError(ConfigError):
     """Bad calibration input (a file, a field, too few usable samples); the message names the file."""
-
-
-def atomic_write(path: str | Path, writer: Callable[[Path], None]) -> Path:
-    """Call ``writer(tmp_path)`` and rename the result to ``path`` (same folder, same suffix)."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix, dir=path.parent)
-    os.close(fd)
-    tmp_path = Path(tmp)
-    try:
-        writer(tmp_path)
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp_path, 0o666 & ~umask)  # mkstemp makes 0600 files
-        os.replace(tmp_path, path)
-    finally:
-        if tmp_path.exists():
-            tmp_path.unlink()
-    return path
-
-
-def write_text(path: str | Path, text: str) -> Path:
-    """Write ``text`` atomically."""
-    return atomic_write(path, lambda p: p.write_text(text))
 
 
 class _Dumper(yaml.SafeDumper):

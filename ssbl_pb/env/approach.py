@@ -13,6 +13,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from ..errors import UserError
 from ..params import RobotParams, SocialParams, WorldParams, from_dict
 from . import observation as ob
 from .reward import TERMS, RewardWeights, proximity_cost, reward_terms, route_distance, slot_potential, total_reward
@@ -65,7 +66,7 @@ class ApproachGroupEnv(gym.Env):
         self.scenario, self.world_params, self.robot_params, self.social, self.weights, self.task = \
             parse_env_params(scenario, world, robot, social, reward, task)
         if render_mode not in (None, "rgb_array"):
-            raise ValueError(f"render_mode {render_mode!r}: expected None or 'rgb_array'")
+            raise UserError(f"render_mode {render_mode!r}: expected None or 'rgb_array'")
         self.render_mode = render_mode
         self.render_width = render_width
         self.record = record or render_mode is not None
@@ -241,7 +242,7 @@ def make_env(obs_mode: str = "vector", camera_width: int = 84, camera_height: in
     from .wrappers import OBS_MODES, wrap_obs_mode
 
     if obs_mode not in OBS_MODES:
-        raise ValueError(f"obs_mode {obs_mode!r}: expected one of {OBS_MODES}")
+        raise UserError(f"obs_mode {obs_mode!r}: expected one of {OBS_MODES}")
     kwargs, projection = core_kwargs(camera_width, camera_height, camera_yaml, robot_yaml, social_yaml, room_yaml,
                                      **kwargs)
     return wrap_obs_mode(ApproachGroupEnv(**kwargs), obs_mode, camera_width, camera_height, projection)

@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 from gymnasium.utils import seeding
 
+from ..errors import UserError
 from ..params import RobotParams, SocialParams, WorldParams, from_dict
 from . import kernels
 from . import observation as ob
@@ -37,7 +38,7 @@ class BatchedApproach:
                  robot: RobotParams | dict | None = None, social: SocialParams | dict | None = None,
                  reward: RewardWeights | dict | None = None, task: TaskParams | dict | None = None) -> None:
         if not isinstance(num, int) or num < 1:
-            raise ValueError(f"number of copies {num!r}: expected an integer >= 1")
+            raise UserError(f"number of copies {num!r}: expected an integer >= 1")
         self.num = num
         self.scenario, self.world_params, self.robot_params, self.social, self.weights, self.task = \
             parse_env_params(scenario, world, robot, social, reward, task)

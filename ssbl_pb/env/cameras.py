@@ -11,9 +11,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import pybullet as p
 
 from ..params import RobotParams
+from .bullet import pybullet as p
 
 NEAR, FAR = 0.05, 40.0
 

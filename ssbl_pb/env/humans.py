@@ -22,6 +22,7 @@ import math
 
 import numpy as np
 
+from ..errors import UserError
 from ..params import FORMATIONS, SocialParams
 from . import forces
 
@@ -38,9 +39,9 @@ def formation_angles(formation: str, n: int, social: SocialParams) -> np.ndarray
     (2 members make an L, 3 a U); side_by_side: adjacent members at the closest comfortable spacing.
     """
     if formation not in FORMATIONS:
-        raise ValueError(f"formation {formation!r}: expected one of {FORMATIONS}")
+        raise UserError(f"formation {formation!r}: expected one of {FORMATIONS}")
     if not 2 <= n <= 5:
-        raise ValueError(f"group size {n}: expected 2 to 5 members")
+        raise UserError(f"group size {n}: expected 2 to 5 members")
     radius = social.ospace_radius_for(n)
     delta = member_spacing(social, radius)
     if formation == "circular":

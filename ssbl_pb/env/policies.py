@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from ..errors import UserError
 from ..params import RobotParams, SocialParams
 from . import forces
 from . import observation as ob
@@ -128,7 +129,7 @@ def make_policy(name: str, robot: RobotParams | None = None, social: SocialParam
         return RandomPolicy(2, seed)
     if name == "straight":
         return StraightPolicy(robot)
-    raise ValueError(f"policy {name!r}: expected one of {BASELINES}, 'vector' (the shipped model) or a path to a "
+    raise UserError(f"policy {name!r}: expected one of {BASELINES}, 'vector' (the shipped model) or a path to a "
                      f"trained model (.zip)")
 
 

@@ -12,6 +12,7 @@ import dataclasses
 
 import numpy as np
 
+from ..errors import UserError
 from ..params import FORMATIONS
 
 STARTS = ("any", "behind")
@@ -51,7 +52,7 @@ def _one(name: str) -> list[Scenario]:
     form, _, size = name.rpartition("-")
     if form in FORMATIONS and size.isdigit() and 2 <= int(size) <= 5:
         return [Scenario(name, (int(size),), (form,))]
-    raise ValueError(f"scenario {name!r}: expected one of {list(BASE_SCENARIOS)}, 'mixed', FORMATION-N with "
+    raise UserError(f"scenario {name!r}: expected one of {list(BASE_SCENARIOS)}, 'mixed', FORMATION-N with "
                      f"FORMATION in {list(FORMATIONS)} and N in 2..5, or a comma-separated list of these")
 
 
@@ -60,7 +61,7 @@ class ScenarioMix:
 
     def __init__(self, spec: str) -> None:
         if not isinstance(spec, str) or not spec.strip():
-            raise ValueError(f"scenario {spec!r}: expected a non-empty name")
+            raise UserError(f"scenario {spec!r}: expected a non-empty name")
         self.spec = spec
         self.members = [sc for part in spec.split(",") for sc in _one(part.strip())]
 

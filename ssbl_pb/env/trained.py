@@ -11,6 +11,7 @@ import gymnasium as gym
 import numpy as np
 import yaml
 
+from ..errors import UserError
 from ..policies import SHIPPED
 from .observation import OBS_SIZE
 from .policies import Policy
@@ -18,7 +19,7 @@ from .policies import Policy
 MODEL_FILES = ("model.zip", "best/model.zip")  # a run directory: its final model, else its best one
 
 
-class ModelError(ValueError):
+class ModelError(UserError):
     """A model file or run directory cannot be used; the message names the file and the problem."""
 
 

@@ -13,12 +13,12 @@ import dataclasses
 import math
 
 import numpy as np
-import pybullet as p
 
 from ..params import ConfigError, RobotParams, SocialParams, WorldParams
 from ..urdf import urdf_path
 from . import cameras
 from .base import HolonomicBase
+from .bullet import pybullet as p
 from .humans import Group, formation_angles
 
 MAX_HUMANS = 5

@@ -6,6 +6,7 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 
+from ..errors import UserError
 from .shield import ShieldParams, shield_action
 
 OBS_MODES = ("vector", "camera", "camera_speed")
@@ -17,7 +18,7 @@ class CameraObservation(gym.ObservationWrapper):
     def __init__(self, env: gym.Env, width: int = 84, height: int = 84, projection: list[float] | None = None):
         super().__init__(env)
         if not (isinstance(width, int) and isinstance(height, int) and 8 <= width <= 1024 and 8 <= height <= 1024):
-            raise ValueError(f"camera size {width}x{height}: expected integers in [8, 1024]")
+            raise UserError(f"camera size {width}x{height}: expected integers in [8, 1024]")
         self.width, self.height, self.projection = width, height, projection
         self.observation_space = gym.spaces.Box(0, 255, shape=(height, width, 3), dtype=np.uint8)
 
@@ -55,7 +56,7 @@ class ActionSmoothing(gym.ActionWrapper):
     def __init__(self, env: gym.Env, alpha: float) -> None:
         super().__init__(env)
         if not 0.0 < alpha <= 1.0:
-            raise ValueError(f"action smoothing alpha {alpha!r}: expected a number in (0, 1]")
+            raise UserError(f"action smoothing alpha {alpha!r}: expected a number in (0, 1]")
         self.filter = ActionFilter(alpha)
 
     def reset(self, **kwargs):  # type: ignore[override]
@@ -128,4 +129,4 @@ def wrap_obs_mode(env: gym.Env, obs_mode: str, width: int = 84, height: int = 84
         return CameraObservation(env, width, height, projection)
     if obs_mode == "camera_speed":
         return CameraSpeedObservation(env, width, height, projection)
-    raise ValueError(f"obs_mode {obs_mode!r}: expected one of {OBS_MODES}")
+    raise UserError(f"obs_mode {obs_mode!r}: expected one of {OBS_MODES}")

@@ -16,6 +16,8 @@ from typing import Protocol
 import cv2
 import numpy as np
 
+from ..errors import UserError
+
 
 class Detector(Protocol):
     def __call__(self, frame: np.ndarray) -> np.ndarray:
@@ -61,15 +63,15 @@ class HogParams:
 
     def __post_init__(self) -> None:
         if not self.scales or any(not s > 0 for s in self.scales):
-            raise ValueError(f"hog.scales = {self.scales!r}: expected positive numbers")
+            raise UserError(f"hog.scales = {self.scales!r}: expected positive numbers")
         for name in ("shrink_x", "shrink_top", "shrink_bottom"):
             v = getattr(self, name)
             if not 0 <= v < 0.5:
-                raise ValueError(f"hog.{name} = {v!r}: expected in [0, 0.5)")
+                raise UserError(f"hog.{name} = {v!r}: expected in [0, 0.5)")
         if not 0 <= self.fg_min <= 1:
-            raise ValueError(f"hog.fg_min = {self.fg_min!r}: expected in [0, 1]")
+            raise UserError(f"hog.fg_min = {self.fg_min!r}: expected in [0, 1]")
         if not (isinstance(self.win_stride, int) and self.win_stride > 0):
-            raise ValueError(f"hog.win_stride = {self.win_stride!r}: expected a positive integer")
+            raise UserError(f"hog.win_stride = {self.win_stride!r}: expected a positive integer")
 
 
 def shrink_windows(win: np.ndarray, p: HogParams) -> np.ndarray:

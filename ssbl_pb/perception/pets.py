@@ -10,11 +10,13 @@ from pathlib import Path
 
 import numpy as np
 
+from ..errors import UserError
+
 CVML_EXPECTED = "CVML XML: <dataset><frame number><objectlist><object id><box h w xc yc/>"
 MOT_EXPECTED = "MOTChallenge text: frame(1-based),id,left,top,w,h,score,..."
 
 
-class GroundTruthError(ValueError):
+class GroundTruthError(UserError):
     """A ground-truth or track file is missing or in another format; the message names file and format."""
 
 

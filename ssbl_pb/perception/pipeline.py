@@ -15,6 +15,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from ..errors import UserError
 from .detectors import HogDetector, HogParams, box_fractions, nms, shrink_windows
 from .tracker import Tracker, TrackerParams
 from .tsai import TsaiCamera
@@ -22,7 +23,7 @@ from .tsai import TsaiCamera
 FG_SHRINK = HogParams(shrink_x=0.3, shrink_top=0.12, shrink_bottom=0.12)  # box used for foreground fractions
 
 
-class VideoError(ValueError):
+class VideoError(UserError):
     """A video cannot be opened or read; the message names the file."""
 
 

@@ -14,9 +14,10 @@ import dataclasses
 import math
 
 import numpy as np
-import pybullet as pb
 
+from ..env.bullet import pybullet as pb
 from ..env.world import HUMAN_COLOURS, World
+from ..errors import UserError
 from ..params import RobotParams, WorldParams
 from .camera import PinholeCamera
 from .detectors import ColourDetector, SimDetector
@@ -135,7 +136,7 @@ def evaluate_sim(params: SimEvalParams | None = None, tracker: TrackerParams | N
     """Run episodes; returns position-error statistics (m) of tracks against members within ``max_range``."""
     p = params or SimEvalParams()
     if p.detector not in ("seg", "colour"):
-        raise ValueError(f"detector = {p.detector!r}: expected 'seg' or 'colour'")
+        raise UserError(f"detector = {p.detector!r}: expected 'seg' or 'colour'")
     rng = np.random.default_rng(p.seed)
     world = World(world_params)
     errors, visible, tracked = [], 0, 0

@@ -21,6 +21,8 @@ import numpy as np
 from filterpy.kalman import KalmanFilter
 from scipy.optimize import linear_sum_assignment
 
+from ..errors import UserError
+
 _BIG = 1e9
 
 
@@ -44,13 +46,13 @@ class TrackerParams:
         for name in ("dt", "accel_std", "meas_std", "init_vel_std", "gate"):
             v = getattr(self, name)
             if not (isinstance(v, int | float) and math.isfinite(v) and v > 0):
-                raise ValueError(f"tracker.{name} = {v!r}: expected a finite number > 0")
+                raise UserError(f"tracker.{name} = {v!r}: expected a finite number > 0")
         for name in ("birth_hits", "max_misses", "tentative_misses"):
             v = getattr(self, name)
             if not (isinstance(v, int) and v >= 1):
-                raise ValueError(f"tracker.{name} = {v!r}: expected an integer >= 1")
+                raise UserError(f"tracker.{name} = {v!r}: expected an integer >= 1")
         if not self.min_new_dist >= 0:
-            raise ValueError(f"tracker.min_new_dist = {self.min_new_dist!r}: expected >= 0")
+            raise UserError(f"tracker.min_new_dist = {self.min_new_dist!r}: expected >= 0")
 
 
 @dataclasses.dataclass

@@ -4,7 +4,6 @@ outputs (MOT text, world CSV, overlay video, metrics JSON/Markdown) written into
 from __future__ import annotations
 
 import dataclasses
-import json
 import time
 from pathlib import Path
 from typing import Any
@@ -12,13 +11,14 @@ from typing import Any
 import cv2
 import numpy as np
 
+from ..errors import UserError
 from .pets import GroundTruthError, load_ground_truth, load_mot
 from .pipeline import GroundTracker, HogFgDetector, VideoError, open_video, read_frames
 from .tsai import CalibrationError, TsaiCamera
 from .tuning import PipelineParams
 
 
-class InputError(ValueError):
+class InputError(UserError):
     """Bad input file or parameter; the message names the file and what was expected."""
 
 
@@ -194,16 +194,3 @@ def evaluate_dir(track_dir: str | Path, gt_path: str | Path, calib: str | Path |
         stop = int(gt[:, 0].max()) + 1 if b is None else b
         out[f"frames {a}-{stop - 1}"] = evaluate(tracks, gt, cam, a, stop)
     return out
-
-
-def write_atomic(path: str | Path, text: str) -> None:
-    """Write text to ``path`` via a temporary file and rename."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(text)
-    tmp.replace(path)
-
-
-def write_json(path: str | Path, data: Any) -> None:
-    write_atomic(path, json.dumps(data, indent=2, default=float) + "\n")

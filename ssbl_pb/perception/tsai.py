@@ -13,6 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..errors import UserError
+
 _FIELDS = {
     "Geometry": ("width", "height", "dpx", "dpy"),
     "Intrinsic": ("focal", "kappa1", "cx", "cy", "sx"),
@@ -20,7 +22,7 @@ _FIELDS = {
 }
 
 
-class CalibrationError(ValueError):
+class CalibrationError(UserError):
     """A calibration file is missing, unreadable or lacks a field; the message names the file and field."""
 
 
@@ -95,7 +97,7 @@ class TsaiCamera:
     def scaled(self, scale: float) -> TsaiCamera:
         """The same camera for frames resized by ``scale`` (pixel coordinates multiply by it)."""
         if not scale > 0:
-            raise ValueError(f"scale = {scale!r}: expected > 0")
+            raise UserError(f"scale = {scale!r}: expected > 0")
         return dataclasses.replace(self, scale=self.scale * scale)
 
     # -- projections --------------------------------------------------------------------------------------

@@ -15,7 +15,7 @@ from stable_baselines3.common.callbacks import BaseCallback
 
 from ..env.rollout import run_episode
 from ..env.trained import TrainedPolicy
-from ..report import atomic_write_text
+from ..files import write_text
 
 
 class ProgressCallback(BaseCallback):
@@ -151,8 +151,8 @@ class EvalCheckpointCallback(BaseCallback):
         self.training_env.save(str(folder / "vecnormalize.pkl"))
         cfg = self.run_dir / "config.yaml"
         if cfg.exists():
-            atomic_write_text(folder / "config.yaml", cfg.read_text())
-        atomic_write_text(folder / "eval.json", json.dumps(ev, indent=2))
+            write_text(folder / "config.yaml", cfg.read_text())
+        write_text(folder / "eval.json", json.dumps(ev, indent=2))
 
     def checkpoint(self) -> None:
         folder = self.run_dir / "checkpoints"
@@ -160,7 +160,7 @@ class EvalCheckpointCallback(BaseCallback):
         n = self.num_timesteps
         self.model.save(folder / f"ckpt_{n:09d}.zip")
         self.training_env.save(str(folder / f"ckpt_{n:09d}_vecnormalize.pkl"))
-        atomic_write_text(folder / "latest.json", json.dumps({"step": n, "model": f"ckpt_{n:09d}.zip"}))
+        write_text(folder / "latest.json", json.dumps({"step": n, "model": f"ckpt_{n:09d}.zip"}))
 
 
 class RewardRampCallback(BaseCallback):

@@ -15,12 +15,13 @@ from typing import Any
 import numpy as np
 
 from ..env.approach import make_env
+from ..errors import UserError
+from ..files import write_text
 from ..params import ConfigError
-from ..report import atomic_write_text
 from .config import TrainConfig, load_config, save_config
 
 
-class RunError(ValueError):
+class RunError(UserError):
     """A run directory cannot be used (no checkpoint, corrupt files); the message names the path."""
 
 
@@ -168,7 +169,7 @@ def _learn(cfg: TrainConfig, run_dir: Path, model: Any, venv: Any, resumed_from:
     summary = {"name": cfg.name, "steps": int(model.num_timesteps), "resumed_from": resumed_from,
                "wall_time_s": round(wall, 1), "steps_per_s": round((model.num_timesteps - start_steps) / wall, 1),
                "baselines": baselines, "best_eval": json.loads(best.read_text()) if best.exists() else None}
-    atomic_write_text(run_dir / "summary.json", json.dumps(summary, indent=2))
+    write_text(run_dir / "summary.json", json.dumps(summary, indent=2))
     return summary
 
 
@@ -186,7 +187,7 @@ def train(cfg: TrainConfig, run_dir: Path, overwrite: bool = False, init_from: P
     run_dir.mkdir(parents=True, exist_ok=True)
     torch.set_num_threads(cfg.torch_threads)
     save_config(cfg, run_dir / "config.yaml")
-    atomic_write_text(run_dir / "baselines.json", json.dumps(baseline_returns(cfg), indent=2))
+    write_text(run_dir / "baselines.json", json.dumps(baseline_returns(cfg), indent=2))
     venv = make_vec_env(cfg, cfg.seed)
     model = build_model(cfg, venv, run_dir / "tb")
     if init_from is not None:
@@ -287,7 +288,7 @@ def _truncate_log(path: Path, step: int) -> None:
         return head.isdigit() and int(head) <= step and len(line.split(",")) == len(lines[0].split(","))
 
     keep = [lines[0]] + [ln for ln in lines[1:] if before(ln)]
-    atomic_write_text(path, "\n".join(keep) + "\n")
+    write_text(path, "\n".join(keep) + "\n")
 
 
 __all__ = ["ConfigError", "RunError", "TrainConfig", "load_config", "resume", "train"]

@@ -20,6 +20,7 @@ from ..env import observation as ob
 from ..env.batched import BatchedApproach
 from ..env.shield import ShieldParams, shield_actions
 from ..env.wrappers import ActionFilter
+from ..errors import UserError
 
 
 class BatchedVecEnv(VecEnv):
@@ -29,7 +30,7 @@ class BatchedVecEnv(VecEnv):
         self.batch = BatchedApproach(num, **env_kwargs)
         b = self.batch
         if not 0.0 < smoothing <= 1.0:
-            raise ValueError(f"action smoothing alpha {smoothing!r}: expected a number in (0, 1]")
+            raise UserError(f"action smoothing alpha {smoothing!r}: expected a number in (0, 1]")
         self.filter = ActionFilter(smoothing) if smoothing < 1.0 else None
         self.shield = ShieldParams.from_env(b.robot_params, b.social, b.task) if shield else None
         self.render_mode = None

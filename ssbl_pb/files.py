@@ -1,0 +1,101 @@
+"""Writing results safely: atomic files with normal permissions, output folders checked before any work.
+
+Every result is written to a temporary file beside its target and renamed over it, so a reader (or a run killed
+mid-write) sees the old file or the whole new one, never half of one. ``output_dir`` creates a tool's output
+folder only once inputs are checked, and removes what it created if the tool then fails.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import shutil
+import tempfile
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+from .errors import UserError
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+def atomic_write(path: str | Path, writer: Callable[[Path], None]) -> Path:
+    """Call ``writer(tmp_path)`` and rename the result to ``path`` (same folder, same suffix, mode 0666 & ~umask)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix, dir=path.parent)
+    os.close(fd)
+    tmp_path = Path(tmp)
+    try:
+        writer(tmp_path)
+        os.chmod(tmp_path, 0o666 & ~_umask())  # mkstemp makes 0600 files
+        os.replace(tmp_path, path)
+    finally:
+        tmp_path.unlink(missing_ok=True)
+    return path
+
+
+def write_text(path: str | Path, text: str) -> Path:
+    """Write ``text`` atomically."""
+    return atomic_write(path, lambda p: p.write_text(text))
+
+
+def write_json(path: str | Path, data: Any) -> Path:
+    """Write JSON atomically (numpy scalars as floats)."""
+    return write_text(path, json.dumps(data, indent=2, default=float) + "\n")
+
+
+def copy_file(src: str | Path, dst: str | Path) -> Path:
+    """Copy ``src`` to ``dst`` atomically."""
+    return atomic_write(dst, lambda p: shutil.copyfile(src, p))
+
+
+def make_stage_dir(parent: Path, prefix: str) -> Path:
+    """A temporary folder inside ``parent`` with normal permissions (mkdtemp makes 0700)."""
+    stage = Path(tempfile.mkdtemp(dir=parent, prefix=prefix))
+    os.chmod(stage, 0o777 & ~_umask())
+    return stage
+
+
+def check_output_path(path: str | Path, flag: str = "--out", is_dir: bool = True) -> Path:
+    """Check, without creating anything, that ``path`` can be created or written (a folder if ``is_dir``)."""
+    path = Path(path)
+    if path.exists():
+        if is_dir and not path.is_dir():
+            raise UserError(f"{flag} {path}: exists and is not a directory")
+        if not is_dir and path.is_dir():
+            raise UserError(f"{flag} {path}: is a directory, expected a file name")
+        target = path if path.is_dir() else path.parent
+    else:
+        target = path.parent
+        while not target.exists():
+            target = target.parent
+        if not target.is_dir():
+            raise UserError(f"{flag} {path}: {target} is a file, not a directory")
+    if not os.access(target, os.W_OK | os.X_OK):
+        raise UserError(f"{flag} {path}: {target} is not writable")
+    return path
+
+
+@contextlib.contextmanager
+def output_dir(path: str | Path, flag: str = "--out") -> Iterator[Path]:
+    """Create ``path`` (after ``check_output_path``); on an exception remove every folder this call created."""
+    path = check_output_path(path, flag)
+    created: list[Path] = []
+    p = path
+    while not p.exists():
+        created.append(p)
+        p = p.parent
+    path.mkdir(parents=True, exist_ok=True)
+    try:
+        yield path
+    except BaseException:
+        for d in created:  # deepest first
+            shutil.rmtree(d, ignore_errors=True)
+        raise
