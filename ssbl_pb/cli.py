@@ -49,6 +49,37 @@ def run(main: Callable[..., int], argv: list[str] | None = None) -> NoReturn:
     sys.exit(code)
 
 
+class DeferredSignals:
+    """Within ``with``: SIGINT/SIGTERM only set ``signum`` (code polls it and stops at a safe point); a second
+    signal raises at once. On exit the previous handlers return. Main thread only."""
+
+    def __init__(self) -> None:
+        self.signum: int | None = None
+        self._saved: dict[int, Any] = {}
+
+    def _handler(self, signum: int, frame: Any) -> None:
+        if self.signum is not None:  # asked twice: stop now
+            raise Terminated() if signum == signal.SIGTERM else KeyboardInterrupt()
+        self.signum = signum
+        print("\nstopping at the next safe point (signal again to stop at once)", file=sys.stderr, flush=True)
+
+    def __enter__(self) -> DeferredSignals:
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            self._saved[sig] = signal.signal(sig, self._handler)
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        for sig, old in self._saved.items():
+            signal.signal(sig, old)
+
+    def raise_if_signalled(self) -> None:
+        """Re-raise the deferred signal as the exception ``run`` maps to its exit code."""
+        if self.signum == signal.SIGTERM:
+            raise Terminated()
+        if self.signum is not None:
+            raise KeyboardInterrupt()
+
+
 def stderr_is_tty() -> bool:
     return hasattr(sys.stderr, "isatty") and sys.stderr.isatty()
 

@@ -1,8 +1,12 @@
 #!/usr/bin/env python
-"""Ship a trained run as the package's Vector policy (ssbl_pb/policies/vector/), with its config and the
+"""Ship a trained run as one of the package's policies (ssbl_pb/policies/NAME/), with its config and the
 evaluation that qualifies it (held-out seeds, default and mixed scenarios).
 
+The model is loaded before anything else. The current shipped policy is evaluated on the same seeds, and a
+candidate that does worse on either scenario's success rate is refused unless --force.
+
     python tools/ship_policy.py runs/vector_shipped --episodes 200
+    python tools/ship_policy.py runs/my_run --model final --episodes 50 --force
 """
 
 from __future__ import annotations
@@ -11,58 +15,101 @@ import argparse
 import json
 import os
 import shutil
-import tempfile
 from pathlib import Path
 
-from ssbl_pb.cli import fail, progress_bar, run
+from ssbl_pb.cli import UserError, progress_bar, run
 
 ROOT = Path(__file__).resolve().parents[1]
+SCENARIOS = ("default", "mixed")
 
 
-def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("run", type=Path, help="training run directory (its best/ model is shipped)")
-    ap.add_argument("--episodes", type=int, default=200)
-    ap.add_argument("--seed", type=int, default=500_000, help="first held-out seed")
-    ap.add_argument("--name", default="vector")
-    ap.add_argument("--model", choices=["best", "final"], default="best",
-                    help="the run's best evaluated model (best/) or its final one (model.zip)")
-    args = ap.parse_args(argv)
+def pick_model(run_dir: Path, which: str) -> Path:
+    """The run's best evaluated model folder or its final model, refusing a run that lacks it."""
+    if not (run_dir / "config.yaml").is_file():
+        raise UserError(f"{run_dir}: not a training run directory (no config.yaml)")
+    if which == "best":
+        if not (run_dir / "best" / "model.zip").is_file():
+            raise UserError(f"{run_dir}: no best/model.zip (the run never evaluated); ship its final model with "
+                            f"--model final")
+        return run_dir / "best"
+    if not (run_dir / "model.zip").is_file():
+        raise UserError(f"{run_dir}: no final model.zip (the run did not finish); resume it, or ship --model best")
+    return run_dir / "model.zip"
 
+
+def evaluate(policy: str, seeds: range, label: str) -> dict[str, dict[str, float]]:
     from ssbl_pb.env.rollout import run_episodes
-    from ssbl_pb.env.trained import ModelError, resolve_model
     from ssbl_pb.evaluation import Setup
-    from ssbl_pb.policies import SHIPPED_DIR
-    from ssbl_pb.report import summarize, write_json
+    from ssbl_pb.report import summarize
 
-    try:
-        pick = args.run / "best" if args.model == "best" and (args.run / "best").is_dir() else args.run / "model.zip"
-        model, norm, _ = resolve_model(str(pick))
-    except ModelError as exc:
-        return fail(exc)
-    if norm is None:
-        return fail(f"{model.parent}: no vecnormalize.pkl beside the model")
-    dest = SHIPPED_DIR / args.name
-    stage = Path(tempfile.mkdtemp(dir=SHIPPED_DIR, prefix=".ship-"))
-    config = model.parent / "config.yaml" if (model.parent / "config.yaml").is_file() else args.run / "config.yaml"
-    for f, name in ((model, "model.zip"), (norm, "vecnormalize.pkl"), (config, "config.yaml")):
-        shutil.copy2(f, stage / name)
     results = {}
-    for scenario in ("default", "mixed"):
-        with progress_bar(args.episodes, scenario) as bar:
-            res = run_episodes(Setup(str(stage), scenario=scenario), range(args.seed, args.seed + args.episodes),
-                               os.cpu_count() or 1, progress=bar)
+    for scenario in SCENARIOS:
+        with progress_bar(len(seeds), f"{label} {scenario}") as bar:
+            res = run_episodes(Setup(policy, scenario=scenario), seeds, os.cpu_count() or 1, progress=bar)
         s = summarize([r.metrics for r in res])
         results[scenario] = {k: s[k] for k in ("success_rate", "collision_rate", "violation_rate", "mean_return",
                                                "personal_zone_time_s", "mean_jerk", "arrival_speed")}
         results[scenario]["success_ci95"] = [s["metrics"]["success"]["ci_low"], s["metrics"]["success"]["ci_high"]]
-    info = {"source_run": str(args.run), "source_model": str(model), "episodes": args.episodes,
-            "seeds": [args.seed, args.seed + args.episodes - 1], "results": results,
-            "command": f"python tools/ship_policy.py {args.run} --model {args.model} --episodes {args.episodes}"}
-    write_json(stage / "evaluation.json", info)
-    if dest.exists():
-        shutil.rmtree(dest)
-    os.replace(stage, dest)
+    return results
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("run", type=Path, help="training run directory")
+    ap.add_argument("--episodes", type=int, default=200, help="held-out episodes per scenario (default 200)")
+    ap.add_argument("--seed", type=int, default=500_000, help="first held-out seed")
+    ap.add_argument("--name", default="vector", help="shipped policy name (default vector)")
+    ap.add_argument("--model", choices=["best", "final"], default="best",
+                    help="the run's best evaluated model (best/, default) or its final one (model.zip)")
+    ap.add_argument("--force", action="store_true", help="ship even if it evaluates worse than the shipped policy")
+    args = ap.parse_args(argv)
+
+    from ssbl_pb.env.approach import make_env
+    from ssbl_pb.env.trained import load_trained, resolve_model
+    from ssbl_pb.files import copy_file, make_stage_dir, write_json
+    from ssbl_pb.policies import SHIPPED_DIR
+
+    if args.episodes < 1:
+        raise UserError(f"--episodes {args.episodes}: expected an integer >= 1")
+    if not args.name.isidentifier():
+        raise UserError(f"--name {args.name!r}: expected a plain name (letters, digits, _)")
+    pick = pick_model(args.run, args.model)
+    model, norm, config = resolve_model(str(pick))
+    if norm is None:
+        raise UserError(f"{model.parent}: no vecnormalize.pkl beside the model")
+    env = make_env(obs_mode=config.get("obs_mode", "vector"))
+    load_trained(str(pick), env.observation_space)  # a corrupt or foreign model fails here, before any work
+    env.close()
+
+    dest = SHIPPED_DIR / args.name
+    seeds = range(args.seed, args.seed + args.episodes)
+    stage = make_stage_dir(SHIPPED_DIR, ".ship-")
+    try:
+        config_file = model.parent / "config.yaml" if (model.parent / "config.yaml").is_file() else \
+            args.run / "config.yaml"
+        for f, name in ((model, "model.zip"), (norm, "vecnormalize.pkl"), (config_file, "config.yaml")):
+            copy_file(f, stage / name)
+        results = evaluate(str(stage), seeds, "candidate")
+        current = evaluate(str(dest), seeds, "shipped") if (dest / "model.zip").is_file() else None
+        worse = [sc for sc in SCENARIOS if current and results[sc]["success_rate"] < current[sc]["success_rate"]]
+        if worse and not args.force:
+            raise UserError(f"{args.run}: evaluates worse than the shipped '{args.name}' on the same seeds ("
+                            + ", ".join(f"{sc} {results[sc]['success_rate']:.1%} vs {current[sc]['success_rate']:.1%}"
+                                        for sc in worse) + "); nothing replaced (--force ships it anyway)")
+        info = {"source_run": str(args.run), "source_model": str(model), "model": args.model,
+                "episodes": args.episodes, "seeds": [seeds[0], seeds[-1]], "results": results,
+                "replaced": current, "forced": bool(worse),
+                "command": f"python tools/ship_policy.py {args.run} --model {args.model} --episodes {args.episodes}"
+                           + (" --force" if worse else "")}
+        write_json(stage / "evaluation.json", info)
+        old = SHIPPED_DIR / f".old-{args.name}"
+        shutil.rmtree(old, ignore_errors=True)
+        if dest.exists():
+            os.replace(dest, old)
+        os.replace(stage, dest)
+        shutil.rmtree(old, ignore_errors=True)
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)
     size = sum(f.stat().st_size for f in dest.iterdir()) / 1e6
     print(json.dumps(results, indent=2))
     print(f"shipped {size:.1f} MB -> {dest}")

@@ -21,7 +21,8 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--config", type=Path, default=ROOT / "configs" / "vector_ff.yaml", help="YAML config")
+    ap.add_argument("--config", type=Path, help="YAML config (default: configs/vector_ff.yaml, vector_lstm.yaml "
+                    "with --policy lstm, camera_cnn.yaml with a camera --obs-mode)")
     ap.add_argument("--obs-mode", choices=["vector", "camera", "camera_speed"])
     ap.add_argument("--encoder", choices=["none", "cnn", "conv", "saev"])
     ap.add_argument("--policy", choices=["ff", "lstm"], help="ff = PPO, lstm = RecurrentPPO")
@@ -40,27 +41,37 @@ def main(argv: list[str] | None = None) -> int:
                     help="start from another run's final weights (fine-tuning with this config)")
     args = ap.parse_args(argv)
 
-    from ssbl_pb.training.config import parse_overrides
-    from ssbl_pb.training.run import ConfigError, RunError, load_config, resume, train
+    from ssbl_pb.training.config import load_config, parse_overrides, run_name
+    from ssbl_pb.training.run import resume, train
 
-    try:
-        if args.resume:
-            summary = resume(args.resume, args.total_steps)
-            out = args.resume
-        else:
-            over = {k: v for k, v in {"obs_mode": args.obs_mode, "encoder": args.encoder, "policy": args.policy,
-                                      "scenario": args.scenario, "n_envs": args.n_envs, "vec_env": args.vec_env,
-                                      "total_steps": args.total_steps, "seed": args.seed}.items() if v is not None}
-            over.update(parse_overrides(args.set))
-            cfg = load_config(args.config, over)
-            out = args.out or ROOT / "runs" / cfg.name
-            summary = train(cfg, out, args.overwrite, args.init_from)
-    except (ConfigError, RunError, ValueError, FileNotFoundError) as exc:
-        return fail(exc)
-    best = summary.get("best_eval") or {}
-    print(f"{summary['steps']} steps in {summary['wall_time_s']} s ({summary['steps_per_s']} steps/s); best eval "
-          f"success {best.get('success_rate', float('nan')):.0%} -> {out}")
+    if args.resume:
+        if args.overwrite or args.init_from or args.config or args.set:
+            return fail("--resume continues a run with its own config; drop --config/--set/--init-from/--overwrite")
+        summary = resume(args.resume, args.total_steps)
+        out = args.resume
+    else:
+        flags = {"obs_mode": args.obs_mode, "encoder": args.encoder, "policy": args.policy, "scenario": args.scenario,
+                 "n_envs": args.n_envs, "vec_env": args.vec_env, "total_steps": args.total_steps, "seed": args.seed}
+        over = {k: v for k, v in flags.items() if v is not None}
+        over.update(parse_overrides(args.set))
+        config = args.config or default_config(args.policy, args.obs_mode)
+        cfg = load_config(config, over)
+        cfg = run_name(cfg, load_config(config), "name" in over)
+        out = args.out or ROOT / "runs" / cfg.name
+        summary = train(cfg, out, args.overwrite, args.init_from)
+    best = summary.get("best_eval")
+    best_text = (f"best eval success {best['success_rate']:.0%}" if best else
+                 "no evaluation yet (the run ended before eval_every steps)")
+    print(f"{summary['steps']} steps in {summary['wall_time_s']} s ({summary['steps_per_s']} steps/s); {best_text} "
+          f"-> {out}")
     return 0
+
+
+def default_config(policy: str | None, obs_mode: str | None) -> Path:
+    """The shipped config matching ``--policy`` / ``--obs-mode`` when no ``--config`` is given."""
+    if obs_mode in ("camera", "camera_speed"):
+        return ROOT / "configs" / "camera_cnn.yaml"
+    return ROOT / "configs" / ("vector_lstm.yaml" if policy == "lstm" else "vector_ff.yaml")
 
 
 if __name__ == "__main__":

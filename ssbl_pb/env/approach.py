@@ -14,7 +14,7 @@ import gymnasium as gym
 import numpy as np
 
 from ..errors import UserError
-from ..params import RobotParams, SocialParams, WorldParams, from_dict
+from ..params import ConfigError, RobotParams, SocialParams, WorldParams, from_dict
 from . import observation as ob
 from .reward import TERMS, RewardWeights, proximity_cost, reward_terms, route_distance, slot_potential, total_reward
 from .scenarios import ScenarioMix
@@ -29,7 +29,7 @@ def _params(cls: type, value: Any, name: str) -> Any:
         return value
     if isinstance(value, dict):
         return from_dict(cls, value, name)
-    raise TypeError(f"{name}: expected a {cls.__name__} or a dict, got {type(value).__name__}")
+    raise ConfigError(f"{name}: expected a {cls.__name__} or a mapping, got {type(value).__name__}")
 
 
 def parse_env_params(scenario: str, world: Any, robot: Any, social: Any, reward: Any, task: Any
@@ -37,6 +37,10 @@ def parse_env_params(scenario: str, world: Any, robot: Any, social: Any, reward:
     """The env's parameters from dataclasses, dicts or None (defaults), checked: the room must hold the largest
     group the scenario may spawn."""
     mix = ScenarioMix(scenario)
+    fixed = sorted({"n_humans", "formation"} & set(world)) if isinstance(world, dict) else []
+    if fixed:
+        raise ConfigError(f"world.{fixed[0]} = {world[fixed[0]]!r}: the scenario sets the group (e.g. scenario "
+                          f"'circular-4' for four members in a circle); remove world.{fixed[0]}")
     world_p, social_p = _params(WorldParams, world, "world"), _params(SocialParams, social, "social")
     world_p.check_fits(social_p)
     biggest = max(max(sc.sizes) for sc in mix.members)
@@ -216,7 +220,7 @@ def _merge_yaml(kwargs: dict[str, Any], key: str, path: str | None, section: str
     """Overlay the fields of a calibration YAML onto the ``key`` parameters (explicit values still win)."""
     if path is None:
         return
-    from ..params import ConfigError, load_yaml
+    from ..params import load_yaml
 
     data = load_yaml(path)
     if section is not None:

@@ -8,7 +8,9 @@ from __future__ import annotations
 
 import dataclasses
 import multiprocessing as mp
+import signal
 from collections.abc import Callable, Iterable
+from concurrent.futures import ProcessPoolExecutor
 from typing import Any
 
 import gymnasium as gym
@@ -62,7 +64,9 @@ def run_episode(env: gym.Env, policy: Policy, seed: int, keep_trajectory: bool =
 _WORKER: dict[str, Any] = {}
 
 
-def _init_worker(make: Callable[[], tuple[gym.Env, Policy]]) -> None:
+def _init_worker(make: Callable[[], tuple[gym.Env, Policy]], child: bool = False) -> None:
+    if child:  # Ctrl-C is the parent's to handle: workers are shut down, they print no tracebacks
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
     _WORKER["env"], _WORKER["policy"] = make()
 
 
@@ -89,11 +93,16 @@ def run_episodes(make: Callable[[], tuple[gym.Env, Policy]], seeds: Iterable[int
                 progress(1)
         _WORKER["env"].close()
         return out
-    ctx = mp.get_context("spawn")
-    with ctx.Pool(workers, initializer=_init_worker, initargs=(make,)) as pool:
-        out = []
-        for res in pool.imap(_run_seed, jobs, chunksize=max(1, len(jobs) // (8 * workers))):
+    # a worker that fails to start breaks the pool (an error), instead of being respawned for ever
+    pool = ProcessPoolExecutor(workers, mp_context=mp.get_context("spawn"), initializer=_init_worker,
+                               initargs=(make, True))
+    out, done = [], False
+    try:
+        for res in pool.map(_run_seed, jobs, chunksize=max(1, len(jobs) // (8 * workers))):
             out.append(res)
             if progress:
                 progress(1)
+        done = True
+    finally:
+        pool.shutdown(wait=done, cancel_futures=True)
     return out

@@ -15,7 +15,7 @@ from stable_baselines3.common.callbacks import BaseCallback
 
 from ..env.rollout import run_episode
 from ..env.trained import TrainedPolicy
-from ..files import write_text
+from ..files import atomic_write, write_text
 
 
 class ProgressCallback(BaseCallback):
@@ -27,10 +27,9 @@ class ProgressCallback(BaseCallback):
         self.success: deque[float] = deque(maxlen=100)
 
     def _on_training_start(self) -> None:
-        from tqdm import tqdm
+        from ..cli import make_bar
 
-        self.bar = tqdm(total=self.total, initial=self.num_timesteps, unit="step", dynamic_ncols=True,
-                        desc="train", mininterval=1.0)
+        self.bar = make_bar(self.total, "train", "step", initial=self.num_timesteps)
         self.t0, self.n0 = time.perf_counter(), self.num_timesteps
 
     def _on_step(self) -> bool:
@@ -146,21 +145,43 @@ class EvalCheckpointCallback(BaseCallback):
         return True
 
     def save(self, folder: Path, ev: dict[str, float]) -> None:
-        folder.mkdir(parents=True, exist_ok=True)
-        self.model.save(folder / "model.zip")
-        self.training_env.save(str(folder / "vecnormalize.pkl"))
+        """The best model so far; every file atomic, ``eval.json`` (the score the next best must beat) last."""
+        save_model(self.model, self.training_env, folder)
         cfg = self.run_dir / "config.yaml"
         if cfg.exists():
             write_text(folder / "config.yaml", cfg.read_text())
         write_text(folder / "eval.json", json.dumps(ev, indent=2))
 
     def checkpoint(self) -> None:
-        folder = self.run_dir / "checkpoints"
-        folder.mkdir(parents=True, exist_ok=True)
-        n = self.num_timesteps
-        self.model.save(folder / f"ckpt_{n:09d}.zip")
-        self.training_env.save(str(folder / f"ckpt_{n:09d}_vecnormalize.pkl"))
-        write_text(folder / "latest.json", json.dumps({"step": n, "model": f"ckpt_{n:09d}.zip"}))
+        save_checkpoint(self.model, self.training_env, self.run_dir)
+
+
+def save_model(model: Any, vec_normalize: Any, folder: Path, stem: str = "model",
+               norm_name: str = "vecnormalize.pkl") -> None:
+    """``folder/{stem}.zip`` and its normalisation, each written atomically (a kill never leaves half a file)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    atomic_write(folder / f"{stem}.zip", lambda p: model.save(p))
+    atomic_write(folder / norm_name, lambda p: vec_normalize.save(str(p)))
+
+
+def save_checkpoint(model: Any, vec_normalize: Any, run_dir: Path) -> int:
+    """A resumable checkpoint named by step; ``latest.json`` points at it only once its files are complete."""
+    n = int(model.num_timesteps)
+    folder = run_dir / "checkpoints"
+    save_model(model, vec_normalize, folder, f"ckpt_{n:09d}", f"ckpt_{n:09d}_vecnormalize.pkl")
+    write_text(folder / "latest.json", json.dumps({"step": n, "model": f"ckpt_{n:09d}.zip"}))
+    return n
+
+
+class StopOnSignal(BaseCallback):
+    """Ends ``learn`` at the next env step once a deferred SIGINT/SIGTERM arrived (``cli.DeferredSignals``)."""
+
+    def __init__(self, signals: Any) -> None:
+        super().__init__()
+        self.signals = signals
+
+    def _on_step(self) -> bool:
+        return self.signals.signum is None
 
 
 class RewardRampCallback(BaseCallback):

@@ -129,6 +129,10 @@ class TrainConfig:
         _check(isinstance(self.safety_shield, bool), "config", "safety_shield", self.safety_shield, "true or false")
         _check(isinstance(self.action_smoothing, int | float) and 0 < self.action_smoothing <= 1, "config",
                "action_smoothing", self.action_smoothing, "a number in (0, 1] (1 = off)")
+        _check(isinstance(self.env, dict), "config", "env", self.env, "a mapping of env arguments")
+        unknown = sorted(set(self.env) - set(env_keys()))
+        _check(not unknown, "config", "env", unknown, f"keys among {env_keys()} (the config sets obs_mode, "
+               "scenario, reward and camera size itself)")
         from ..env.reward import RewardWeights
 
         from_dict(RewardWeights, self.reward, "config.reward")  # validates names and values early
@@ -143,6 +147,18 @@ class TrainConfig:
     @property
     def steps_per_update(self) -> int:
         return self.ppo.n_steps * self.n_envs
+
+
+def env_keys() -> list[str]:
+    """The env arguments a config's ``env:`` may set (``make_env``'s and the core env's, minus the config's own)."""
+    import inspect
+
+    from ..env.approach import ApproachGroupEnv, make_env
+
+    own = {"obs_mode", "scenario", "reward", "camera_width", "camera_height", "render_mode", "render_width",
+           "record", "self", "kwargs"}
+    names = [*inspect.signature(make_env).parameters, *inspect.signature(ApproachGroupEnv.__init__).parameters]
+    return sorted(set(names) - own)
 
 
 def parse_overrides(items: list[str]) -> dict[str, Any]:
@@ -173,6 +189,15 @@ def load_config(path: str | Path | None, overrides: dict[str, Any] | None = None
         return from_dict(TrainConfig, data, where)
     except TypeError as exc:
         raise ConfigError(f"{where}: {exc}") from exc
+
+
+def run_name(cfg: TrainConfig, file_cfg: TrainConfig, named: bool) -> TrainConfig:
+    """Give a run whose flags changed the config file's observation mode or policy a name of its own (so that
+    ``--policy lstm`` on a feed-forward config does not land in, or collide with, the feed-forward run)."""
+    if named:
+        return cfg
+    suffix = "".join(f"_{getattr(cfg, k)}" for k in ("obs_mode", "policy") if getattr(cfg, k) != getattr(file_cfg, k))
+    return dataclasses.replace(cfg, name=cfg.name + suffix) if suffix else cfg
 
 
 def config_to_dict(cfg: TrainConfig) -> dict[str, Any]:

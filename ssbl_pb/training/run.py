@@ -8,6 +8,8 @@ with its normalisation), ``checkpoints/``, ``learning_curve.csv/png``, ``eval.cs
 from __future__ import annotations
 
 import json
+import shutil
+import sys
 import time
 from pathlib import Path
 from typing import Any
@@ -16,7 +18,7 @@ import numpy as np
 
 from ..env.approach import make_env
 from ..errors import UserError
-from ..files import write_text
+from ..files import atomic_write, check_output_path, output_dir, write_text
 from ..params import ConfigError
 from .config import TrainConfig, load_config, save_config
 
@@ -151,47 +153,97 @@ def _callbacks(cfg: TrainConfig, run_dir: Path) -> list[Any]:
 
 
 def _learn(cfg: TrainConfig, run_dir: Path, model: Any, venv: Any, resumed_from: int | None) -> dict[str, Any]:
+    """Train to ``cfg.total_steps``. Ctrl-C / SIGTERM stop at the next env step: a checkpoint is saved, the
+    ``--resume`` command printed, and the signal re-raised (exit 130 / 143 through ``cli.run``)."""
+    from ..cli import DeferredSignals
+    from .callbacks import StopOnSignal, save_checkpoint
     from .curves import plot_learning_curve
 
     start_steps, t0 = model.num_timesteps, time.perf_counter()
     remaining = max(0, cfg.total_steps - model.num_timesteps)
-    try:
-        model.learn(remaining, callback=_callbacks(cfg, run_dir), reset_num_timesteps=False,
-                    tb_log_name="ppo")
-    finally:
-        venv.close()
-    wall = time.perf_counter() - t0
-    model.save(run_dir / "model.zip")
-    venv.save(str(run_dir / "vecnormalize.pkl"))
-    baselines = json.loads((run_dir / "baselines.json").read_text())
-    plot_learning_curve(run_dir, baselines)
-    best = run_dir / "best" / "eval.json"
-    summary = {"name": cfg.name, "steps": int(model.num_timesteps), "resumed_from": resumed_from,
-               "wall_time_s": round(wall, 1), "steps_per_s": round((model.num_timesteps - start_steps) / wall, 1),
-               "baselines": baselines, "best_eval": json.loads(best.read_text()) if best.exists() else None}
-    write_text(run_dir / "summary.json", json.dumps(summary, indent=2))
+    with DeferredSignals() as signals:  # also covers the final saves: a signal then waits for them
+        try:
+            model.learn(remaining, callback=[*_callbacks(cfg, run_dir), StopOnSignal(signals)],
+                        reset_num_timesteps=False, tb_log_name="ppo")
+        finally:
+            venv.close()
+        norm = model.get_vec_normalize_env()
+        step = save_checkpoint(model, norm, run_dir)  # the finished state is resumable too (--total-steps)
+        if signals.signum is not None and step < cfg.total_steps:
+            print(f"saved a checkpoint at step {step}; continue with: python tools/train_pb.py --resume {run_dir}",
+                  file=sys.stderr)
+            signals.raise_if_signalled()
+        wall = time.perf_counter() - t0
+        atomic_write(run_dir / "model.zip", lambda p: model.save(p))
+        atomic_write(run_dir / "vecnormalize.pkl", lambda p: norm.save(str(p)))
+        baselines = json.loads((run_dir / "baselines.json").read_text())
+        plot_learning_curve(run_dir, baselines)
+        best = run_dir / "best" / "eval.json"
+        summary = {"name": cfg.name, "steps": int(model.num_timesteps), "total_steps": cfg.total_steps,
+                   "resumed_from": resumed_from, "wall_time_s": round(wall, 1),
+                   "steps_per_s": round((model.num_timesteps - start_steps) / max(wall, 1e-9), 1),
+                   "baselines": baselines, "best_eval": json.loads(best.read_text()) if best.exists() else None}
+        write_text(run_dir / "summary.json", json.dumps(summary, indent=2))
+        signals.raise_if_signalled()  # a signal during the final saves: the run is complete, exit as asked
     return summary
+
+
+def check_new_run(cfg: TrainConfig, run_dir: Path, overwrite: bool = False, init_from: Path | None = None) -> None:
+    """Every check a new run needs, made before anything is written: the output path, the env the config
+    describes (scenario, room, robot, social and task values) and the run to start from."""
+    check_output_path(run_dir, "--out")
+    if (run_dir / "config.yaml").exists() and not overwrite:
+        raise RunError(f"{run_dir}: already holds a run; continue it with --resume {run_dir}, start it again with "
+                       f"--overwrite, or choose another --out")
+    make_env(**_env_kwargs(cfg)).close()
+    if init_from is not None:
+        check_init_source(cfg, init_from)
+
+
+def check_init_source(cfg: TrainConfig, source: Path) -> None:
+    """``--init-from``: a run with a model, its normalisation and a config of the same kind."""
+    if not (source / "config.yaml").is_file():
+        raise RunError(f"--init-from {source}: not a run directory (no config.yaml)")
+    from ..env.trained import resolve_model
+
+    _, norm, _ = resolve_model(str(source))
+    if norm is None:
+        raise RunError(f"--init-from {source}: no vecnormalize.pkl to start from")
+    src = load_config(source / "config.yaml")
+    for key in ("obs_mode", "policy", "encoder"):
+        if getattr(src, key) != getattr(cfg, key):
+            raise RunError(f"--init-from {source}: its {key} is {getattr(src, key)!r}, this config's is "
+                           f"{getattr(cfg, key)!r}; fine-tuning needs the same")
+    if tuple(src.ppo.net_arch) != tuple(cfg.ppo.net_arch):
+        raise RunError(f"--init-from {source}: its ppo.net_arch is {list(src.ppo.net_arch)}, this config's is "
+                       f"{list(cfg.ppo.net_arch)}; fine-tuning needs the same network")
 
 
 def train(cfg: TrainConfig, run_dir: Path, overwrite: bool = False, init_from: Path | None = None
           ) -> dict[str, Any]:
-    """Start a new run in ``run_dir`` (refuses a directory that already holds a run unless ``overwrite``).
+    """Start a new run in ``run_dir`` (refuses a directory that already holds a run unless ``overwrite``, which
+    empties it first).
 
     ``init_from`` (a run directory) starts from that run's final weights and normalisation instead of from
-    scratch (fine-tuning, e.g. with other reward weights or scenarios); the step counter starts at 0."""
+    scratch (fine-tuning, e.g. with other reward weights or scenarios); the step counter starts at 0.
+    The run is resumable from its first second: the initial state is checkpointed before training starts, and
+    if anything fails before that checkpoint exists, the run directory is removed again."""
     import torch
 
-    if (run_dir / "config.yaml").exists() and not overwrite:
-        raise RunError(f"{run_dir}: already holds a run; use --resume {run_dir} to continue it or choose "
-                       f"another --out")
-    run_dir.mkdir(parents=True, exist_ok=True)
+    from .callbacks import save_checkpoint
+
+    check_new_run(cfg, run_dir, overwrite, init_from)
+    if overwrite and run_dir.is_dir():
+        shutil.rmtree(run_dir)
     torch.set_num_threads(cfg.torch_threads)
-    save_config(cfg, run_dir / "config.yaml")
-    write_text(run_dir / "baselines.json", json.dumps(baseline_returns(cfg), indent=2))
-    venv = make_vec_env(cfg, cfg.seed)
-    model = build_model(cfg, venv, run_dir / "tb")
-    if init_from is not None:
-        venv = _init_from(model, venv, init_from)
+    with output_dir(run_dir, "--out"):
+        save_config(cfg, run_dir / "config.yaml")
+        write_text(run_dir / "baselines.json", json.dumps(baseline_returns(cfg), indent=2))
+        venv = make_vec_env(cfg, cfg.seed)
+        model = build_model(cfg, venv, run_dir / "tb")
+        if init_from is not None:
+            venv = _init_from(model, venv, init_from)
+        save_checkpoint(model, venv, run_dir)
     return _learn(cfg, run_dir, model, venv, None)
 
 
@@ -236,7 +288,8 @@ def _match_action_head(source: dict[str, Any], target: dict[str, Any]) -> dict[s
 def latest_checkpoint(run_dir: Path) -> tuple[Path, Path, int]:
     latest = run_dir / "checkpoints" / "latest.json"
     if not latest.is_file():
-        raise RunError(f"{run_dir}: no checkpoint to resume from (expected {latest})")
+        raise RunError(f"{run_dir}: no checkpoint to resume from (expected {latest}); start the run again with "
+                       f"--overwrite --out {run_dir}")
     try:
         info = json.loads(latest.read_text())
         model = run_dir / "checkpoints" / info["model"]
@@ -259,6 +312,9 @@ def resume(run_dir: Path, total_steps: int | None = None) -> dict[str, Any]:
         raise RunError(f"{run_dir}: not a run directory (no config.yaml)")
     cfg = load_config(run_dir / "config.yaml", {"total_steps": total_steps} if total_steps else None)
     model_path, norm_path, step = latest_checkpoint(run_dir)
+    if step >= cfg.total_steps and (run_dir / "summary.json").is_file():
+        raise RunError(f"{run_dir}: already finished ({step} of {cfg.total_steps} steps); nothing changed. To train "
+                       f"it longer: --resume {run_dir} --total-steps N with N > {step}")
     torch.set_num_threads(cfg.torch_threads)
     _truncate_log(run_dir / "learning_curve.csv", step)
     _truncate_log(run_dir / "eval.csv", step)
