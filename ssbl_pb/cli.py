@@ -8,6 +8,7 @@ and keeps its traceback.
 
 from __future__ import annotations
 
+import argparse
 import contextlib
 import os
 import signal
@@ -18,7 +19,8 @@ from typing import Any, NoReturn
 
 from .errors import EXIT_SIGINT, EXIT_SIGTERM, EXIT_USAGE, Terminated, UserError
 
-__all__ = ["EXIT_USAGE", "UserError", "fail", "run", "progress_bar", "make_bar"]
+__all__ = ["EXIT_USAGE", "ArgumentParser", "UserError", "fail", "run", "progress_bar", "make_bar", "int_at_least",
+           "int_in"]
 
 
 def fail(exc: BaseException | str) -> int:
@@ -26,6 +28,40 @@ def fail(exc: BaseException | str) -> int:
     text = " ".join(str(exc).split()) if not isinstance(exc, str) else exc
     print(f"error: {text}", file=sys.stderr)
     return EXIT_USAGE
+
+
+class ArgumentParser(argparse.ArgumentParser):
+    """argparse whose errors are the tools' one line (``error: argument --x: ...``, exit 2) instead of the usage
+    block; ``--help`` is unchanged. Raw-description help by default, so docstring examples keep their layout."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        kwargs.setdefault("formatter_class", argparse.RawDescriptionHelpFormatter)
+        super().__init__(*args, **kwargs)
+
+    def error(self, message: str) -> NoReturn:
+        raise UserError(f"{message} (see --help)")
+
+
+def int_at_least(low: int) -> Callable[[str], int]:
+    """An argparse type: an integer >= ``low``."""
+    return int_in(low, None)
+
+
+def int_in(low: int, high: int | None) -> Callable[[str], int]:
+    """An argparse type: an integer in [low, high] (no upper bound when ``high`` is None)."""
+    want = f"an integer >= {low}" if high is None else f"an integer in [{low}, {high}]"
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r}: expected {want}") from None
+        if value < low or (high is not None and value > high):
+            raise argparse.ArgumentTypeError(f"{value}: expected {want}")
+        return value
+
+    parse.__name__ = want  # argparse names the type in some messages
+    return parse
 
 
 def _raise_terminated(signum: int, frame: Any) -> None:

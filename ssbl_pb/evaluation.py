@@ -5,7 +5,6 @@ from __future__ import annotations
 import dataclasses
 import os
 import shutil
-import tempfile
 from pathlib import Path
 from typing import Any
 
@@ -15,12 +14,9 @@ from .env.approach import make_env
 from .env.policies import BASELINES, Policy, make_policy
 from .env.rollout import EpisodeResult, run_episodes
 from .errors import UserError
+from .files import check_output_path, make_stage_dir, output_dir
 from .policies import SHIPPED
 from .report import plot_paths, summarize, write_csv, write_json
-
-
-class UsageError(UserError):
-    """Bad command-line input; tools print the message and exit with code 2."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -44,7 +40,7 @@ def build_policy(spec: str, env: gym.Env, shield: bool | None = None) -> Policy:
     core = env.unwrapped
     if spec in BASELINES:
         if spec != "random" and env.observation_space != core.observation_space:
-            raise UsageError(f"policy '{spec}' reads the vector observation; use --obs-mode vector")
+            raise UserError(f"policy '{spec}' reads the vector observation; use --obs-mode vector")
         return make_policy(spec, core.robot_params, core.social, seed=0)
     from .env.shield import ShieldParams
     from .env.trained import load_trained
@@ -54,23 +50,13 @@ def build_policy(spec: str, env: gym.Env, shield: bool | None = None) -> Policy:
                                                                                    core.task))
 
 
-def check_policy_spec(spec: str) -> None:
+def check_policy_spec(spec: str, flag: str = "--policy") -> None:
+    """A baseline, a shipped policy or an existing model path; the error names ``flag``."""
     if spec in BASELINES or spec in SHIPPED:
         return
     if not (spec.endswith(".zip") or Path(spec).is_dir()) or not Path(spec).exists():
-        raise UsageError(f"--policy {spec!r}: expected one of {list(BASELINES) + list(SHIPPED)}, a trained model "
+        raise UserError(f"{flag} {spec!r}: expected one of {list(BASELINES) + list(SHIPPED)}, a trained model "
                          f"(.zip) or a run directory that exists")
-
-
-def prepare_out(out: Path) -> None:
-    """Create ``out`` and make sure it is writable (before any episode runs)."""
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-        fd, probe = tempfile.mkstemp(dir=out, prefix=".probe")
-        os.close(fd)
-        os.unlink(probe)
-    except OSError as exc:
-        raise UsageError(f"--out {out}: not a writable directory ({exc.strerror or exc})") from exc
 
 
 def evaluate(setup: Setup, episodes: int, seed: int, out: Path, workers: int = 1, n_paths: int = 6,
@@ -80,11 +66,10 @@ def evaluate(setup: Setup, episodes: int, seed: int, out: Path, workers: int = 1
     Files are first written to a staging directory inside ``out`` and moved in place at the end, so an
     interrupted run leaves no partial output.
     """
-    if not isinstance(episodes, int) or episodes < 1:
-        raise UsageError(f"--episodes {episodes}: expected an integer >= 1")
+    check_counts(episodes=(episodes, 1), paths=(n_paths, 0), workers=(workers, 1))
     check_policy_spec(setup.policy)
-    prepare_out(out)
-    env, _ = setup()  # fail fast on a bad model / obs mode before spawning workers
+    check_output_path(out)
+    env, _ = setup()  # fail fast on a bad model / obs mode / scenario before any episode or output
     room = env.unwrapped.world_params.room_size
     env.close()
     results = run_episodes(setup, range(seed, seed + episodes), workers, keep_trajectories=n_paths,
@@ -92,16 +77,39 @@ def evaluate(setup: Setup, episodes: int, seed: int, out: Path, workers: int = 1
     rows = [r.metrics for r in results]
     summary = summarize(rows, {"policy": setup.policy, "obs_mode": setup.obs_mode, "scenario": setup.scenario,
                                "seed": seed})
-    stage = Path(tempfile.mkdtemp(dir=out, prefix=".staging-"))
-    try:
-        write_csv(stage / "episodes.csv", rows)
-        write_json(stage / "summary.json", summary)
-        shown = [r for r in results if r.trajectory][:n_paths]
-        titles = [f"seed {r.seed}: {'success' if r.metrics['success'] else 'fail'} "
-                  f"({r.info.get('formation', '')} {r.info.get('n_humans', '')})" for r in shown]
-        plot_paths(stage / "paths.png", [r.trajectory for r in shown], titles, room)
-        for f in stage.iterdir():
-            os.replace(f, out / f.name)
-    finally:
-        shutil.rmtree(stage, ignore_errors=True)
+    with output_dir(out) as out:
+        stage = make_stage_dir(out, ".staging-")
+        try:
+            write_csv(stage / "episodes.csv", rows)
+            write_json(stage / "summary.json", summary)
+            shown = [r for r in results if r.trajectory][:n_paths]
+            if shown:
+                plot_paths(stage / "paths.png", [r.trajectory for r in shown], episode_titles(shown), room)
+            for f in stage.iterdir():
+                os.replace(f, out / f.name)
+        finally:
+            shutil.rmtree(stage, ignore_errors=True)
     return summary, results
+
+
+def check_counts(**values: tuple[int, int]) -> None:
+    """``name=(value, minimum)`` pairs of command-line counts; the error names the flag (``--name``)."""
+    for name, (value, low) in values.items():
+        if not isinstance(value, int) or value < low:
+            raise UserError(f"--{name.replace('_', '-')} {value}: expected an integer >= {low}")
+
+
+def episode_titles(results: list[EpisodeResult]) -> list[str]:
+    """'seed S: success' or 'seed S: fail (why)' with the group, for path plots."""
+    return [f"seed {r.seed}: {outcome(r.metrics)} ({r.info.get('formation', '')} {r.info.get('n_humans', '')})"
+            for r in results]
+
+
+def outcome(metrics: dict[str, Any]) -> str:
+    """Why an episode ended, in words: success, or what failed."""
+    if metrics.get("success"):
+        return "success"
+    for key, why in (("collision", "collided with a member"), ("violation", "entered a member's intimate zone")):
+        if metrics.get(key):
+            return f"fail: {why}"
+    return "fail: time out before joining"

@@ -12,6 +12,7 @@ per participant, condition and item before testing, as in a within-subject desig
 from __future__ import annotations
 
 import csv
+import io
 import math
 from pathlib import Path
 from typing import Any
@@ -34,7 +35,11 @@ def read_ratings(path: Path) -> dict[tuple[str, str, str], list[float]]:
     path = Path(path)
     if not path.is_file():
         raise StudyError(f"{path}: file not found")
-    with open(path, newline="") as fh:
+    try:
+        text = path.read_text(encoding="utf-8-sig")  # -sig: Excel's "CSV UTF-8" starts with a byte-order mark
+    except UnicodeDecodeError as exc:
+        raise StudyError(f"{path}: not UTF-8 text (byte {exc.start}); save it as CSV UTF-8") from None
+    with io.StringIO(text, newline="") as fh:
         reader = csv.DictReader(fh)
         missing = [c for c in REQUIRED if c not in (reader.fieldnames or [])]
         if missing:

@@ -12,7 +12,8 @@ from ssbl_pb.env.approach import ApproachGroupEnv
 from ssbl_pb.env.observation import OBS_SIZE
 from ssbl_pb.env.policies import SFFMPolicy, StraightPolicy, make_policy
 from ssbl_pb.env.rollout import run_episode
-from ssbl_pb.evaluation import Setup, UsageError, evaluate
+from ssbl_pb.errors import UserError
+from ssbl_pb.evaluation import Setup, evaluate
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -74,7 +75,7 @@ def run_cli(*args):
 @pytest.mark.parametrize("args,message", [
     (["--policy", "magic"], "--policy 'magic'"),
     (["--policy", "nope/model.zip"], "--policy 'nope/model.zip'"),
-    (["--policy", "sffm", "--episodes", "0"], "--episodes 0"),
+    (["--policy", "sffm", "--episodes", "0"], "argument --episodes: 0: expected an integer >= 1"),
 ])
 def test_cli_bad_input(tmp_path, args, message):
     out = tmp_path / "out"
@@ -88,11 +89,11 @@ def test_cli_unwritable_out(tmp_path):
     blocker = tmp_path / "file"
     blocker.write_text("x")
     res = run_cli("--policy", "sffm", "--episodes", "1", "--out", str(blocker / "sub"))
-    assert res.returncode == 2 and "not a writable directory" in res.stderr
+    assert res.returncode == 2 and "is a file, not a directory" in res.stderr
 
 
 def test_baseline_needs_vector_obs(tmp_path):
-    with pytest.raises(UsageError, match="--obs-mode vector"):
+    with pytest.raises(UserError, match="--obs-mode vector"):
         evaluate(Setup("sffm", obs_mode="camera"), 1, 0, tmp_path)
 
 

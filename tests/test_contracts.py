@@ -2,7 +2,8 @@
 naming the problem, no traceback, nothing left at the output path.
 
 One row per case: (tool, argv, a fragment the message must contain). ``{out}`` in argv is a path inside a fresh
-temporary folder that must not exist afterwards; ``{tmp}`` is that folder; ``{file}`` an existing regular file.
+temporary folder that must not exist afterwards; ``{tmp}`` is that folder; ``{file}`` an existing regular text
+file; ``{binary}`` a Latin-1 (not UTF-8) CSV.
 A tool is ``tools/NAME.py`` or ``-m package.module``. New tools add their rows here.
 """
 
@@ -29,14 +30,90 @@ def C(tool: str, *argv: str, expect: str) -> Case:
 
 
 CASES = [
-    # evaluation
+    # analysis and reporting
+    C("analyze_study.py", "{tmp}/none.csv", "--out", "{out}", expect="none.csv: file not found"),
+    C("analyze_study.py", "{binary}", "--out", "{out}", expect="not UTF-8 text"),
+    C("analyze_study.py", "{file}", "--out", "{out}", expect="missing column(s)"),
+    C("analyze_study.py", "docs/examples/ratings_example.csv", "--out", "{file}/study", expect="is a file"),
+    C("bench.py", "--steps", "0", "--out", "{out}.json", expect="argument --steps"),
+    C("bench.py", "--out", "{file}/bench.json", expect="is a file"),
+    C("bench_policies.py", "--policies", "nosuch", "--out", "{out}", expect="--policies 'nosuch'"),
+    C("bench_policies.py", "--scenarios", "bogus", "--out", "{out}", expect="scenario 'bogus'"),
+    C("bench_policies.py", "--episodes", "0", "--out", "{out}", expect="argument --episodes"),
+    C("bench_training.py", "--set", "n_envz=3", "--out", "{out}.json", expect="n_envz"),
+    C("bench_training.py", "--steps", "0", "--out", "{out}.json", expect="argument --steps"),
+    C("compare.py", "--pairs", "-2", "--out", "{out}", expect="argument --pairs"),
+    C("compare.py", "--baseline", "nosuch", "--out", "{out}", expect="--baseline 'nosuch'"),
+    C("compare.py", "--episodes", "1", "--out", "{out}", expect="argument --episodes"),
+    C("compare.py", "--scenario", "bogus", "--episodes", "4", "--out", "{out}", expect="scenario 'bogus'"),
+    C("demo.py", "--width", "0", "--out", "{out}", expect="argument --width"),
+    C("demo.py", "--width", "100000", "--out", "{out}", expect="argument --width"),
+    C("demo.py", "--policy", "nosuch", "--out", "{out}", expect="--policy 'nosuch'"),
+    C("demo.py", "--out", "{file}/demo", expect="is a file"),
     C("evaluate.py", "--policy", "nosuch", "--out", "{out}", expect="--policy 'nosuch'"),
-    C("evaluate.py", "--policy", "sffm", "--episodes", "0", "--out", "{out}", expect="--episodes 0"),
+    C("evaluate.py", "--policy", "sffm", "--scenario", "bogus", "--out", "{out}", expect="scenario 'bogus'"),
+    C("evaluate.py", "--policy", "sffm", "--episodes", "0", "--out", "{out}", expect="argument --episodes"),
+    C("evaluate.py", "--policy", "sffm", "--paths", "-1", "--out", "{out}", expect="argument --paths"),
+    C("evaluate.py", "--policy", "sffm", "--workers", "-3", "--out", "{out}", expect="argument --workers"),
+    C("evaluate.py", "--policy", "sffm", "--out", "{file}/eval", expect="is a file"),
+    C("evaluate.py", "--policy", "sffm", "--robot-yaml", "{tmp}/none.yaml", "--out", "{out}", expect="none.yaml"),
+    C("evaluate.py", "--policy", "sffm", "--room-yaml", "{file}", "--out", "{out}", expect="a_file.txt"),
+    C("evaluate.py", "--policy", "{file}", "--out", "{out}", expect="--policy"),
+    C("evaluate.py", "--policy", "vector", "--obs-mode", "camera", "--episodes", "2", "--out", "{out}",
+      expect="obs_mode"),
+    C("main_job.py", "--steps", "10", "--out", "{out}", expect="argument --steps"),
+    C("main_job.py", "--out", "{file}/quick", expect="is a file"),
+    C("render_episode.py", "--policy", "sffm", "--width", "0", "--out", "{out}/x.mp4", expect="argument --width"),
+    C("render_episode.py", "--policy", "sffm", "--width", "-10", "--out", "{out}/x.mp4", expect="argument --width"),
+    C("render_episode.py", "--policy", "sffm", "--width", "100000", "--out", "{out}/x.mp4", expect="argument --width"),
+    C("render_episode.py", "--policy", "sffm", "--out", "{out}/x.avi", expect="expected a .mp4"),
+    C("render_episode.py", "--policy", "nosuch", "--out", "{out}/x.mp4", expect="--policy 'nosuch'"),
+    C("render_episode.py", "--policy", "sffm", "--scenario", "bogus", "--out", "{out}/x.mp4",
+      expect="scenario 'bogus'"),
+    C("ship_policy.py", "{tmp}/none", expect="not a training run directory"),
+    C("ship_policy.py", "{tmp}", "--episodes", "0", expect="argument --episodes"),
+    C("ship_policy.py", "{tmp}", "--name", "../evil", expect="--name '../evil'"),
+    # training
+    C("train_pb.py", "--scenario", "bogus", "--out", "{out}", expect="scenario 'bogus'"),
+    C("train_pb.py", "--set", "env.bogus=1", "--out", "{out}", expect="config.env"),
+    C("train_pb.py", "--set", "ppo.bogus=1", "--out", "{out}", expect="bogus"),
+    C("train_pb.py", "--set", "env.world.room_size=[1,1]", "--out", "{out}", expect="world.room_size"),
+    C("train_pb.py", "--set", "env.world.n_humans=4", "--out", "{out}", expect="world.n_humans"),
+    C("train_pb.py", "--set", "env.robot.max_speed=-1", "--out", "{out}", expect="max_speed"),
+    C("train_pb.py", "--set", "noequals", "--out", "{out}", expect="--set 'noequals'"),
+    C("train_pb.py", "--init-from", "{tmp}/none", "--out", "{out}", expect="--init-from"),
+    C("train_pb.py", "--out", "{file}/run", expect="is a file"),
+    C("train_pb.py", "--resume", "{tmp}/none", expect="not a run directory"),
+    C("train_pb.py", "--config", "{tmp}/none.yaml", "--out", "{out}", expect="none.yaml: file not found"),
+    C("train_pb.py", "--total-steps", "0", "--out", "{out}", expect="total_steps"),
+    # tracking
+    C("track.py", "{tmp}/none.avi", "--calib", "{tmp}/none.xml", "--out", "{out}", expect="none"),
+    C("track.py", "{file}", "--calib", "{tmp}/none.xml", "--out", "{file}/tracks", expect="is a file"),
+    C("eval_tracking.py", "--tracks", "{tmp}/none", "--gt", "{tmp}/none.xml", "--json", "{out}.json",
+      expect="none"),
+    C("eval_tracking.py", "--tracks", "{tmp}", "--gt", "{tmp}/gt.xml", "--range", "5:2", expect="--range"),
+    C("bench_tracking.py", "--data", "{tmp}/none", "--out", "{out}", "--doc", "{out}.md", expect="none"),
+    # calibration
+    C("calibrate_camera.py", "{tmp}/none.jpg", "--out", "{out}.yaml", expect="none.jpg"),
+    C("calibrate_camera.py", "{file}", "--board", "9y6", "--out", "{out}.yaml", expect="board '9y6'"),
+    C("calibrate_humans.py", "--data", "{tmp}/none", "--out", "{out}.yaml", expect="data folder not found"),
+    C("calibrate_humans.py", "--episodes", "0", "--out", "{out}.yaml", expect="argument --episodes"),
+    C("camera_pose.py", "{tmp}/none.png", "--camera", "{tmp}/none.yaml", "--square", "0.025", "--out",
+      "{out}.yaml", expect="none"),
+    C("fit_room_pointcloud.py", "{tmp}/none.pcd", "--out", "{out}.yaml", expect="none.pcd"),
+    C("fit_room_pointcloud.py", "{file}", "--up", "w", "--out", "{out}.yaml", expect="up axis 'w'"),
+    C("identify_dynamics.py", "{tmp}/none.csv", "--out", "{out}.yaml", expect="none.csv"),
+    C("identify_dynamics.py", "{file}", "--out", "{out}.yaml", expect="a_file.txt"),
+    C("import_map.py", "{tmp}/none.yaml", "--seed", "0", "0", "--out", "{out}.yaml", expect="none.yaml"),
+    C("import_map.py", "{file}", "--seed", "0", "0", "--out", "{out}.yaml", expect="a_file.txt"),
+    C("import_map.py", "{file}", "--out", "{out}.yaml", expect="give --region and/or --seed"),
+    C("import_map.py", "{file}", "--seed", "0", "0", "--out", "{file}/room.yaml", expect="is a file"),
 ]
 
 
-def _fill(arg: str, tmp: Path, out: Path, file: Path) -> str:
-    return arg.replace("{out}", str(out)).replace("{tmp}", str(tmp)).replace("{file}", str(file))
+def _fill(arg: str, tmp: Path, out: Path, file: Path, binary: Path) -> str:
+    return (arg.replace("{out}", str(out)).replace("{tmp}", str(tmp)).replace("{file}", str(file))
+            .replace("{binary}", str(binary)))
 
 
 def run_tool(tool: str, argv: list[str], timeout: float = 120) -> subprocess.CompletedProcess:
@@ -49,7 +126,9 @@ def test_bad_input_is_one_clean_line(case: Case, tmp_path: Path) -> None:
     out = tmp_path / "out" / "result"
     file = tmp_path / "a_file.txt"
     file.write_text("not a directory\n")
-    res = run_tool(case.tool, [_fill(a, tmp_path, out, file) for a in case.argv])
+    binary = tmp_path / "latin1.csv"
+    binary.write_bytes("participant,condition,item,rating\nJos\xe9,a,safe,5\n".encode("latin-1"))
+    res = run_tool(case.tool, [_fill(a, tmp_path, out, file, binary) for a in case.argv])
     lines = [ln for ln in res.stderr.splitlines() if ln.strip()]
     assert res.returncode == 2, f"exit {res.returncode}, stderr:\n{res.stderr}"
     assert "Traceback" not in res.stderr, res.stderr
@@ -58,7 +137,6 @@ def test_bad_input_is_one_clean_line(case: Case, tmp_path: Path) -> None:
     assert not (tmp_path / "out").exists(), f"left behind: {sorted(p.name for p in (tmp_path / 'out').rglob('*'))}"
 
 
-@pytest.mark.xfail(reason="issue 17: the table is being filled", strict=False)
 def test_every_tool_has_a_case() -> None:
     tools = {p.name for p in (ROOT / "tools").glob("*.py")}
     covered = {c.tool for c in CASES}

@@ -8,12 +8,11 @@ Writes results/bench.json and prints a table.
 
 from __future__ import annotations
 
-import argparse
 import os
 import platform
 from pathlib import Path
 
-from ssbl_pb.cli import run
+from ssbl_pb.cli import ArgumentParser, int_at_least, run
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -21,13 +20,16 @@ TARGETS = {"world_step_per_s": ("world_step_per_s", 10_000), "env_step_per_s": (
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--out", type=Path, default=ROOT / "results" / "bench.json")
-    ap.add_argument("--steps", type=int, default=20_000, help="steps per stepping measurement")
-    ap.add_argument("--frames", type=int, default=500, help="frames per rendering measurement")
+    ap = ArgumentParser(description=__doc__)
+    ap.add_argument("--out", type=Path, default=ROOT / "results" / "bench.json", help="results JSON")
+    ap.add_argument("--steps", type=int_at_least(100), default=20_000, help="steps per stepping measurement")
+    ap.add_argument("--frames", type=int_at_least(10), default=500, help="frames per rendering measurement")
     ap.add_argument("--all-cores", action="store_true", help="do not pin the process to one core")
     args = ap.parse_args(argv)
 
+    from ssbl_pb.files import check_output_path
+
+    check_output_path(args.out, is_dir=False)
     if not args.all_cores and hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})
     from ssbl_pb.bench import simulator_rates
@@ -36,7 +38,6 @@ def main(argv: list[str] | None = None) -> int:
     r = simulator_rates(args.steps, args.frames)
     r["camera_84_vs_raw"] = r["camera_fps_84"] / r["raw_render_fps_84"]
     r["machine"] = f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, one core used"
-    args.out.parent.mkdir(parents=True, exist_ok=True)
     write_json(args.out, r)
     checks = {"world_step_per_s >= 10000": r["world_step_per_s"] >= 10_000,
               "camera_fps_84 >= 80% of raw_render_fps_84": r["camera_84_vs_raw"] >= 0.8,

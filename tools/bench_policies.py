@@ -8,11 +8,11 @@ Writes results/bench_policies.json and a Markdown table (results/bench_policies.
 
 from __future__ import annotations
 
-import argparse
 import os
 from pathlib import Path
+from typing import Any
 
-from ssbl_pb.cli import fail, progress_bar, run
+from ssbl_pb.cli import ArgumentParser, int_at_least, progress_bar, run
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -20,39 +20,44 @@ SCENARIOS = "default,vis_a_vis,l_shape,side_by_side,circular,behind,mixed"
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = ArgumentParser(description=__doc__)
     ap.add_argument("--policies", default="sffm,straight,random")
     ap.add_argument("--scenarios", default=SCENARIOS)
-    ap.add_argument("--episodes", type=int, default=200)
+    ap.add_argument("--episodes", type=int_at_least(1), default=200, help="episodes per scenario (default 200)")
     ap.add_argument("--seed", type=int, default=500_000, help="first held-out seed")
-    ap.add_argument("--out", type=Path, default=ROOT / "results" / "bench_policies")
+    ap.add_argument("--out", type=Path, default=ROOT / "results" / "bench_policies",
+                    help="results stem: OUT.json and OUT.md (default results/bench_policies)")
     args = ap.parse_args(argv)
 
     from ssbl_pb.env.rollout import run_episodes
-    from ssbl_pb.evaluation import Setup, UsageError, check_policy_spec
-    from ssbl_pb.files import write_text
+    from ssbl_pb.evaluation import Setup, check_policy_spec
+    from ssbl_pb.files import check_output_path, output_dir, write_text
     from ssbl_pb.report import summarize, write_json
 
+    pols, scs = args.policies.split(","), args.scenarios.split(",")
+    check_output_path(args.out.with_suffix(".json"), is_dir=False)
+    for pol in pols:
+        check_policy_spec(pol, "--policies")
+        for sc in scs:
+            Setup(pol, scenario=sc)()[0].close()  # every pair is checked before the first episode
     table: dict[str, dict[str, dict]] = {}
-    try:
-        for pol in args.policies.split(","):
-            check_policy_spec(pol)
-            for sc in args.scenarios.split(","):
-                setup = Setup(pol, scenario=sc)
-                setup()[0].close()
-                with progress_bar(args.episodes, f"{pol} {sc}") as bar:
-                    res = run_episodes(setup, range(args.seed, args.seed + args.episodes), os.cpu_count() or 1,
-                                       progress=bar)
-                s = summarize([r.metrics for r in res])
-                table.setdefault(pol, {})[sc] = {k: s[k] for k in ("success_rate", "collision_rate",
-                                                                   "violation_rate", "personal_zone_time_s",
-                                                                   "mean_jerk", "arrival_speed")}
-                table[pol][sc]["success_ci"] = [s["metrics"]["success"]["ci_low"], s["metrics"]["success"]["ci_high"]]
-    except (UsageError, ValueError) as exc:
-        return fail(exc)
-    args.out.parent.mkdir(parents=True, exist_ok=True)
+    for pol in pols:
+        for sc in scs:
+            with progress_bar(args.episodes, f"{pol} {sc}") as bar:
+                res = run_episodes(Setup(pol, scenario=sc), range(args.seed, args.seed + args.episodes),
+                                   os.cpu_count() or 1, progress=bar)
+            s = summarize([r.metrics for r in res])
+            table.setdefault(pol, {})[sc] = {k: s[k] for k in ("success_rate", "collision_rate", "violation_rate",
+                                                               "personal_zone_time_s", "mean_jerk", "arrival_speed")}
+            table[pol][sc]["success_ci"] = [s["metrics"]["success"]["ci_low"], s["metrics"]["success"]["ci_high"]]
+    with output_dir(args.out.parent):
+        write_results(args, table, scs, write_json, write_text)
+    return 0
+
+
+def write_results(args: Any, table: dict[str, dict[str, dict]], scs: list[str], write_json: Any,
+                  write_text: Any) -> None:
     write_json(args.out.with_suffix(".json"), {"episodes": args.episodes, "seed": args.seed, "results": table})
-    scs = args.scenarios.split(",")
     lines = ["| policy | " + " | ".join(scs) + " |", "|---|" + "---|" * len(scs)]
     for pol, row in table.items():
         lines.append(f"| {pol} | " + " | ".join(f"{row[sc]['success_rate']:.1%} ({row[sc]['violation_rate']:.0%} v)"
@@ -62,7 +67,6 @@ def main(argv: list[str] | None = None) -> int:
             + "\n".join(lines) + "\n")
     write_text(args.out.with_suffix(".md"), text)
     print(text)
-    return 0
 
 
 if __name__ == "__main__":

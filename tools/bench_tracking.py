@@ -15,7 +15,6 @@ Writes results/tracking/{pets_params,pets_metrics,timing,sim,bench}.json, result
 
 from __future__ import annotations
 
-import argparse
 import json
 import platform
 import shutil
@@ -26,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ssbl_pb.cli import run
+from ssbl_pb.cli import ArgumentParser, run
 from ssbl_pb.files import write_json, write_text
 from ssbl_pb.perception.bench import time_pipeline, time_tracker_update
 from ssbl_pb.perception.detectors import HogParams
@@ -45,7 +44,7 @@ RAW_THRESHOLD = -0.3  # lowest SVM margin cached; the grid's thresholds are all 
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = ArgumentParser(description=__doc__)
     ap.add_argument("--data", default=str(PETS), help="folder with vtest.avi, PETS2009-S2L1.xml, calibration")
     ap.add_argument("--out", default=str(ROOT / "results" / "tracking"), help="results folder")
     ap.add_argument("--doc", default=str(ROOT / "docs" / "benchmarks_tracking.md"), help="Markdown report")

@@ -18,13 +18,11 @@ Writes results/bench_training.json.
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
-import sys
 import time
 from pathlib import Path
 
-from ssbl_pb.cli import run
+from ssbl_pb.cli import ArgumentParser, UserError, int_at_least, run
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -107,9 +105,10 @@ def measure(setting: str, steps: int, overrides: dict | None = None, repeats: in
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--steps", type=int, default=20_000, help="learning steps per measurement (default 20000)")
-    ap.add_argument("--repeats", type=int, default=3, help="measurements per env, median kept (default 3)")
+    ap = ArgumentParser(description=__doc__)
+    ap.add_argument("--steps", type=int_at_least(256), default=20_000,
+                    help="learning steps per measurement (default 20000)")
+    ap.add_argument("--repeats", type=int_at_least(1), default=3, help="measurements per env, median kept (default 3)")
     ap.add_argument("--settings", default=",".join(SETTINGS), help=f"comma list of {SETTINGS} (default both)")
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                     help="override a key of configs/vector_ff.yaml for the config setting, e.g. n_envs=16")
@@ -118,22 +117,15 @@ def main(argv: list[str] | None = None) -> int:
     settings = [s.strip() for s in args.settings.split(",") if s.strip()]
     bad = [s for s in settings if s not in SETTINGS]
     if bad or not settings:
-        print(f"error: --settings {args.settings!r}: expected a comma list of {SETTINGS}", file=sys.stderr)
-        return 2
-    if args.steps < 1 or args.repeats < 1:
-        print(f"error: --steps {args.steps} / --repeats {args.repeats}: expected integers >= 1", file=sys.stderr)
-        return 2
+        raise UserError(f"--settings {args.settings!r}: expected a comma list of {SETTINGS}")
 
-    from ssbl_pb.params import ConfigError
+    from ssbl_pb.files import check_output_path
     from ssbl_pb.report import write_json
     from ssbl_pb.training.config import load_config, parse_overrides
 
-    try:
-        overrides = parse_overrides(args.set)
-        load_config(ROOT / "configs" / "vector_ff.yaml", overrides)  # unknown keys and bad values fail here
-    except ConfigError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
+    check_output_path(args.out, is_dir=False)
+    overrides = parse_overrides(args.set)
+    load_config(ROOT / "configs" / "vector_ff.yaml", overrides)  # unknown keys and bad values fail here
 
     results = {"steps": args.steps, "repeats": args.repeats, "overrides": overrides}
     for s in settings:
@@ -143,7 +135,6 @@ def main(argv: list[str] | None = None) -> int:
               f"{r['vector_env_steps_per_s']:6.0f} steps/s: {r['ratio']:.0%} "
               f"({'PASS' if r['ratio'] >= 0.8 else 'MISS'} >= 80 %); env adds {r['env_us_per_step']:.0f} us/step; "
               f"as a plain gym env in DummyVecEnv {r['vector_env_dummy_steps_per_s']:6.0f} steps/s")
-    args.out.parent.mkdir(parents=True, exist_ok=True)
     write_json(args.out, results)
     print(f"-> {args.out}")
     return 0

@@ -8,18 +8,18 @@ Exit code 2 on bad input (unreadable files, no board found in enough images, wro
 
 from __future__ import annotations
 
-import argparse
 import shlex
 import sys
 from pathlib import Path
 
 from ssbl_pb.calib import reports
 from ssbl_pb.calib.intrinsics import calibrate, leave_k_out, parse_board
-from ssbl_pb.cli import run
+from ssbl_pb.cli import ArgumentParser, run
+from ssbl_pb.files import check_output_path
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("images", nargs="+", type=Path, help="chessboard photographs (all the same size)")
     ap.add_argument("--board", default="9x6", help="inner corners COLSxROWS (default 9x6)")
     ap.add_argument("--square", type=float, default=0.025, help="square size in metres (default 0.025)")
@@ -34,6 +34,7 @@ def main(argv: list[str] | None = None) -> int:
                     help="also refit with every K-subset left out and report the largest change")
     ap.add_argument("--name", default="pepper_camera_top", help="camera_name in the YAML")
     args = ap.parse_args(argv)
+    check_output_path(args.out, is_dir=False)
     board = parse_board(args.board)
     res = calibrate(args.images, board, args.square, fix_aspect=args.fix_aspect, zero_tangent=args.zero_tangent,
                     fix_k3=args.fix_k3, outlier_factor=args.outlier_factor, min_images=args.min_images,

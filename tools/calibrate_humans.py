@@ -8,7 +8,6 @@ Exit code 2 on bad input (missing folders or files, malformed obsmat).
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import shlex
 import sys
@@ -17,20 +16,22 @@ from pathlib import Path
 from ssbl_pb.calib import reports
 from ssbl_pb.calib.humans import SCENES, fit_social, real_stats, sim_stats
 from ssbl_pb.calib.io import write_yaml
-from ssbl_pb.cli import UserError, run
+from ssbl_pb.cli import ArgumentParser, UserError, int_at_least, run
+from ssbl_pb.files import check_output_path
 from ssbl_pb.params import SocialParams, from_dict
 
 DEFAULT_DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "trajectories" / "eth_ucy_raw"
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--data", type=Path, default=DEFAULT_DATA, help="folder holding the ETH/UCY scene folders")
     ap.add_argument("--scenes", nargs="+", default=list(SCENES), help="scene folders to use")
     ap.add_argument("--out", type=Path, required=True, help="YAML of SocialParams fields (+ .png, .md)")
-    ap.add_argument("--episodes", type=int, default=40, help="simulated group episodes per parameter set")
+    ap.add_argument("--episodes", type=int_at_least(1), default=40, help="simulated group episodes per parameter set")
     ap.add_argument("--seed", type=int, default=0)
     args = ap.parse_args(argv)
+    check_output_path(args.out, is_dir=False)
     if not args.data.is_dir():
         raise UserError(f"{args.data}: data folder not found (give --data)")
     real = real_stats(args.data, tuple(args.scenes))

@@ -9,17 +9,16 @@ Exit code 2 on bad input.
 
 from __future__ import annotations
 
-import argparse
 from pathlib import Path
 
 from ssbl_pb.calib.extrinsics import pose_from_image
 from ssbl_pb.calib.intrinsics import parse_board, read_grey
-from ssbl_pb.cli import run
+from ssbl_pb.cli import ArgumentParser, run
 from ssbl_pb.perception.camera import PinholeCamera
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("image", type=Path, help="image of the board lying flat on the floor")
     ap.add_argument("--camera", type=Path, required=True, help="calibrated camera YAML (intrinsics)")
     ap.add_argument("--board", default="9x6", help="inner corners COLSxROWS")

@@ -11,52 +11,59 @@ starts for a perceptual study.
 
 from __future__ import annotations
 
-import argparse
 import os
 from pathlib import Path
+from typing import Any
 
-from ssbl_pb.cli import fail, progress_bar, run
+from ssbl_pb.cli import ArgumentParser, int_at_least, progress_bar, run
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = ArgumentParser(description=__doc__)
     ap.add_argument("--policy", default="vector", help="the learned policy: vector (shipped) or a run dir / .zip")
     ap.add_argument("--baseline", default="sffm", help="sffm | straight | random | another model")
-    ap.add_argument("--episodes", type=int, default=200)
+    ap.add_argument("--episodes", type=int_at_least(2), default=200, help="paired episodes (default 200)")
     ap.add_argument("--seed", type=int, default=500_000, help="first held-out seed (default 500000)")
     ap.add_argument("--scenario", default="default")
     ap.add_argument("--out", type=Path, required=True)
-    ap.add_argument("--pairs", type=int, default=3, help="starts drawn side by side and rendered as mp4 pairs")
-    ap.add_argument("--workers", type=int, default=0, help="processes (default: all cores)")
+    ap.add_argument("--pairs", type=int_at_least(0), default=3,
+                    help="starts drawn side by side and rendered as mp4 pairs (default 3)")
+    ap.add_argument("--workers", type=int_at_least(0), default=0, help="processes (default 0: all cores)")
     args = ap.parse_args(argv)
 
+    from ssbl_pb.env.rollout import run_episodes
+    from ssbl_pb.evaluation import Setup, check_policy_spec
+    from ssbl_pb.files import check_output_path, output_dir
+
+    workers = args.workers or os.cpu_count() or 1
+    check_policy_spec(args.policy)
+    check_policy_spec(args.baseline, "--baseline")
+    check_output_path(args.out)
+    seeds = range(args.seed, args.seed + args.episodes)
+    setups = {"learned": Setup(args.policy, scenario=args.scenario),
+              "sffm": Setup(args.baseline, scenario=args.scenario)}
+    for setup in setups.values():
+        setup()[0].close()  # a bad model, obs mode or scenario fails here, before any episode
+    results = {}
+    for name, setup in setups.items():
+        with progress_bar(args.episodes, name) as bar:
+            results[name] = run_episodes(setup, seeds, workers, keep_trajectories=args.episodes, progress=bar)
+    with output_dir(args.out):
+        report(args, results, seeds)
+    return 0
+
+
+def report(args: Any, results: dict[str, list[Any]], seeds: range) -> None:
+    """comparison.json, paths.png, speed_vs_distance.png, videos/ and report.md in ``args.out``."""
     from ssbl_pb.compare import SOCIAL, compare_rows, markdown_table, plot_speed_vs_distance
     from ssbl_pb.env.approach import make_env
-    from ssbl_pb.env.rollout import run_episodes
-    from ssbl_pb.evaluation import Setup, UsageError, build_policy, check_policy_spec, prepare_out
+    from ssbl_pb.evaluation import build_policy, outcome
     from ssbl_pb.files import write_text
     from ssbl_pb.report import plot_paths, write_json
     from ssbl_pb.video import record_episode, write_mp4
 
-    workers = args.workers or os.cpu_count() or 1
-    try:
-        if args.episodes < 2:
-            raise UsageError(f"--episodes {args.episodes}: expected an integer >= 2 (paired tests)")
-        for spec in (args.policy, args.baseline):
-            check_policy_spec(spec)
-        prepare_out(args.out)
-        seeds = range(args.seed, args.seed + args.episodes)
-        results = {}
-        for name, spec in (("learned", args.policy), ("sffm", args.baseline)):
-            setup = Setup(spec, scenario=args.scenario)
-            env, _ = setup()
-            env.close()
-            with progress_bar(args.episodes, name) as bar:
-                results[name] = run_episodes(setup, seeds, workers, keep_trajectories=args.episodes, progress=bar)
-    except (UsageError, ValueError) as exc:
-        return fail(exc)
     rows = {k: [r.metrics for r in v] for k, v in results.items()}
     cmp = compare_rows(rows["learned"], rows["sffm"])
     better = [k for k in SOCIAL if cmp[k]["better"] == "learned"]
@@ -72,8 +79,9 @@ def main(argv: list[str] | None = None) -> int:
         for name in ("learned", "sffm"):
             r = results[name][i]
             trajs.append(r.trajectory)
-            titles.append(f"{name}, seed {r.seed}: {'success' if r.metrics['success'] else 'fail'}")
-    plot_paths(args.out / "paths.png", trajs, titles, room, cols=2)
+            titles.append(f"{name}, seed {r.seed}: {outcome(r.metrics)}")
+    if trajs:
+        plot_paths(args.out / "paths.png", trajs, titles, room, cols=2)
     plot_speed_vs_distance(args.out / "speed_vs_distance.png",
                            {"learned": [r.trajectory for r in results["learned"]],
                             "SFFM": [r.trajectory for r in results["sffm"]]})
@@ -94,7 +102,6 @@ def main(argv: list[str] | None = None) -> int:
             "Files: `paths.png`, `speed_vs_distance.png`, `videos/`."]
     write_text(args.out / "report.md", "\n".join(text) + "\n")
     print("\n".join(text[4:-1]))
-    return 0
 
 
 if __name__ == "__main__":

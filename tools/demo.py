@@ -7,35 +7,33 @@ Writes OUT/demo_topdown.mp4 (top-down, zones drawn) and OUT/demo_first_person.pn
 
 from __future__ import annotations
 
-import argparse
 from pathlib import Path
 
-from ssbl_pb.cli import fail, run
+from ssbl_pb.cli import ArgumentParser, int_in, run
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = ArgumentParser(description=__doc__)
     ap.add_argument("--out", type=Path, default=Path("results/demo"), help="output directory")
     ap.add_argument("--policy", default="sffm", help="who drives the robot (default: the SFFM baseline)")
     ap.add_argument("--seed", type=int, default=1000)
-    ap.add_argument("--width", type=int, default=480)
+    ap.add_argument("--width", type=int_in(64, 4096), default=480, help="video width in pixels (64-4096)")
     args = ap.parse_args(argv)
 
     from ssbl_pb.env.approach import make_env
-    from ssbl_pb.evaluation import UsageError, build_policy, check_policy_spec
-    from ssbl_pb.video import VideoError, contact_sheet, record_episode, save_png, write_mp4
+    from ssbl_pb.evaluation import build_policy, check_policy_spec
+    from ssbl_pb.files import check_output_path, output_dir
+    from ssbl_pb.video import contact_sheet, record_episode, save_png, write_mp4
 
-    try:
-        check_policy_spec(args.policy)
-        args.out.mkdir(parents=True, exist_ok=True)
-        env = make_env(render_mode="rgb_array", render_width=args.width)
-        policy = build_policy(args.policy, env)
-        top, fp, m = record_episode(env, policy, args.seed, first_person=4, fp_size=96)
+    check_policy_spec(args.policy)
+    check_output_path(args.out)
+    env = make_env(render_mode="rgb_array", render_width=args.width)
+    policy = build_policy(args.policy, env)
+    top, fp, m = record_episode(env, policy, args.seed, first_person=4, fp_size=96)
+    with output_dir(args.out):
         write_mp4(args.out / "demo_topdown.mp4", top)
         labels = [f"t={4 * i * 0.1:.1f}s" for i in range(len(fp))]
         save_png(args.out / "demo_first_person.png", contact_sheet(fp[:30], labels=labels[:30]))
-    except (UsageError, VideoError, ValueError, OSError) as exc:
-        return fail(exc)
     print(f"{args.policy}: {'joined the group' if m['success'] else 'did not join'} in {m['episode_time_s']:.1f} s; "
           f"members moved {m['human_displacement_m']:.2f} m -> {args.out}/demo_topdown.mp4, demo_first_person.png")
     return 0

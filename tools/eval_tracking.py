@@ -15,7 +15,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from ssbl_pb.cli import run
+from ssbl_pb.cli import ArgumentParser, run
 from ssbl_pb.files import write_json, write_text
 from ssbl_pb.perception.evaluation import to_markdown
 from ssbl_pb.perception.tracking_io import InputError, evaluate_dir
@@ -33,7 +33,7 @@ def parse_range(text: str) -> tuple[int, int | None]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = ArgumentParser(description=__doc__)
     ap.add_argument("--tracks", required=True, help="folder with tracks_mot.txt (and tracks_world.csv)")
     ap.add_argument("--gt", required=True, help="ground truth: PETS CVML .xml or MOTChallenge .txt")
     ap.add_argument("--calib", default=None, help="Tsai calibration XML for the ground-plane error")

@@ -9,24 +9,25 @@ Examples:
 
 from __future__ import annotations
 
-import argparse
 import os
 from pathlib import Path
 
-from ssbl_pb.cli import fail, progress_bar, run
+from ssbl_pb.cli import ArgumentParser, int_at_least, progress_bar, run
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = ArgumentParser(description=__doc__)
     ap.add_argument("--policy", required=True,
                     help="sffm | random | straight | vector (the shipped model) | PATH (.zip or run directory)")
-    ap.add_argument("--episodes", type=int, default=100, help="number of episodes (default 100)")
+    ap.add_argument("--episodes", type=int_at_least(1), default=100, help="number of episodes (default 100)")
     ap.add_argument("--seed", type=int, default=1000, help="seed of the first episode; episode i uses seed+i")
     ap.add_argument("--obs-mode", default="vector", choices=["vector", "camera", "camera_speed"])
     ap.add_argument("--scenario", default="default", help="default | mixed | behind | FORMATION[-N] | a,b,...")
     ap.add_argument("--out", type=Path, required=True, help="output directory")
-    ap.add_argument("--workers", type=int, default=0, help="processes (default: all cores when episodes >= 40)")
-    ap.add_argument("--paths", type=int, default=6, help="episodes drawn in paths.png (default 6)")
+    ap.add_argument("--workers", type=int_at_least(0), default=0,
+                    help="processes (default 0: all cores when episodes >= 40)")
+    ap.add_argument("--paths", type=int_at_least(0), default=6,
+                    help="episodes drawn in paths.png (default 6; 0: no plot)")
     ap.add_argument("--shield", choices=["auto", "on", "off"], default="auto",
                     help="a trained policy's safety shield: as trained (auto, default), or forced on/off")
     for name, what in (("camera", "tools/calibrate_camera.py"), ("robot", "tools/identify_dynamics.py"),
@@ -34,18 +35,15 @@ def main(argv: list[str] | None = None) -> int:
         ap.add_argument(f"--{name}-yaml", help=f"calibrated {name} parameters ({what}'s output)")
     args = ap.parse_args(argv)
 
-    from ssbl_pb.evaluation import Setup, UsageError, evaluate
+    from ssbl_pb.evaluation import Setup, evaluate
 
     workers = args.workers or ((os.cpu_count() or 1) if args.episodes >= 40 else 1)
     calib = tuple((f"{k}_yaml", v) for k in ("camera", "robot", "social", "room")
                   if (v := getattr(args, f"{k}_yaml")) is not None)
     shield = {"auto": None, "on": True, "off": False}[args.shield]
     setup = Setup(args.policy, args.obs_mode, args.scenario, calib, shield)
-    try:
-        with progress_bar(args.episodes, f"evaluate {args.policy}") as bar:
-            summary, _ = evaluate(setup, args.episodes, args.seed, args.out, workers, args.paths, bar)
-    except (UsageError, ValueError, FileNotFoundError) as exc:
-        return fail(exc)
+    with progress_bar(args.episodes, f"evaluate {args.policy}") as bar:
+        summary, _ = evaluate(setup, args.episodes, args.seed, args.out, workers, args.paths, bar)
     print(f"success {summary['success_rate']:.1%}  collision {summary['collision_rate']:.1%}  "
           f"return {summary['mean_return']:.3f}  personal-zone {summary['personal_zone_time_s']:.2f}s  "
           f"-> {args.out}/summary.json")

@@ -9,18 +9,18 @@ body frame. Exit code 2 on bad input (missing or unreadable file, no floor found
 
 from __future__ import annotations
 
-import argparse
 import shlex
 import sys
 from pathlib import Path
 
 from ssbl_pb.calib.io import write_text, write_yaml
 from ssbl_pb.calib.pointcloud import analyse, load_points, parse_up, scan_figure, scan_yaml
-from ssbl_pb.cli import run
+from ssbl_pb.cli import ArgumentParser, run
+from ssbl_pb.files import check_output_path
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("scan", type=Path, help="PLY or PCD point cloud (metres)")
     ap.add_argument("--up", default="-y", help="sensor up axis: -y (optical frame, default), z, ...")
     ap.add_argument("--out", type=Path, required=True, help="YAML to write (+ .png and .md beside it)")
@@ -28,6 +28,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--min-floor-share", type=float, default=0.02, help="smallest share of points for the floor")
     ap.add_argument("--seed", type=int, default=0)
     args = ap.parse_args(argv)
+    check_output_path(args.out, is_dir=False)
     up = parse_up(args.up)
     pts = load_points(args.scan)
     scan = analyse(pts, up, min_floor_share=args.min_floor_share, distance=args.distance, seed=args.seed,

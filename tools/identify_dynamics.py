@@ -9,7 +9,6 @@ odom_vx, odom_vy, odom_wz). Exit code 2 on bad input (missing columns, non-monot
 
 from __future__ import annotations
 
-import argparse
 import shlex
 import sys
 from pathlib import Path
@@ -18,12 +17,12 @@ from ssbl_pb.calib import reports
 from ssbl_pb.calib.dynamics import identify
 from ssbl_pb.calib.dynamics_log import excitation_plan, read_log, simulate_log, write_log
 from ssbl_pb.calib.io import write_yaml
-from ssbl_pb.cli import run
+from ssbl_pb.cli import ArgumentParser, run
 from ssbl_pb.params import RobotParams, from_dict, load_yaml
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("log", type=Path, help="log CSV to read (or to write with --simulate)")
     ap.add_argument("--out", type=Path, help="YAML of RobotParams fields (default: LOG with .yaml)")
     ap.add_argument("--simulate", action="store_true", help="write a synthetic log from HolonomicBase instead")

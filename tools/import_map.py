@@ -9,16 +9,16 @@ The room frame is centred on the room with the map image's axes; deploy maps env
 
 from __future__ import annotations
 
-import argparse
 from pathlib import Path
 
 from ssbl_pb.calib.io import write_yaml
 from ssbl_pb.calib.room_map import extract_room, read_map, room_figure, room_yaml
-from ssbl_pb.cli import run
+from ssbl_pb.cli import ArgumentParser, run
+from ssbl_pb.files import check_output_path
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("map", type=Path, help="map_server YAML (image, resolution, origin, thresholds, negate)")
     ap.add_argument("--out", type=Path, required=True, help="room YAML to write (+ a PNG beside it)")
     ap.add_argument("--region", type=float, nargs=4, metavar=("XMIN", "YMIN", "XMAX", "YMAX"),
@@ -29,6 +29,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--size-from", choices=("bounds", "free"), default="bounds",
                     help="room_size from the wall-to-wall bounds or the largest furniture-free rectangle")
     args = ap.parse_args(argv)
+    check_output_path(args.out, is_dir=False)
     if args.region is None and args.seed is None:
         ap.error("give --region and/or --seed")
     m = read_map(args.map)

@@ -8,40 +8,38 @@ Examples:
 
 from __future__ import annotations
 
-import argparse
 from pathlib import Path
 
-from ssbl_pb.cli import fail, run
+from ssbl_pb.cli import ArgumentParser, fail, int_in, run
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = ArgumentParser(description=__doc__)
     ap.add_argument("--policy", required=True, help="sffm | random | straight | vector | PATH (.zip or run dir)")
     ap.add_argument("--seed", type=int, default=0, help="episode seed (the same seed gives the same start)")
     ap.add_argument("--scenario", default="default")
     ap.add_argument("--out", type=Path, required=True, help="output .mp4")
-    ap.add_argument("--width", type=int, default=480, help="video width in pixels")
+    ap.add_argument("--width", type=int_in(64, 4096), default=480, help="video width in pixels (64-4096)")
     ap.add_argument("--first-person", action="store_true", help="also write OUT.first_person.png (contact sheet)")
     args = ap.parse_args(argv)
 
     from ssbl_pb.env.approach import make_env
-    from ssbl_pb.evaluation import UsageError, build_policy, check_policy_spec
-    from ssbl_pb.video import VideoError, contact_sheet, record_episode, save_png, write_mp4
+    from ssbl_pb.evaluation import build_policy, check_policy_spec, outcome
+    from ssbl_pb.files import check_output_path, output_dir
+    from ssbl_pb.video import contact_sheet, record_episode, save_png, write_mp4
 
     if args.out.suffix != ".mp4":
         return fail(f"--out {args.out}: expected a .mp4 file name")
-    try:
-        check_policy_spec(args.policy)
-        args.out.parent.mkdir(parents=True, exist_ok=True)
-        env = make_env(scenario=args.scenario, render_mode="rgb_array", render_width=args.width)
-        policy = build_policy(args.policy, env)
-        top, fp, m = record_episode(env, policy, args.seed, first_person=5 if args.first_person else 0)
+    check_policy_spec(args.policy)
+    check_output_path(args.out, is_dir=False)
+    env = make_env(scenario=args.scenario, render_mode="rgb_array", render_width=args.width)
+    policy = build_policy(args.policy, env)
+    top, fp, m = record_episode(env, policy, args.seed, first_person=5 if args.first_person else 0)
+    with output_dir(args.out.parent):
         write_mp4(args.out, top)
         if fp:
             save_png(args.out.with_suffix(".first_person.png"), contact_sheet(fp[:24]))
-    except (UsageError, VideoError, ValueError, OSError) as exc:
-        return fail(exc)
-    print(f"{'success' if m['success'] else 'fail'} in {m['episode_time_s']:.1f} s, {len(top)} frames -> {args.out}")
+    print(f"{outcome(m)} after {m['episode_time_s']:.1f} s, {len(top)} frames -> {args.out}")
     return 0
 
 

@@ -11,13 +11,12 @@ candidate that does worse on either scenario's success rate is refused unless --
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import shutil
 from pathlib import Path
 
-from ssbl_pb.cli import UserError, progress_bar, run
+from ssbl_pb.cli import ArgumentParser, UserError, int_at_least, progress_bar, run
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIOS = ("default", "mixed")
@@ -54,9 +53,10 @@ def evaluate(policy: str, seeds: range, label: str) -> dict[str, dict[str, float
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = ArgumentParser(description=__doc__)
     ap.add_argument("run", type=Path, help="training run directory")
-    ap.add_argument("--episodes", type=int, default=200, help="held-out episodes per scenario (default 200)")
+    ap.add_argument("--episodes", type=int_at_least(1), default=200,
+                    help="held-out episodes per scenario (default 200)")
     ap.add_argument("--seed", type=int, default=500_000, help="first held-out seed")
     ap.add_argument("--name", default="vector", help="shipped policy name (default vector)")
     ap.add_argument("--model", choices=["best", "final"], default="best",
@@ -69,8 +69,6 @@ def main(argv: list[str] | None = None) -> int:
     from ssbl_pb.files import copy_file, make_stage_dir, write_json
     from ssbl_pb.policies import SHIPPED_DIR
 
-    if args.episodes < 1:
-        raise UserError(f"--episodes {args.episodes}: expected an integer >= 1")
     if not args.name.isidentifier():
         raise UserError(f"--name {args.name!r}: expected a plain name (letters, digits, _)")
     pick = pick_model(args.run, args.model)

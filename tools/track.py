@@ -11,19 +11,17 @@ Exit code 2 on bad input (video, calibration, parameters), with one line naming 
 
 from __future__ import annotations
 
-import argparse
 import json
 import shutil
-import sys
-import tempfile
 from pathlib import Path
 
-from ssbl_pb.cli import run
+from ssbl_pb.cli import ArgumentParser, run
+from ssbl_pb.files import check_output_path, make_stage_dir, output_dir
 from ssbl_pb.perception.tracking_io import InputError, track_video
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = ArgumentParser(description=__doc__)
     ap.add_argument("video", help="video file (any format OpenCV/FFmpeg decodes)")
     ap.add_argument("--calib", required=True, help="PETS Tsai calibration XML (world units mm)")
     ap.add_argument("--out", required=True, help="output folder (created; existing files are replaced)")
@@ -39,27 +37,21 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--quiet", action="store_true", help="no progress bar")
     args = ap.parse_args(argv)
 
-    out = Path(args.out)
-    tmp = None
-    try:
-        params = None
-        if args.params is not None:
-            try:
-                params = json.loads(Path(args.params).read_text())
-            except (OSError, json.JSONDecodeError) as exc:
-                raise InputError(f"{args.params}: cannot read pipeline parameters as JSON ({exc})") from exc
-        out.parent.mkdir(parents=True, exist_ok=True)
-        tmp = Path(tempfile.mkdtemp(prefix=".track-", dir=out.parent))
-        summary = track_video(args.video, args.calib, tmp, start=args.start, stop=args.stop, scale=args.scale,
-                              params=params, fps=args.fps, overlay=not args.no_overlay, progress=not args.quiet)
-        out.mkdir(parents=True, exist_ok=True)
-        for f in sorted(tmp.iterdir()):
-            f.replace(out / f.name)
-    except InputError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
-    finally:
-        if tmp is not None:
+    out = check_output_path(args.out)
+    params = None
+    if args.params is not None:
+        try:
+            params = json.loads(Path(args.params).read_text())
+        except (OSError, json.JSONDecodeError) as exc:
+            raise InputError(f"{args.params}: cannot read pipeline parameters as JSON ({exc})") from exc
+    with output_dir(out):
+        tmp = make_stage_dir(out, ".track-")
+        try:
+            summary = track_video(args.video, args.calib, tmp, start=args.start, stop=args.stop, scale=args.scale,
+                                  params=params, fps=args.fps, overlay=not args.no_overlay, progress=not args.quiet)
+            for f in sorted(tmp.iterdir()):
+                f.replace(out / f.name)
+        finally:
             shutil.rmtree(tmp, ignore_errors=True)
     print(f"{summary['frames']} frames, {summary['tracks']} tracks, {summary['ms_per_frame']:.1f} ms/frame -> {out}")
     return 0

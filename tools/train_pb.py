@@ -11,16 +11,15 @@ Examples:
 
 from __future__ import annotations
 
-import argparse
 from pathlib import Path
 
-from ssbl_pb.cli import fail, run
+from ssbl_pb.cli import ArgumentParser, fail, run
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = ArgumentParser(description=__doc__)
     ap.add_argument("--config", type=Path, help="YAML config (default: configs/vector_ff.yaml, vector_lstm.yaml "
                     "with --policy lstm, camera_cnn.yaml with a camera --obs-mode)")
     ap.add_argument("--obs-mode", choices=["vector", "camera", "camera_speed"])

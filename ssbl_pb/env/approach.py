@@ -71,6 +71,8 @@ class ApproachGroupEnv(gym.Env):
             parse_env_params(scenario, world, robot, social, reward, task)
         if render_mode not in (None, "rgb_array"):
             raise UserError(f"render_mode {render_mode!r}: expected None or 'rgb_array'")
+        if not isinstance(render_width, int) or not 64 <= render_width <= 4096:
+            raise UserError(f"render width {render_width!r}: expected an integer in [64, 4096] pixels")
         self.render_mode = render_mode
         self.render_width = render_width
         self.record = record or render_mode is not None
