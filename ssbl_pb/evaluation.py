@@ -30,7 +30,11 @@ class Setup:
     shield: bool | None = None  # a trained policy's safety shield: None = as trained, else forced on/off
 
     def __call__(self) -> tuple[gym.Env, Policy]:
-        env = make_env(obs_mode=self.obs_mode, scenario=self.scenario, **dict(self.env_kwargs))
+        from .env.trained import policy_env_kwargs
+
+        # a policy on a frozen autoencoder brings its camera mode and encoder (env.encoded)
+        kwargs = {"obs_mode": self.obs_mode, **dict(self.env_kwargs), **policy_env_kwargs(self.policy)}
+        env = make_env(scenario=self.scenario, **kwargs)
         return env, build_policy(self.policy, env, self.shield)
 
 

@@ -108,6 +108,17 @@ CASES = [
     C("import_map.py", "{file}", "--seed", "0", "0", "--out", "{out}.yaml", expect="a_file.txt"),
     C("import_map.py", "{file}", "--out", "{out}.yaml", expect="give --region and/or --seed"),
     C("import_map.py", "{file}", "--seed", "0", "0", "--out", "{file}/room.yaml", expect="is a file"),
+    # camera state representations (issue 13): frames, autoencoders
+    C("collect_frames.py", "--episodes", "1", "--out", "{out}", expect="expected a .npz file name"),
+    C("collect_frames.py", "--episodes", "1", "--size", "5", "--out", "{out}.npz", expect="--size 5"),
+    C("collect_frames.py", "--episodes", "0", "--out", "{out}.npz", expect="--episodes 0"),
+    C("collect_frames.py", "--episodes", "1", "--policies", "nosuch", "--out", "{out}.npz", expect="'nosuch'"),
+    C("collect_frames.py", "--episodes", "1", "--scenario", "nosuch", "--out", "{out}.npz", expect="nosuch"),
+    C("train_ae.py", "--frames", "{file}", "--arch", "vae", "--out", "{out}", expect="--arch 'vae'"),
+    C("train_ae.py", "--frames", "{file}", "--arch", "saev", "--size", "huge", "--out", "{out}", expect="'huge'"),
+    C("train_ae.py", "--frames", "{file}", "--arch", "saev", "--out", "{out}", expect="not a readable .npz"),
+    C("train_ae.py", "--frames", "{tmp}/none.npz", "--arch", "conv", "--out", "{out}", expect="file not found"),
+    C("train_ae.py", "--frames", "{file}", "--arch", "saev", "--steps", "0", "--out", "{out}", expect="--steps 0"),
 ]
 
 

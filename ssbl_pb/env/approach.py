@@ -236,8 +236,11 @@ def _merge_yaml(kwargs: dict[str, Any], key: str, path: str | None, section: str
 
 def make_env(obs_mode: str = "vector", camera_width: int = 84, camera_height: int = 84,
              camera_yaml: str | None = None, robot_yaml: str | None = None, social_yaml: str | None = None,
-             room_yaml: str | None = None, **kwargs: Any) -> gym.Env:
+             room_yaml: str | None = None, encoder: str | None = None, **kwargs: Any) -> gym.Env:
     """Entry point of ``ssbl_pb/ApproachGroup-v0``: the core env wrapped for ``obs_mode``.
+
+    ``encoder`` (a ``tools/train_ae.py`` checkpoint; camera modes only) replaces the images by the frozen
+    encoder's features (``env.encoded``).
 
     ``camera_yaml`` (a ROS camera_info YAML from ``tools/calibrate_camera.py``) makes the first-person camera
     match a calibrated camera: its intrinsics set the projection, its field of view and (when calibrated) its
@@ -251,7 +254,12 @@ def make_env(obs_mode: str = "vector", camera_width: int = 84, camera_height: in
         raise UserError(f"obs_mode {obs_mode!r}: expected one of {OBS_MODES}")
     kwargs, projection = core_kwargs(camera_width, camera_height, camera_yaml, robot_yaml, social_yaml, room_yaml,
                                      **kwargs)
-    return wrap_obs_mode(ApproachGroupEnv(**kwargs), obs_mode, camera_width, camera_height, projection)
+    env = wrap_obs_mode(ApproachGroupEnv(**kwargs), obs_mode, camera_width, camera_height, projection)
+    if encoder is not None:
+        from .encoded import EncodedObservation, load_encoder
+
+        env = EncodedObservation(env, load_encoder(encoder, camera_width))
+    return env
 
 
 def core_kwargs(camera_width: int = 84, camera_height: int = 84, camera_yaml: str | None = None,

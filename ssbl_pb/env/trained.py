@@ -47,6 +47,30 @@ def resolve_model(spec: str) -> tuple[Path, Path | None, dict[str, Any]]:
     return model, (norm if norm.is_file() else None), (config or {})
 
 
+def policy_env_kwargs(spec: str) -> dict[str, Any]:
+    """The env a trained model needs beyond the defaults: for a model on a frozen autoencoder (config
+    ``encoder`` conv / saev), its camera mode, image size and encoder checkpoint (looked up beside the model,
+    then beside its run directory, then as written); ``{}`` for any other policy."""
+    from .policies import BASELINES
+
+    if spec in BASELINES:
+        return {}
+    model, _, config = resolve_model(spec)
+    if config.get("encoder") not in ("conv", "saev"):
+        return {}
+    name = config.get("encoder_checkpoint") or ""
+    if not name:
+        from ..policies import SHIPPED_ENCODERS
+
+        name = str(SHIPPED_ENCODERS.get(config["encoder"], ""))
+    found = [p for p in (model.parent / name, model.parent.parent / name, Path(name)) if name and p.is_file()]
+    if not found:
+        raise ModelError(f"{model}: its encoder checkpoint {name!r} (config encoder_checkpoint) is not beside the "
+                         f"model nor at that path")
+    size = int(config.get("camera_size", 84))
+    return {"obs_mode": config["obs_mode"], "camera_width": size, "camera_height": size, "encoder": str(found[0])}
+
+
 class TrainedPolicy(Policy):
     """An SB3 model behind the common ``predict`` signature; observations are normalised as in training."""
 

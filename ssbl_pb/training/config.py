@@ -29,8 +29,7 @@ import yaml
 from ..params import ConfigError, _check, from_dict, load_yaml
 
 OBS_MODES = ("vector", "camera", "camera_speed")
-ENCODERS = ("none", "cnn", "conv", "saev")
-AVAILABLE_ENCODERS = ("none", "cnn")  # conv / saev autoencoders are not built yet
+ENCODERS = ("none", "cnn", "conv", "saev")  # cnn: end-to-end NatureCNN; conv / saev: a frozen autoencoder
 POLICIES = ("ff", "lstm")
 VEC_ENVS = ("auto", "batched", "dummy", "subproc")
 
@@ -92,6 +91,8 @@ class TrainConfig:
     checkpoint_every: int = 50_000
     baseline_episodes: int = 20  # episodes of the random and SFFM baselines drawn on the learning curve
     camera_size: int = 84
+    # the frozen autoencoder of encoder conv / saev (tools/train_ae.py); empty = the shipped SAEV encoder
+    encoder_checkpoint: str = ""
     action_smoothing: float = 0.4  # agent-side action filter (env.wrappers.ActionSmoothing); 1.0 = off
     safety_shield: bool = True  # agent-side safety shield (env.shield), the last action stage; it reads the
     #                             Vector observation, so camera modes train without it
@@ -104,6 +105,22 @@ class TrainConfig:
         return "batched" if self.obs_mode == "vector" else "dummy"
 
     @property
+    def encoder_file(self) -> str | None:
+        """The autoencoder checkpoint the camera images go through (encoder conv / saev), else None."""
+        if self.encoder not in ("conv", "saev"):
+            return None
+        if self.encoder_checkpoint:
+            return self.encoder_checkpoint
+        from ..policies import SHIPPED_ENCODERS
+
+        return str(SHIPPED_ENCODERS.get(self.encoder, ""))
+
+    @property
+    def policy_obs_mode(self) -> str:
+        """The observation the policy network sees: encoded camera modes give it a flat vector."""
+        return "vector" if self.encoder_file else self.obs_mode
+
+    @property
     def shield_active(self) -> bool:
         """Whether training (and its evaluations) put the safety shield in the loop."""
         return self.safety_shield and self.obs_mode == "vector"
@@ -114,9 +131,9 @@ class TrainConfig:
         if self.obs_mode == "vector":
             _check(self.encoder == "none", "config", "encoder", self.encoder, "'none' for obs_mode vector")
         else:
-            _check(self.encoder in AVAILABLE_ENCODERS and self.encoder != "none", "config", "encoder",
-                   self.encoder, f"an encoder that exists for obs_mode {self.obs_mode}: 'cnn' (end-to-end "
-                   f"NatureCNN); 'conv' and 'saev' need the autoencoder work first")
+            _check(self.encoder != "none", "config", "encoder", self.encoder,
+                   f"'cnn', 'conv' or 'saev' for obs_mode {self.obs_mode}")
+            self._check_encoder()
         _check(self.policy in POLICIES, "config", "policy", self.policy, f"one of {POLICIES}")
         _check(self.vec_env in VEC_ENVS, "config", "vec_env", self.vec_env, f"one of {VEC_ENVS}")
         if self.vec_env == "batched":
@@ -143,6 +160,21 @@ class TrainConfig:
             from_dict(RewardWeights, {key: value[1]}, "config.reward_ramp")
         _check(isinstance(self.reward_ramp_fraction, int | float) and 0 < self.reward_ramp_fraction <= 1, "config",
                "reward_ramp_fraction", self.reward_ramp_fraction, "a number in (0, 1]")
+
+    def _check_encoder(self) -> None:
+        """The autoencoder checkpoint exists, is of the configured architecture and takes ``camera_size``."""
+        path = self.encoder_file
+        if path is None:
+            return
+        _check(bool(path) and Path(path).is_file(), "config", "encoder_checkpoint", self.encoder_checkpoint,
+               f"an existing {self.encoder} checkpoint from tools/train_ae.py (none is shipped for {self.encoder})")
+        from ..perception.ae_train import checkpoint_info
+
+        info = checkpoint_info(path)
+        _check(info["arch"] == self.encoder, "config", "encoder_checkpoint", path,
+               f"a {self.encoder} checkpoint (encoder: {self.encoder}), it holds a {info['arch']} autoencoder")
+        _check(info["resolution"] == self.camera_size, "config", "camera_size", self.camera_size,
+               f"{info['resolution']}, the input resolution of encoder checkpoint {path}")
 
     @property
     def steps_per_update(self) -> int:

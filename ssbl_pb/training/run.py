@@ -83,7 +83,11 @@ def make_vec_env(cfg: TrainConfig, seed: int) -> Any:
         fns = [factory] * cfg.n_envs
         venv = SubprocVecEnv(fns, start_method="forkserver") if kind == "subproc" else DummyVecEnv(fns)
     venv.seed(seed)
-    if cfg.obs_mode == "vector":
+    if cfg.encoder_file:  # frozen autoencoder: all envs' images encoded in one batch per step (env.encoded)
+        from ..env.encoded import EncodedVecEnv, load_encoder
+
+        venv = EncodedVecEnv(venv, load_encoder(cfg.encoder_file, cfg.camera_size))
+    if cfg.policy_obs_mode == "vector":
         return VecNormalize(venv, norm_obs=True, norm_reward=True, gamma=cfg.ppo.gamma)
     if cfg.obs_mode == "camera_speed":
         return VecNormalize(venv, norm_obs=True, norm_obs_keys=["speed"], norm_reward=True, gamma=cfg.ppo.gamma)
@@ -108,11 +112,11 @@ def build_model(cfg: TrainConfig, venv: Any, tb_dir: Path) -> Any:
         names = {"vector": "MlpLstmPolicy", "camera": "CnnLstmPolicy", "camera_speed": "MultiInputLstmPolicy"}
     else:
         names = {"vector": "MlpPolicy", "camera": "CnnPolicy", "camera_speed": "MultiInputPolicy"}
-    policy: Any = names[cfg.obs_mode]
+    policy: Any = names[cfg.policy_obs_mode]
     if p.bounded_mean:
         from .policies import bounded_policy
 
-        policy = bounded_policy(cfg.obs_mode, cfg.policy == "lstm")
+        policy = bounded_policy(cfg.policy_obs_mode, cfg.policy == "lstm")
     return _algo(cfg)(policy, venv, learning_rate=p.learning_rate, n_steps=p.n_steps,
                       batch_size=p.batch_size, n_epochs=p.n_epochs, gamma=p.gamma, gae_lambda=p.gae_lambda,
                       clip_range=p.clip_range, ent_coef=p.ent_coef, vf_coef=p.vf_coef,
@@ -143,6 +147,8 @@ def _callbacks(cfg: TrainConfig, run_dir: Path) -> list[Any]:
     from .callbacks import EpisodeLogCallback, EvalCheckpointCallback, ProgressCallback, RewardRampCallback
 
     eval_kwargs = _env_kwargs(cfg)  # evaluated with the ramps' final weights, comparable across the run
+    if cfg.encoder_file:
+        eval_kwargs["encoder"] = cfg.encoder_file
     eval_kwargs["reward"] = {**eval_kwargs["reward"], **{k: v[1] for k, v in cfg.reward_ramp.items()}}
     ramp = [RewardRampCallback(cfg.reward_ramp, cfg.reward_ramp_fraction, cfg.total_steps)] if cfg.reward_ramp else []
     return ramp + [ProgressCallback(cfg.total_steps), EpisodeLogCallback(run_dir / "learning_curve.csv"),

@@ -1,0 +1,147 @@
+"""Camera modes through a frozen autoencoder (paper III-B, SSBL's first stage): features instead of pixels.
+
+The encoder of a trained autoencoder (``perception.ae_train``) turns each first-person image into its code:
+SAEV's 16 keypoints (x, y, presence) or the conv AE's dense code. CameraSpeed appends the robot's (forward,
+sideways) speed, as the original did. Two wrappers emit the same observation space:
+
+* ``EncodedVecEnv`` (training): encodes the images of all envs of a VecEnv in one batch per step, so PPO's
+  updates never run the CNN (and neither does anything else: the policy sees features only);
+* ``EncodedObservation`` (one env: evaluation, videos, deploy): the same encoder on one image per step.
+
+The encoder is frozen: ``FrozenEncoder`` holds it in eval mode (BatchNorm running statistics, no dropout)
+whatever ``train()`` is called with and keeps its weights out of every optimiser.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import torch
+from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
+from torch import nn
+
+from ..errors import UserError
+from ..perception.ae_train import checkpoint_info, load_autoencoder
+from ..perception.autoencoders import Autoencoder, to_input
+
+ENCODED_ARCHS = ("conv", "saev")
+
+
+class FrozenEncoder(nn.Module):
+    """A trained autoencoder used as a fixed feature extractor: uint8 images (B, S, S, 3) -> features (B, F)."""
+
+    def __init__(self, model: Autoencoder) -> None:
+        super().__init__()
+        self.model = model
+        for p in self.model.parameters():
+            p.requires_grad_(False)
+        super().train(False)
+
+    def train(self, mode: bool = True) -> FrozenEncoder:
+        """Stays in eval mode: SB3 calls ``train()`` on its policy before every update, which would switch
+        BatchNorm back to batch statistics and dropout on."""
+        return super().train(False)
+
+    @property
+    def arch(self) -> str:
+        return self.model.arch
+
+    @property
+    def resolution(self) -> int:
+        return self.model.size.input_size
+
+    @property
+    def feature_dim(self) -> int:
+        return self.model.feature_dim
+
+    def forward(self, images: torch.Tensor) -> torch.Tensor:
+        return self.model.encode(to_input(images))
+
+    def encode(self, images: np.ndarray) -> np.ndarray:
+        """Features (B, F) float32 of uint8 images (B, S, S, 3)."""
+        with torch.inference_mode():
+            return self(torch.from_numpy(np.ascontiguousarray(images))).numpy()
+
+
+def load_encoder(path: str | Path, resolution: int | None = None, arch: str | None = None) -> FrozenEncoder:
+    """The frozen encoder of a ``tools/train_ae.py`` checkpoint; ``resolution`` is the camera's image side."""
+    if resolution is not None:
+        have = checkpoint_info(path)["resolution"]
+        if have != resolution:
+            raise UserError(f"encoder checkpoint {path} takes {have}x{have} images, the camera renders "
+                            f"{resolution}x{resolution} (set camera_size: {have})")
+    return FrozenEncoder(load_autoencoder(path, arch=arch))
+
+
+def features_space(encoder: FrozenEncoder, with_speed: bool) -> gym.spaces.Box:
+    """The encoded observation: the code, then (forward, sideways) speed in CameraSpeed mode."""
+    n = encoder.feature_dim + (2 if with_speed else 0)
+    return gym.spaces.Box(-np.inf, np.inf, shape=(n,), dtype=np.float32)
+
+
+def _split(obs: Any) -> tuple[np.ndarray, np.ndarray | None]:
+    """(images, speed or None) of a camera / camera_speed observation (single or batched)."""
+    if isinstance(obs, dict):
+        return obs["image"], np.asarray(obs["speed"], dtype=np.float32)[..., :2]
+    return obs, None
+
+
+def _with_speed(features: np.ndarray, speed: np.ndarray | None) -> np.ndarray:
+    out = features if speed is None else np.concatenate([features, speed], axis=-1)
+    return out.astype(np.float32, copy=False)
+
+
+def _check_camera_space(space: gym.Space, encoder: FrozenEncoder) -> bool:
+    """Whether ``space`` is CameraSpeed's (else CameraOnly's); raises unless its images fit the encoder."""
+    image = space["image"] if isinstance(space, gym.spaces.Dict) else space
+    if not (isinstance(image, gym.spaces.Box) and image.dtype == np.uint8 and len(image.shape) == 3):
+        raise UserError(f"an encoder needs camera observations (obs_mode camera or camera_speed), not {space}")
+    h, w, _ = image.shape
+    if (h, w) != (encoder.resolution, encoder.resolution):
+        raise UserError(f"the camera renders {w}x{h}, the {encoder.arch} encoder takes "
+                        f"{encoder.resolution}x{encoder.resolution} (set camera_size: {encoder.resolution})")
+    return isinstance(space, gym.spaces.Dict)
+
+
+class EncodedObservation(gym.ObservationWrapper):
+    """One camera env's images replaced by the frozen encoder's features (plus speed in CameraSpeed mode)."""
+
+    def __init__(self, env: gym.Env, encoder: FrozenEncoder) -> None:
+        super().__init__(env)
+        self.encoder = encoder
+        self.with_speed = _check_camera_space(env.observation_space, encoder)
+        self.observation_space = features_space(encoder, self.with_speed)
+
+    def observation(self, observation: Any) -> np.ndarray:
+        images, speed = _split(observation)
+        return _with_speed(self.encoder.encode(images[None])[0], speed)
+
+
+class EncodedVecEnv(VecEnvWrapper):
+    """A VecEnv of camera envs whose images are encoded together, once per step (terminal observations too)."""
+
+    def __init__(self, venv: VecEnv, encoder: FrozenEncoder) -> None:
+        self.encoder = encoder
+        self.with_speed = _check_camera_space(venv.observation_space, encoder)
+        super().__init__(venv, observation_space=features_space(encoder, self.with_speed))
+
+    def _encode(self, obs: Any) -> np.ndarray:
+        images, speed = _split(obs)
+        return _with_speed(self.encoder.encode(images), speed)
+
+    def reset(self) -> np.ndarray:
+        return self._encode(self.venv.reset())
+
+    def step_wait(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[dict]]:
+        obs, rewards, dones, infos = self.venv.step_wait()
+        ends = [i for i, info in enumerate(infos) if "terminal_observation" in info]
+        if ends:  # PPO bootstraps truncated episodes from these: they must be features too
+            last = [infos[i]["terminal_observation"] for i in ends]
+            batch = {k: np.stack([o[k] for o in last]) for k in last[0]} if isinstance(last[0], dict) \
+                else np.stack(last)
+            for i, f in zip(ends, self._encode(batch), strict=True):
+                infos[i]["terminal_observation"] = f
+        return self._encode(obs), rewards, dones, infos

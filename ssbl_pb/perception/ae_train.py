@@ -1,0 +1,180 @@
+"""Training the camera autoencoders on frame triplets, and their checkpoints (``tools/train_ae.py``).
+
+Batches are frame triplets (t-1, t, t+1) of one episode (the smoothness loss needs all three); every tenth
+episode is held out for validation. A checkpoint records the architecture, the size and the input resolution,
+and loading checks each against what the caller needs, so an encoder never meets frames it was not made for.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from ..errors import UserError
+from ..files import atomic_write
+from .ae_losses import LossWeights, triplet_loss
+from .autoencoders import ARCHS, AESize, Autoencoder, build, get_size, to_input
+from .frames import triplet_centres
+
+FORMAT = 1
+
+
+class CheckpointError(UserError):
+    """An encoder checkpoint is missing, unreadable or not the one needed; the message names both values."""
+
+
+@dataclasses.dataclass(frozen=True)
+class AETrainParams:
+    """Training settings. The original used Adam at lr 1e-5 for ~1500 epochs of ~3000 triplets on a GPU; on 2
+    CPU cores we train a few thousand steps at lr 1e-3 (docs/decisions.md, "Camera state representations")."""
+
+    steps: int = 3000
+    batch: int = 32  # frame triplets (original: 32)
+    lr: float = 1e-3
+    eval_every: int = 250
+    val_every_episode: int = 10  # every tenth episode is held out
+    seed: int = 0
+    weights: LossWeights = dataclasses.field(default_factory=LossWeights)
+
+    def __post_init__(self) -> None:
+        for name in ("steps", "batch", "eval_every", "val_every_episode"):
+            v = getattr(self, name)
+            if not (isinstance(v, int) and v >= 1):
+                raise UserError(f"--{name.replace('_', '-')} {v!r}: expected an integer >= 1")
+        if not (isinstance(self.lr, int | float) and 0 < self.lr < 1):
+            raise UserError(f"--lr {self.lr!r}: expected a number in (0, 1)")
+
+
+def split_centres(episode: np.ndarray, every: int) -> tuple[np.ndarray, np.ndarray]:
+    """Triplet centres of the training and the validation episodes (episode number divisible by ``every``)."""
+    c = triplet_centres(episode)
+    val = (np.asarray(episode)[c] % every) == every - 1
+    if val.all() or not val.any():  # too few episodes to hold any out: validate on the training set
+        return c, c
+    return c[~val], c[val]
+
+
+def triplets(frames: torch.Tensor, centres: np.ndarray) -> torch.Tensor:
+    """uint8 frames (N, S, S, 3) at ``centres - 1, centres, centres + 1`` -> float (B, 3, 3, S, S) in [0, 1]."""
+    idx = torch.as_tensor(np.stack([centres - 1, centres, centres + 1], axis=1).ravel())
+    x = to_input(frames[idx])
+    return x.reshape(len(centres), 3, *x.shape[1:])
+
+
+def evaluate_loss(model: Autoencoder, frames: torch.Tensor, centres: np.ndarray, weights: LossWeights,
+                  batch: int = 64) -> dict[str, float]:
+    """Mean loss parts over ``centres`` in eval mode (no dropout, BatchNorm running statistics)."""
+    was = model.training
+    model.eval()
+    sums: dict[str, float] = {}
+    with torch.inference_mode():
+        for i in range(0, len(centres), batch):
+            c = centres[i:i + batch]
+            _, parts = triplet_loss(model, triplets(frames, c), weights)
+            for k, v in parts.items():
+                sums[k] = sums.get(k, 0.0) + v * len(c)
+    model.train(was)
+    return {k: v / len(centres) for k, v in sums.items()}
+
+
+def train_autoencoder(data: dict[str, np.ndarray], arch: str, size: str | AESize, params: AETrainParams,
+                      progress: Any = None, max_val: int = 512) -> tuple[Autoencoder, list[dict[str, float]]]:
+    """Train a fresh ``arch`` autoencoder on a frames file's arrays; returns it (eval mode) and its history
+    (one row per ``eval_every`` steps: step, seconds, training parts averaged since the last row, validation
+    parts on up to ``max_val`` held-out triplets)."""
+    torch.manual_seed(params.seed)
+    rng = np.random.default_rng(params.seed)
+    model = build(arch, size)
+    s = model.size.input_size
+    if data["frames"].shape[1] != s:
+        raise UserError(f"frames are {data['frames'].shape[1]}x{data['frames'].shape[1]}, the {model.size.name} "
+                        f"encoder takes {s}x{s}")
+    frames = torch.from_numpy(np.ascontiguousarray(data["frames"]))
+    train_c, val_c = split_centres(data["episode"], params.val_every_episode)
+    if len(train_c) == 0:
+        raise UserError("the frames hold no triplet of consecutive frames of one episode")
+    val_c = rng.permutation(val_c)[:max_val]
+    opt = torch.optim.Adam(model.parameters(), lr=params.lr)
+    history: list[dict[str, float]] = []
+    acc: dict[str, float] = {}
+    t0, n_acc = time.perf_counter(), 0
+    model.train()
+    for step in range(1, params.steps + 1):
+        batch = triplets(frames, rng.choice(train_c, params.batch))
+        loss, parts = triplet_loss(model, batch, params.weights)
+        opt.zero_grad(set_to_none=True)
+        loss.backward()
+        opt.step()
+        for k, v in parts.items():
+            acc[k] = acc.get(k, 0.0) + v
+        n_acc += 1
+        if progress is not None:
+            progress.update(1)
+        if step % params.eval_every == 0 or step == params.steps:
+            val = evaluate_loss(model, frames, val_c, params.weights)
+            row = {"step": step, "seconds": round(time.perf_counter() - t0, 1)}
+            row |= {f"train_{k}": v / n_acc for k, v in acc.items()} | {f"val_{k}": v for k, v in val.items()}
+            history.append(row)
+            acc, n_acc = {}, 0
+            if progress is not None and hasattr(progress, "set_postfix_str"):
+                progress.set_postfix_str(f"val loss {val['total']:.4f}")
+    return model.eval(), history
+
+
+# -- checkpoints ---------------------------------------------------------------------------------------------
+def save_checkpoint(path: str | Path, model: Autoencoder, extra: dict[str, Any] | None = None) -> Path:
+    """Write the model with its architecture, size and input resolution, atomically (temporary file, rename)."""
+    blob = {"format": FORMAT, "arch": model.arch, "size": model.size.name,
+            "size_fields": dataclasses.asdict(model.size), "resolution": model.size.input_size,
+            "state_dict": model.state_dict(), "extra": extra or {}}
+    return atomic_write(path, lambda tmp: torch.save(blob, tmp))
+
+
+def read_checkpoint(path: str | Path) -> dict[str, Any]:
+    path = Path(path)
+    if not path.is_file():
+        raise CheckpointError(f"encoder checkpoint {path}: file not found (tools/train_ae.py writes one)")
+    try:
+        blob = torch.load(path, map_location="cpu", weights_only=True)
+    except Exception as exc:  # a torch archive that is not ours, a truncated file, ...
+        raise CheckpointError(f"encoder checkpoint {path}: unreadable ({type(exc).__name__}: {exc})") from exc
+    if not isinstance(blob, dict) or blob.get("format") != FORMAT or blob.get("arch") not in ARCHS:
+        raise CheckpointError(f"encoder checkpoint {path}: not an autoencoder checkpoint of tools/train_ae.py")
+    return blob
+
+
+def load_autoencoder(path: str | Path, arch: str | None = None, size: str | None = None,
+                     resolution: int | None = None) -> Autoencoder:
+    """A trained autoencoder in eval mode; ``arch``, ``size`` and ``resolution``, when given, must match."""
+    blob = read_checkpoint(path)
+    for what, want, have in (("architecture", arch, blob["arch"]), ("size", size, blob["size"]),
+                             ("input resolution", resolution, blob["resolution"])):
+        if want is not None and want != have:
+            raise CheckpointError(f"encoder checkpoint {path}: {what} is {have!r}, expected {want!r}")
+    fields = dict(blob["size_fields"])
+    for k, v in fields.items():
+        if isinstance(v, list):
+            fields[k] = tuple(v)
+    s = AESize(**fields)
+    if blob["size"] in ("paper", "cpu") and s != get_size(blob["size"]):
+        raise CheckpointError(f"encoder checkpoint {path}: size {blob['size']!r} has layers {s}, this version's "
+                              f"{blob['size']!r} is {get_size(blob['size'])}; retrain it with tools/train_ae.py")
+    model = build(blob["arch"], s)
+    try:
+        model.load_state_dict(blob["state_dict"])
+    except RuntimeError as exc:
+        raise CheckpointError(f"encoder checkpoint {path}: weights do not fit the {blob['arch']} network "
+                              f"({exc})") from exc
+    return model.eval()
+
+
+def checkpoint_info(path: str | Path) -> dict[str, Any]:
+    """Architecture, size name, input resolution and extra metadata of a checkpoint (without building it)."""
+    blob = read_checkpoint(path)
+    return {k: blob[k] for k in ("arch", "size", "resolution", "extra")}
+

@@ -1,0 +1,130 @@
+"""Frames files, autoencoder training and checkpoints (perception/frames.py, ae_train.py, tools/train_ae.py)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from ssbl_pb.perception import autoencoders as A
+from ssbl_pb.perception.ae_train import (
+    AETrainParams,
+    CheckpointError,
+    load_autoencoder,
+    save_checkpoint,
+    split_centres,
+    train_autoencoder,
+)
+from ssbl_pb.perception.frames import FramesError, collect, load_frames, save_frames, triplet_centres
+
+TINY = A.AESize("tiny", 24, (4, 6, 5), (3, 3, 3), 2, 12, (4, 4), 8, 6)
+
+
+def moving_square(n_episodes: int = 6, length: int = 20, size: int = 24, seed: int = 0) -> dict[str, np.ndarray]:
+    """Synthetic frames: a red square sliding across a grey background, one direction per episode."""
+    rng = np.random.default_rng(seed)
+    frames, episode = [], []
+    for e in range(n_episodes):
+        start, step = rng.integers(0, size - 6, 2), rng.choice([-1, 1], 2)
+        for t in range(length):
+            img = np.full((size, size, 3), 120, np.uint8)
+            r, c = np.clip(start + step * t // 2, 0, size - 6)
+            img[r:r + 6, c:c + 6] = (220, 30, 30)
+            frames.append(img)
+            episode.append(e)
+    n = len(frames)
+    nan = np.full((n, 5, 2), np.nan, np.float32)
+    return {"frames": np.asarray(frames), "episode": np.asarray(episode, np.int32),
+            "speed": np.zeros((n, 2), np.float32), "members_rel": nan, "members_px": nan.copy(),
+            "policy": np.zeros(n, np.int8), "policies": np.asarray(["random"])}
+
+
+def test_triplets_stay_inside_episodes() -> None:
+    ep = np.array([0, 0, 0, 1, 1, 2, 2, 2, 2])
+    assert triplet_centres(ep).tolist() == [1, 6, 7]
+    train, val = split_centres(np.repeat(np.arange(10), 4), 10)
+    assert set(val.tolist()) == {37, 38} and not set(train.tolist()) & {37, 38}
+
+
+def test_collect_frames_records_members_and_their_pixels() -> None:
+    data = collect(2, 32, seed=3, policies=("straight", "sffm"), scenario="default")
+    n = len(data["frames"])
+    assert data["frames"].shape == (n, 32, 32, 3) and data["frames"].dtype == np.uint8
+    assert set(np.unique(data["episode"])) == {0, 1} and np.all(np.diff(data["episode"]) >= 0)
+    assert data["policies"].tolist() == ["straight", "sffm"]
+    rel = data["members_rel"]
+    assert np.isfinite(rel[:, :2]).all() and np.isnan(rel[:, 2:]).all()  # two members, three empty slots
+    px = data["members_px"]
+    seen = np.isfinite(px[..., 0])
+    assert seen[:, :2].mean() > 0.5 and not seen[:, 2:].any()  # both policies turn toward the group
+    assert np.all((px[seen] > -0.5) & (px[seen] < 31.5))
+    assert np.all(rel[seen][:, 0] > 0)  # a visible member is in front of the camera
+    assert np.abs(data["speed"]).max() <= 1.01
+
+
+def test_frames_file_checks_name_the_problem(tmp_path: Path) -> None:
+    data = moving_square(2, 5)
+    good = save_frames(tmp_path / "f.npz", data)
+    assert load_frames(good, 24)["frames"].shape == (10, 24, 24, 3)
+    with pytest.raises(FramesError, match="frames are 24x24, the encoder takes 64x64"):
+        load_frames(good, 64)
+    bad = {k: v for k, v in data.items() if k != "speed"}
+    save_frames(tmp_path / "b.npz", bad)
+    with pytest.raises(FramesError, match=r"missing key\(s\) \['speed'\]"):
+        load_frames(tmp_path / "b.npz")
+    save_frames(tmp_path / "c.npz", data | {"frames": data["frames"][..., 0]})
+    with pytest.raises(FramesError, match="'frames' has shape"):
+        load_frames(tmp_path / "c.npz")
+    (tmp_path / "d.npz").write_text("not a zip")
+    with pytest.raises(FramesError, match="not a readable"):
+        load_frames(tmp_path / "d.npz")
+
+
+@pytest.mark.parametrize("arch", A.ARCHS)
+def test_training_lowers_the_held_out_reconstruction_error(arch: str) -> None:
+    torch.set_num_threads(1)
+    params = AETrainParams(steps=80, batch=8, lr=3e-3, eval_every=20, val_every_episode=4)
+    model, history = train_autoencoder(moving_square(40, 8), arch, TINY, params)
+    assert not model.training
+    first, last = history[0]["val_reconstruction"], history[-1]["val_reconstruction"]
+    assert last < 0.7 * first, [round(r["val_reconstruction"], 4) for r in history]
+    assert [r["step"] for r in history] == [20, 40, 60, 80]
+
+
+def test_checkpoint_round_trip_and_checks(tmp_path: Path) -> None:
+    torch.manual_seed(1)
+    model = A.build("saev", TINY).eval()
+    path = save_checkpoint(tmp_path / "enc.pt", model, {"note": 1})
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["enc.pt"]  # no temporary file left
+    again = load_autoencoder(path, "saev", "tiny", 24)
+    x = torch.rand(2, 3, 24, 24)
+    with torch.inference_mode():
+        assert torch.equal(model.encode(x), again.encode(x))
+    with pytest.raises(CheckpointError, match="architecture is 'saev', expected 'conv'"):
+        load_autoencoder(path, arch="conv")
+    with pytest.raises(CheckpointError, match="size is 'tiny', expected 'cpu'"):
+        load_autoencoder(path, size="cpu")
+    with pytest.raises(CheckpointError, match="input resolution is 24, expected 64"):
+        load_autoencoder(path, resolution=64)
+    (tmp_path / "cut.pt").write_bytes(path.read_bytes()[:100])
+    with pytest.raises(CheckpointError, match="unreadable"):
+        load_autoencoder(tmp_path / "cut.pt")
+    with pytest.raises(CheckpointError, match="file not found"):
+        load_autoencoder(tmp_path / "none.pt")
+
+
+@pytest.mark.slow
+def test_train_ae_tool_writes_checkpoint_and_figures(tmp_path: Path) -> None:
+    from tests.test_contracts import run_tool
+
+    data = moving_square(4, 12, size=64)
+    save_frames(tmp_path / "f.npz", data)
+    res = run_tool("train_ae.py", ["--frames", str(tmp_path / "f.npz"), "--arch", "saev", "--steps", "3",
+                                   "--batch", "4", "--out", str(tmp_path / "ae")])
+    assert res.returncode == 0, res.stderr
+    names = sorted(p.name for p in (tmp_path / "ae").iterdir())
+    assert names == ["encoder.pt", "history.csv", "keypoints.png", "losses.png", "reconstructions.png",
+                     "summary.json"]
+    assert load_autoencoder(tmp_path / "ae" / "encoder.pt", "saev", "cpu", 64).feature_dim == 48

@@ -1,0 +1,125 @@
+"""Camera modes through a frozen autoencoder (env/encoded.py): the wrappers, the frozen encoder inside SB3,
+training with encoder conv / saev and evaluating the result (training/config.py, run.py, evaluation.py)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from ssbl_pb.env.approach import make_env
+from ssbl_pb.env.encoded import EncodedVecEnv, FrozenEncoder, load_encoder
+from ssbl_pb.errors import UserError
+from ssbl_pb.params import ConfigError
+from ssbl_pb.perception import autoencoders as A
+from ssbl_pb.perception.ae_train import save_checkpoint
+from ssbl_pb.training.config import load_config
+
+TINY = A.AESize("tiny", 24, (4, 6, 5), (3, 3, 3), 2, 12, (4, 4), 8, 6)
+
+
+@pytest.fixture
+def checkpoints(tmp_path: Path) -> dict[str, Path]:
+    torch.manual_seed(0)
+    out = {}
+    for arch in A.ARCHS:
+        model = A.build(arch, TINY).train()
+        model(torch.rand(8, 3, 24, 24))  # move the BatchNorm running statistics off their initial values
+        out[arch] = save_checkpoint(tmp_path / f"{arch}.pt", model.eval())
+    return out
+
+
+def _state(module: torch.nn.Module) -> dict[str, torch.Tensor]:
+    return {k: v.clone() for k, v in module.state_dict().items()}
+
+
+def test_single_and_batched_wrappers_emit_the_same_features(checkpoints: dict[str, Path]) -> None:
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    path = str(checkpoints["saev"])
+    single = make_env(obs_mode="camera_speed", camera_width=24, camera_height=24, encoder=path,
+                      task={"max_steps": 4})
+    obs, _ = single.reset(seed=7)
+    assert obs.shape == (3 * 5 + 2,) == single.observation_space.shape and obs.dtype == np.float32
+    venv = DummyVecEnv([lambda: make_env(obs_mode="camera_speed", camera_width=24, camera_height=24,
+                                         task={"max_steps": 4})] * 2)
+    venv.seed(7)
+    enc = EncodedVecEnv(venv, load_encoder(path, 24))
+    assert enc.observation_space == single.observation_space  # a model trained on one runs on the other
+    batch = enc.reset()
+    assert np.allclose(batch[0], obs, atol=1e-5)
+    xy, rho = obs[:15].reshape(5, 3)[:, :2], obs[:15].reshape(5, 3)[:, 2]
+    assert np.all(np.abs(xy) <= 1) and np.all((rho >= 0) & (rho <= 1))
+    a = np.zeros((2, 2), np.float32)
+    for _ in range(4):  # the time limit ends both episodes on the 4th step
+        batch, _, dones, infos = enc.step(a)
+        single_obs, *_ = single.step(a[0])
+    assert dones.all()
+    assert infos[0]["terminal_observation"].shape == (17,)
+    assert np.allclose(infos[0]["terminal_observation"], single_obs, atol=1e-5)
+
+
+def test_frozen_encoder_stays_in_eval_mode_when_its_owner_trains(checkpoints: dict[str, Path]) -> None:
+    enc = load_encoder(checkpoints["conv"])
+    owner = torch.nn.Sequential(torch.nn.Linear(2, 2), enc)
+    owner.train()
+    assert owner[0].training and not any(m.training for m in enc.modules())
+    assert not any(p.requires_grad for p in enc.parameters())
+
+
+@pytest.mark.parametrize("arch", A.ARCHS)
+def test_sb3_updates_leave_the_encoder_untouched(checkpoints: dict[str, Path], tmp_path: Path, arch: str) -> None:
+    from ssbl_pb.training.run import build_model, make_vec_env
+
+    cfg = load_config(None, {"obs_mode": "camera", "encoder": arch, "encoder_checkpoint": str(checkpoints[arch]),
+                             "camera_size": 24, "n_envs": 2, "ppo": {"n_steps": 16, "batch_size": 16,
+                                                                     "n_epochs": 2}})
+    venv = make_vec_env(cfg, 0)
+    model = build_model(cfg, venv, tmp_path / "tb")
+    encoded = venv.venv
+    assert isinstance(encoded, EncodedVecEnv) and isinstance(encoded.encoder, FrozenEncoder)
+    before = _state(encoded.encoder)
+    model.learn(64)  # two PPO updates: policy.set_training_mode(True) before each
+    assert not any(m.training for m in encoded.encoder.modules())
+    after = encoded.encoder.state_dict()
+    assert all(torch.equal(before[k], after[k]) for k in before)  # BatchNorm running statistics included
+    assert not any(p is q for p in model.policy.parameters() for q in encoded.encoder.parameters())
+    venv.close()
+
+
+def test_config_checks_the_encoder_checkpoint(checkpoints: dict[str, Path]) -> None:
+    saev = str(checkpoints["saev"])
+    ok = load_config(None, {"obs_mode": "camera_speed", "encoder": "saev", "encoder_checkpoint": saev,
+                            "camera_size": 24})
+    assert ok.encoder_file == saev and ok.policy_obs_mode == "vector"
+    with pytest.raises(ConfigError, match="camera_size = 84: expected 24, the input resolution"):
+        load_config(None, {"obs_mode": "camera", "encoder": "saev", "encoder_checkpoint": saev})
+    with pytest.raises(ConfigError, match="a conv checkpoint .* it holds a saev autoencoder"):
+        load_config(None, {"obs_mode": "camera", "encoder": "conv", "encoder_checkpoint": saev, "camera_size": 24})
+    with pytest.raises(ConfigError, match="encoder_checkpoint = 'nosuch.pt'"):
+        load_config(None, {"obs_mode": "camera", "encoder": "conv", "encoder_checkpoint": "nosuch.pt"})
+    with pytest.raises(UserError, match="takes 24x24 images, the camera renders 32x32"):
+        make_env(obs_mode="camera", camera_width=32, camera_height=32, encoder=saev)
+    with pytest.raises(UserError, match="needs camera observations"):
+        make_env(obs_mode="vector", camera_width=24, camera_height=24, encoder=saev)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("obs_mode,policy", [("camera_speed", "lstm"), ("camera", "ff")])
+def test_train_and_evaluate_a_camera_policy(checkpoints: dict[str, Path], tmp_path: Path, obs_mode: str,
+                                            policy: str) -> None:
+    from ssbl_pb.evaluation import Setup, evaluate
+    from ssbl_pb.training.run import train
+
+    cfg = load_config(None, {"obs_mode": obs_mode, "encoder": "saev", "policy": policy, "camera_size": 24,
+                             "encoder_checkpoint": str(checkpoints["saev"]), "n_envs": 2, "total_steps": 64,
+                             "eval_every": 32, "eval_episodes": 1, "baseline_episodes": 1, "checkpoint_every": 64,
+                             "env": {"task": {"max_steps": 20}}, "ppo": {"n_steps": 16, "batch_size": 16}})
+    summary = train(cfg, tmp_path / "run")
+    assert summary["steps"] == 64 and summary["best_eval"] is not None
+    summary, results = evaluate(Setup(str(tmp_path / "run"), env_kwargs=(("task", {"max_steps": 20}),)), 2, 5,
+                                tmp_path / "eval")
+    assert len(results) == 2 and summary["policy"] == str(tmp_path / "run")
+    assert (tmp_path / "eval" / "summary.json").is_file()

@@ -1,0 +1,69 @@
+#!/usr/bin/env python
+"""Train a camera autoencoder (paper III-B: conv or SAEV) on frames from tools/collect_frames.py.
+
+Writes DIR/encoder.pt (architecture, size and input resolution recorded; checked when loaded), history.csv,
+losses.png, reconstructions.png, keypoints.png (SAEV: keypoints drawn on held-out frames, one colour each,
+as the paper's Fig. 7) and summary.json.
+
+Examples:
+    python tools/train_ae.py --frames results/frames/frames.npz --arch saev --out results/ae/saev
+    python tools/train_ae.py --frames frames.npz --arch conv --steps 500 --out results/ae/conv_quick
+    python tools/train_ae.py --frames frames96.npz --arch saev --size paper --out results/ae/saev_paper
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from ssbl_pb.cli import run
+
+
+def main(argv: list[str] | None = None) -> int:
+    from ssbl_pb.perception.autoencoders import ARCHS, DEFAULT_SIZE, SIZES
+
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--frames", type=Path, required=True, help=".npz from tools/collect_frames.py")
+    ap.add_argument("--arch", required=True, help=f"one of {', '.join(ARCHS)}")
+    ap.add_argument("--out", type=Path, required=True, help="output directory")
+    ap.add_argument("--size", default=DEFAULT_SIZE, help=f"layer sizes: {', '.join(SIZES)} (default {DEFAULT_SIZE})")
+    ap.add_argument("--steps", type=int, default=3000, help="optimiser steps (default 3000)")
+    ap.add_argument("--batch", type=int, default=32, help="frame triplets per step (default 32)")
+    ap.add_argument("--lr", type=float, default=1e-3, help="Adam learning rate (default 1e-3)")
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--threads", type=int, default=2, help="torch threads (default 2)")
+    args = ap.parse_args(argv)
+
+    from ssbl_pb.perception.ae_train import AETrainParams
+    from ssbl_pb.perception.autoencoders import build, get_size
+    from ssbl_pb.perception.frames import load_frames
+
+    build(args.arch, args.size)  # unknown arch / size: exit 2 before reading anything
+    params = AETrainParams(steps=args.steps, batch=args.batch, lr=args.lr, seed=args.seed,
+                           eval_every=max(1, min(250, args.steps // 10)))
+    data = load_frames(args.frames, get_size(args.size).input_size)
+
+    import torch
+
+    from ssbl_pb.cli import make_bar
+    from ssbl_pb.files import output_dir
+    from ssbl_pb.perception.ae_report import write_report
+    from ssbl_pb.perception.ae_train import train_autoencoder
+
+    torch.set_num_threads(max(1, args.threads))
+    with output_dir(args.out) as out:
+        bar = make_bar(params.steps, f"train {args.arch}", "step")
+        try:
+            model, history = train_autoencoder(data, args.arch, args.size, params, bar)
+        finally:
+            bar.close()
+        summary = write_report(out, model, history, data, {"frames_file": str(args.frames), "lr": args.lr,
+                                                            "batch": args.batch, "seed": args.seed})
+    last = summary["final_val"]
+    print(f"{args.arch} ({args.size}) {params.steps} steps in {summary['train_seconds']:.0f} s: validation "
+          f"reconstruction {last['reconstruction']:.4f} -> {args.out}/encoder.pt")
+    return 0
+
+
+if __name__ == "__main__":
+    run(main)
