@@ -24,7 +24,12 @@ class ConfigError(UserError):
 
 def _check(cond: bool, owner: str, field: str, value: Any, expected: str) -> None:
     if not cond:
-        raise ConfigError(f"{owner}.{field} = {value!r}: expected {expected}")
+        raise ConfigError(f"{owner}.{field} = {plain(value)!r}: expected {expected}")
+
+
+def plain(value: Any) -> Any:
+    """numpy scalars and arrays as Python numbers and lists, so messages read ``0.3``, not ``np.float64(0.3)``."""
+    return value.tolist() if hasattr(value, "tolist") and hasattr(value, "dtype") else value
 
 
 def _positive(owner: str, obj: Any, *names: str) -> None:

@@ -60,9 +60,10 @@ def test_total_is_eq15_with_our_terms():
     expected = (0.5 * ego + 7.0 * 1.0 + 0.25 * (11.0 * t["r5_altruism"] + 13.0 * t["r5_repulsion"])
                 + 17.0 * t["effort"] + 19.0 * t["smoothness"] + 23.0 * t["slot_progress"] - 31.0 * 0.01)
     assert total_reward(t, w) == pytest.approx(expected)
-    # episode sum over the two steps
-    total = sum(total_reward(reward_terms(**s, dt=DT), w) for s in (s1, s2))
-    assert total == pytest.approx(total_reward(reward_terms(**s1, dt=DT), w) + expected + 31.0 * 0.01)
+    # the proximity cost enters with weight -w_prox, and only it differs when proximity is 0
+    without = total_reward(reward_terms(**s2, dt=DT), w)
+    assert total_reward(t, w) - without == pytest.approx(-31.0 * 0.01)
+    assert total_reward(reward_terms(**s1, dt=DT), w) != pytest.approx(without)  # the steps differ
 
 
 def test_proximity_cost_charges_closing_in_near_the_intimate_zone():

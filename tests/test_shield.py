@@ -7,7 +7,7 @@ import pytest
 
 from ssbl_pb.env.approach import ApproachGroupEnv
 from ssbl_pb.env.observation import OBS_SIZE, POS_SCALE
-from ssbl_pb.env.shield import ShieldParams, footprint_clearance, shield_action
+from ssbl_pb.env.shield import SafetyShield, ShieldParams, footprint_clearance, shield_action
 from ssbl_pb.env.world import box_circle_distance
 from ssbl_pb.params import ConfigError
 
@@ -52,6 +52,18 @@ def test_closing_speed_is_limited_to_what_the_base_can_still_brake():
     # a member walking toward the robot: the robot must back off
     out = shield_action(obs_with(at_limit, np.array([[-0.1, 0.0]])), np.zeros(2), P)
     assert out[0] == pytest.approx(-0.1 / 0.35)
+
+
+def test_safety_shield_shields_every_row_of_a_batch():
+    near = obs_with(np.array([[0.24 + 0.28 + 0.6, 0.0]]))
+    far = obs_with(np.array([[3.0, 1.0]]))
+    obs = np.stack([far, near, near])
+    act = np.array([[1.0, 0.0], [1.0, 0.0], [0.7, 0.7]], dtype=np.float32)
+    out = SafetyShield(P)(obs, act)
+    assert out.shape == act.shape
+    for o, a, got in zip(obs, act, out, strict=True):  # each row as if shielded alone
+        assert np.allclose(got, shield_action(o, a, P), atol=1e-6)
+    assert out[1, 0] < 0.99 and out[2, 0] < 0.69  # the rows after the first were braked too
 
 
 def test_far_members_and_no_members_leave_the_action_alone():

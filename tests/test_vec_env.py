@@ -134,3 +134,40 @@ def test_bench_training_rejects_unknown_config_keys(tmp_path):
     res = subprocess.run([sys.executable, str(root / "tools" / "bench_training.py"), "--set", "n_envz=3", "--out",
                           str(out)], capture_output=True, text=True, timeout=120)
     assert res.returncode == 2 and "n_envz" in res.stderr and not out.exists()
+
+
+def test_set_attr_weights_changes_the_rewards_at_once():
+    act = np.full((3, 2), 0.5, dtype=np.float32)
+    changed = BatchedVecEnv(3, scenario="mixed")
+    fresh = BatchedVecEnv(3, scenario="mixed", reward={"w3": 40.0, "w_prox": 3.0})
+    for v in (changed, fresh):
+        v.seed(5)
+        v.reset()
+    changed.set_attr("weights", {"w3": 40.0, "w_prox": 3.0})
+    assert changed.get_attr("weights")[0].w3 == 40.0
+    r_changed, r_fresh = changed.step(act)[1], fresh.step(act)[1]
+    assert np.allclose(r_changed, r_fresh)
+    default = BatchedVecEnv(3, scenario="mixed")
+    default.seed(5)
+    default.reset()
+    assert not np.allclose(default.step(act)[1], r_changed)  # the new weights made a difference
+
+
+def test_reset_options_pick_the_group_in_single_and_batched_envs():
+    from ssbl_pb.env.approach import make_env
+    from ssbl_pb.errors import UserError
+
+    env = make_env(scenario="default")
+    _, info = env.reset(seed=3, options={"n_humans": 4, "formation": "circular"})
+    assert (info["n_humans"], info["formation"]) == (4, "circular") and len(env.unwrapped.world.group.pos) == 4
+    with pytest.raises(UserError, match="reset options \\['size'\\]"):
+        env.reset(seed=3, options={"size": 4})
+    venv = BatchedVecEnv(2, scenario="default")
+    venv.seed(3)
+    venv.set_options({"n_humans": 4, "formation": "circular"})
+    obs = venv.reset()
+    assert [i["n_humans"] for i in venv.reset_infos] == [4, 4]
+    single_obs, _ = env.reset(seed=3, options={"n_humans": 4, "formation": "circular"})
+    assert np.allclose(obs[0], single_obs, atol=1e-6)  # the same episode as the single env with those options
+    venv.reset()
+    assert [i["n_humans"] for i in venv.reset_infos] == [2, 2]  # options apply to the next reset only

@@ -17,7 +17,7 @@ from ..errors import UserError
 from ..params import ConfigError, RobotParams, SocialParams, WorldParams, from_dict
 from . import observation as ob
 from .reward import TERMS, RewardWeights, proximity_cost, reward_terms, route_distance, slot_potential, total_reward
-from .scenarios import ScenarioMix
+from .scenarios import ScenarioMix, apply_reset_options
 from .task import TaskParams
 from .world import World
 
@@ -133,7 +133,7 @@ class ApproachGroupEnv(gym.Env):
     # -- Gymnasium API ------------------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
         super().reset(seed=seed)
-        n, formation, start = self.scenario.sample(self.np_random)
+        n, formation, start = apply_reset_options(self.scenario.sample(self.np_random), options)
         self.world.reset(self.np_random, n_humans=n, formation=formation, start=start)
         self._steps = 0
         self._prev_accel = np.zeros(2)
@@ -229,6 +229,11 @@ def _merge_yaml(kwargs: dict[str, Any], key: str, path: str | None, section: str
         if section not in data or not isinstance(data[section], dict):
             raise ConfigError(f"{path}: expected a '{section}:' mapping (as tools/import_map.py writes)")
         data = data[section]
+    cls = {"robot": RobotParams, "social": SocialParams, "world": WorldParams}[key]
+    try:  # checked here so that a bad value names the file it came from
+        from_dict(cls, data, key)
+    except ConfigError as exc:
+        raise ConfigError(f"{path}: {exc}") from None
     given = kwargs.get(key) or {}
     given = dataclasses.asdict(given) if dataclasses.is_dataclass(given) else dict(given)
     kwargs[key] = {**data, **given}

@@ -27,6 +27,7 @@ from . import observation as ob
 from .approach import parse_env_params
 from .humans import Group
 from .reward import TERMS, RewardWeights, weight_vector
+from .scenarios import apply_reset_options
 from .task import TaskParams
 from .world import MAX_HUMANS, box_circle_distance, spawn_layout
 
@@ -45,7 +46,6 @@ class BatchedApproach:
         self.dt = self.world_params.dt
         self.n_act = 3 if self.task.turn else 2
         self._p = kernels.pack_params(self.world_params, self.robot_params, self.social, self.task)
-        self._w = weight_vector(self.weights)
         self.rngs: list[np.random.Generator] = [seeding.np_random(None)[0] for _ in range(num)]
         m = MAX_HUMANS
         delay = int(self._p[kernels.DELAY_STEPS])
@@ -72,10 +72,19 @@ class BatchedApproach:
         self._obs = np.zeros((num, ob.OBS_SIZE), dtype=np.float32)
         self._all = np.arange(num)
 
+    @property
+    def weights(self) -> RewardWeights:
+        """The reward weights of every copy; assigning them (a ``RewardWeights`` or a dict) takes effect at once."""
+        return self._weights
+
+    @weights.setter
+    def weights(self, value: RewardWeights | dict) -> None:
+        self._weights = value if isinstance(value, RewardWeights) else from_dict(RewardWeights, value, "reward")
+        self._w = weight_vector(self._weights)
+
     def set_reward_weights(self, **changes: float) -> None:
         """``ApproachGroupEnv.set_reward_weights`` for every copy."""
-        self.weights = from_dict(RewardWeights, {**dataclasses.asdict(self.weights), **changes}, "reward")
-        self._w = weight_vector(self.weights)
+        self.weights = {**dataclasses.asdict(self.weights), **changes}
 
     @property
     def success(self) -> np.ndarray:
@@ -104,10 +113,10 @@ class BatchedApproach:
         """Seed copy ``i``'s generator as ``ApproachGroupEnv.reset(seed=...)`` seeds the single env's."""
         self.rngs[i] = seeding.np_random(seed)[0]
 
-    def reset(self, i: int) -> dict[str, Any]:
-        """Start copy ``i``'s next episode (``ApproachGroupEnv.reset``); returns its reset info."""
+    def reset(self, i: int, options: dict | None = None) -> dict[str, Any]:
+        """Start copy ``i``'s next episode (``ApproachGroupEnv.reset``, same ``options``); returns its reset info."""
         rng = self.rngs[i]
-        n, formation, start = self.scenario.sample(rng)
+        n, formation, start = apply_reset_options(self.scenario.sample(rng), options)
         centre, angles, pose = spawn_layout(rng, self.world_params, self.robot_params, self.social, n, formation,
                                             start)
         g = Group(self.social, centre, angles)

@@ -69,3 +69,28 @@ class ScenarioMix:
         """(group size, formation, start) for one episode."""
         sc = self.members[int(rng.integers(len(self.members)))] if len(self.members) > 1 else self.members[0]
         return sc.sample(rng)
+
+
+RESET_OPTIONS = ("n_humans", "formation", "start")
+
+
+def apply_reset_options(sample: tuple[int, str, str], options: dict | None) -> tuple[int, str, str]:
+    """(size, formation, start) of a scenario's sample with ``reset(options=...)`` overrides: ``n_humans``
+    (2-5), ``formation`` and ``start`` ('any' or 'behind'). The sample is drawn first either way, so an episode's
+    other random choices do not depend on the options."""
+    if not options:
+        return sample
+    unknown = sorted(set(options) - set(RESET_OPTIONS))
+    if unknown:
+        raise UserError(f"reset options {unknown}: expected keys among {list(RESET_OPTIONS)}")
+    n, formation, start = sample
+    n = options.get("n_humans", n)
+    formation = options.get("formation", formation)
+    start = options.get("start", start)
+    if not isinstance(n, int) or not 2 <= n <= 5:
+        raise UserError(f"reset option n_humans = {n!r}: expected an integer in 2..5")
+    if formation not in FORMATIONS:
+        raise UserError(f"reset option formation = {formation!r}: expected one of {list(FORMATIONS)}")
+    if start not in ("any", "behind"):
+        raise UserError(f"reset option start = {start!r}: expected 'any' or 'behind'")
+    return n, formation, start

@@ -95,11 +95,17 @@ def shield_actions(obs: np.ndarray, actions: np.ndarray, p: ShieldParams) -> np.
 
 class SafetyShield:
     """``shield_action`` with fixed parameters (Pepper's defaults unless given), as ``TrainedPolicy`` applies it
-    after its smoothing filter; any action shape, one observation."""
+    after its smoothing filter: one observation (OBS_SIZE,) with one action, or a batch (N, OBS_SIZE) with
+    (N, A) actions, every row shielded."""
 
     def __init__(self, params: ShieldParams | None = None) -> None:
         self.params = params or ShieldParams()
 
     def __call__(self, obs: np.ndarray, action: np.ndarray) -> np.ndarray:
-        return shield_action(np.asarray(obs).reshape(-1), np.asarray(action).reshape(-1), self.params).reshape(
-            np.shape(action))
+        obs, action = np.asarray(obs), np.asarray(action)
+        if obs.ndim == 1:
+            return shield_action(obs, action.reshape(-1), self.params).reshape(action.shape)
+        rows = obs.reshape(-1, obs.shape[-1])
+        if action.size % len(rows):
+            raise ValueError(f"shield: {len(rows)} observations for actions of shape {action.shape}")
+        return shield_actions(rows, action.reshape(len(rows), -1), self.params).reshape(action.shape)

@@ -43,7 +43,7 @@ class BatchedVecEnv(VecEnv):
     def _start(self, i: int) -> dict[str, Any]:
         if self._seeds[i] is not None:
             self.batch.seed(i, self._seeds[i])
-        info = self.batch.reset(i)
+        info = self.batch.reset(i, self._options[i])
         if self.filter is not None:
             self.filter.reset(rows=[i])
         return info
