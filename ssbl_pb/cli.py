@@ -14,13 +14,15 @@ import os
 import signal
 import sys
 import time
-from collections.abc import Callable, Iterator
-from typing import Any, NoReturn
+from collections.abc import Callable, Iterable, Iterator
+from typing import Any, NoReturn, TypeVar
 
 from .errors import EXIT_SIGINT, EXIT_SIGTERM, EXIT_USAGE, Terminated, UserError
 
-__all__ = ["EXIT_USAGE", "ArgumentParser", "UserError", "fail", "run", "progress_bar", "make_bar", "int_at_least",
-           "int_in"]
+T = TypeVar("T")
+
+__all__ = ["EXIT_USAGE", "ArgumentParser", "UserError", "fail", "run", "progress", "progress_bar", "make_bar",
+           "int_at_least", "int_in"]
 
 
 def fail(exc: BaseException | str) -> int:
@@ -159,6 +161,17 @@ def make_bar(total: int, desc: str, unit: str = "it", initial: int = 0) -> Any:
     from tqdm import tqdm
 
     return tqdm(total=total, initial=initial, desc=desc, unit=unit, dynamic_ncols=True, mininterval=0.5)
+
+
+def progress(items: Iterable[T], desc: str, unit: str = "it", total: int | None = None) -> Iterator[T]:
+    """``items`` with a ``make_bar`` progress bar (``total`` defaults to ``len(items)``)."""
+    bar = make_bar(len(items) if total is None else total, desc, unit)  # type: ignore[arg-type]
+    try:
+        for item in items:
+            yield item
+            bar.update(1)
+    finally:
+        bar.close()
 
 
 @contextlib.contextmanager

@@ -187,3 +187,58 @@ def test_fine_tuning_across_plain_and_bounded_heads_keeps_the_weights():
     assert out["action_net.0.weight"] is w and "action_net.weight" not in out
     with pytest.raises(RunError, match="net_arch"):
         _match_action_head({"action_net.weight": torch.ones(2, 16), "action_net.bias": b, "log_std": b}, target)
+
+
+def test_ctrl_c_saves_a_checkpoint_and_says_how_to_resume(tmp_path):
+    out = tmp_path / "run"
+    proc = subprocess.Popen([*TRAIN, "--total-steps", "200000", "--out", str(out), *SMALL],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    first = out / "checkpoints" / "latest.json"
+    deadline = time.time() + 120
+    while time.time() < deadline and not first.exists():  # the initial state is checkpointed before training
+        time.sleep(0.1)
+    assert first.exists() and json.loads(first.read_text())["step"] == 0
+    time.sleep(2.0)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130, err[-2000:]
+    assert "Traceback" not in err and f"--resume {out}" in err
+    step = json.loads(first.read_text())["step"]
+    assert step > 0 and (out / "checkpoints" / f"ckpt_{step:09d}.zip").is_file()
+    assert not (out / "summary.json").exists()
+
+
+def test_resume_of_a_finished_run_changes_nothing_and_overwrite_starts_empty(tmp_path):
+    out = tmp_path / "run"
+    res = subprocess.run([*TRAIN, "--total-steps", "512", "--out", str(out), *SMALL], capture_output=True,
+                         text=True, timeout=240)
+    assert res.returncode == 0, res.stderr[-2000:]
+    files = {p: p.read_bytes() for p in out.rglob("*") if p.is_file()}
+    res = subprocess.run([*TRAIN, "--resume", str(out)], capture_output=True, text=True, timeout=120)
+    assert res.returncode == 2 and "already finished" in res.stderr
+    assert {p: p.read_bytes() for p in out.rglob("*") if p.is_file()} == files
+    (out / "best" / "eval.json").write_text(json.dumps({"score": 99.0, "success_rate": 1.0}))  # a stale best
+    (out / "stale.txt").write_text("from the old run")
+    res = subprocess.run([*TRAIN, "--total-steps", "512", "--out", str(out), "--overwrite", *SMALL],
+                         capture_output=True, text=True, timeout=240)
+    assert res.returncode == 0, res.stderr[-2000:]
+    assert not (out / "stale.txt").exists()
+    best = json.loads((out / "best" / "eval.json").read_text())
+    assert best["score"] < 99.0  # a new best was saved, not compared against the old run's
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["best_eval"] == best
+
+
+def test_policy_flag_picks_its_config_and_a_run_name_of_its_own():
+    from ssbl_pb.training.config import run_name
+
+    ff = load_config(ROOT / "configs" / "vector_ff.yaml")
+    as_lstm = load_config(ROOT / "configs" / "vector_ff.yaml", {"policy": "lstm"})
+    assert run_name(as_lstm, ff, named=False).name == "ppo_vector_lstm"
+    assert run_name(as_lstm, ff, named=True).name == ff.name
+    assert run_name(ff, ff, named=False).name == ff.name
+
+
+def test_env_keys_are_checked_before_any_output(tmp_path):
+    with pytest.raises(ConfigError, match=r"config.env = \['bogus'\]"):
+        load_config(None, {"env": {"bogus": 1}})

@@ -170,9 +170,9 @@ def identify(log: DynamicsLog, axes: tuple[str, ...] = AXES, base: RobotParams |
     notes = []
     it = axes
     if progress:
-        from tqdm import tqdm
+        from ..cli import progress as bar
 
-        it = tqdm(axes, desc="fitting axes", unit="axis")
+        it = bar(axes, "fitting axes", "axis")
     for ax in it:
         j = AXES.index(ax)
         if np.abs(log.cmd[:, j]).max() <= 1e-9:

@@ -116,9 +116,9 @@ def sim_stats(social: SocialParams, episodes: int = 40, seconds: float = 20.0, d
     group_d, speeds, closest = [], [], []
     eps = range(episodes)
     if progress:
-        from tqdm import tqdm
+        from ..cli import progress as bar
 
-        eps = tqdm(eps, desc="SFFM episodes", unit="ep")
+        eps = bar(eps, "SFFM episodes", "ep")
     for ep in eps:
         n = 2 + ep % 4
         form = FORMATIONS[(ep // 4) % len(FORMATIONS)]

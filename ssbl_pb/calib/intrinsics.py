@@ -94,9 +94,9 @@ def detect(paths: Iterable[str | Path], board: tuple[int, int], progress: bool =
     paths = [Path(p) for p in paths]
     it: Iterable[Path] = paths
     if progress:
-        from tqdm import tqdm
+        from ..cli import progress as bar
 
-        it = tqdm(paths, desc="detecting corners", unit="img")
+        it = bar(paths, "detecting corners", "img")
     out = Detections([], [], [], None)
     for path in it:
         try:
@@ -229,9 +229,9 @@ def leave_k_out(result: IntrinsicsResult, board: tuple[int, int], square: float,
         subsets = [subsets[i] for i in sorted(rng.choice(len(subsets), max_subsets, replace=False))]
     it: Iterable[tuple[int, ...]] = subsets
     if progress:
-        from tqdm import tqdm
+        from ..cli import progress as bar
 
-        it = tqdm(subsets, desc=f"leave-{k}-out", unit="fit")
+        it = bar(subsets, f"leave-{k}-out", "fit")
     obj = board_points(board, square)
     ref = np.array([result.camera.fx, result.camera.fy, result.camera.cx, result.camera.cy])
     size = (result.camera.width, result.camera.height)

@@ -105,8 +105,9 @@ def track_video(video: str | Path, calib: str | Path, out_dir: str | Path, start
     total = (min(n, stop) if stop is not None else n) - start
     bar = None
     if progress:
-        from tqdm import tqdm
-        bar = tqdm(total=max(total, 0), unit="frame", desc=Path(video).name)
+        from ..cli import make_bar
+
+        bar = make_bar(max(total, 0), Path(video).name, "frame")
     t_proc, count = 0.0, 0
     try:
         for i, frame in read_frames(video, start, stop):

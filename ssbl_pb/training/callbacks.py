@@ -19,7 +19,7 @@ from ..files import atomic_write, write_text
 
 
 class ProgressCallback(BaseCallback):
-    """tqdm bar with env steps/s and the success rate of the last 100 training episodes."""
+    """Progress bar (``cli.make_bar``) with env steps/s and the success rate of the last 100 training episodes."""
 
     def __init__(self, total: int) -> None:
         super().__init__()
