@@ -32,6 +32,11 @@ CASES = [
     # evaluation
     C("evaluate.py", "--policy", "nosuch", "--out", "{out}", expect="--policy 'nosuch'"),
     C("evaluate.py", "--policy", "sffm", "--episodes", "0", "--out", "{out}", expect="--episodes 0"),
+    # groups calibration (issue 14)
+    C("calibrate_groups.py", "{tmp}/nosuch", "--out", "{out}.yaml", expect="nosuch: not found"),
+    C("calibrate_groups.py", "{tmp}", "--out", "{out}.yaml", expect="no features.mat at or below"),
+    C("calibrate_groups.py", "--out", "{out}", expect="expected a .yaml file name"),
+    C("calibrate_groups.py", "--per-size", "0", "--out", "{out}.yaml", expect="--per-size 0"),
 ]
 
 
