@@ -120,13 +120,15 @@ class ApproachGroupEnv(gym.Env):
                                      self._walls(), self.robot_params.max_speed, self.robot_params.max_yaw_rate,
                                      w.robot_pose[2] if self.task.turn else None)
 
+    def _keep_out(self, margin: float) -> float:
+        """Radius around the conversation centre a route to the slot keeps out of: the footprint's corners, not
+        its mean radius, must stay out of the intimate zone (plus ``margin``)."""
+        return (self.world.group.radius + self.social.human_radius + self.robot_params.reach
+                + self.task.intimate_zone + margin)
+
     def _route(self, xy: np.ndarray) -> float:
         """Distance to the free slot around the group (``reward.route_distance``)."""
-        g = self.world.group
-        # the footprint's corners, not its mean radius, must stay out of the intimate zone
-        keep_out = (g.radius + self.social.human_radius + self.robot_params.reach + self.task.intimate_zone
-                    + self.task.route_margin)
-        return route_distance(xy, self._slot, g.centre, keep_out)
+        return route_distance(xy, self._slot, self.world.group.centre, self._keep_out(self.task.route_margin))
 
     def heading_error(self) -> float:
         """Angle (rad) from the robot's heading to the conversation centre."""
@@ -137,7 +139,10 @@ class ApproachGroupEnv(gym.Env):
         g = self.world.group
         return {"t": self.world.t, "robot": self.world.robot_pose.copy(), "robot_vel": self.world.base.vel.copy(),
                 "members": g.pos.copy(), "members_yaw": g.yaw.copy(), "centre": g.centre.copy(),
-                "radius": g.radius, "slot": self._slot.copy(), "clearance": self.world.human_clearance()}
+                "radius": g.radius, "slot": self._slot.copy(), "clearance": self.world.human_clearance(),
+                "wall": float(self.world.wall_clearance().min()),  # the footprint's clearance to the nearest wall
+                # the SFFM's repulsion on the robot and on the members (metrics' social work)
+                "social_force": float(np.hypot(*g.robot_repulsion) + np.hypot(*g.repulsion.T).sum())}
 
     # -- Gymnasium API ------------------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
@@ -150,7 +155,7 @@ class ApproachGroupEnv(gym.Env):
         self._slot = self.world.group.free_slot(self.world.robot_pose[:2])
         self._potential = slot_potential(self._route(self.world.robot_pose[:2]), 0.0)
         self._clearance = self.world.human_clearance()
-        self.trajectory = [self._snapshot()] if self.record else []
+        self.trajectory = [{**self._snapshot(), "keep_out": self._keep_out(0.0)}] if self.record else []
         self._top_cam = None
         info = {"n_humans": n, "formation": formation, "start": start}
         return self._obs(), info

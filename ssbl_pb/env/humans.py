@@ -150,6 +150,7 @@ class Group:
         self.force = np.zeros((n, 2))  # total SFFM force on each member (pre-normalisation sum)
         self.repulsion = np.zeros((n, 2))  # its repulsion part
         self.robot_force = np.zeros(2)  # the same field evaluated at the robot (used by rewards R1/R2)
+        self.robot_repulsion = np.zeros(2)  # its repulsion part (the members' push on the robot; metrics)
         k = n + 1
         self._mask_members = np.ones((k, k), dtype=bool)
         self._mask_members[:, -1] = False  # robot not a participant (repulsion ignores this mask)
@@ -191,6 +192,7 @@ class Group:
         agents = np.concatenate([self.pos, robot_xy[None, :2]])
         f_c, f_e, f_r, _ = self.field_at(agents, self.join_weight >= 0.5)
         self.robot_force = f_c[-1] + f_e[-1] + f_r[-1]
+        self.robot_repulsion = f_r[-1]
         n = self.n
         f_c, f_e, f_r = f_c[:n], f_e[:n], f_r[:n]
         rel = self.pos - self.centre
