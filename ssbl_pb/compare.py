@@ -10,16 +10,15 @@ from typing import Any
 import numpy as np
 from scipy import stats
 
+from .env import metrics
 from .report import mean_ci
 
 # the five social measures of the targets: lower is better for each
 SOCIAL = ("personal_zone_time_s", "human_displacement_m", "mean_jerk", "arrival_speed", "outside_fov_time_s")
-BINARY = ("success", "collision", "violation", "approach_in_fov")
-LOWER_IS_BETTER = {"collision", "violation", "time_to_success_s", "episode_time_s", "path_length_m",
-                   "intimate_zone_time_s", "personal_zone_time_s", "human_displacement_m", "mean_accel",
-                   "max_accel", "mean_jerk", "max_jerk", "arrival_speed", "outside_fov_time_s",
-                   "final_slot_error_m", "final_heading_error_deg"}
-HIGHER_IS_BETTER = {"success", "approach_in_fov", "return", "min_clearance_m"}  # the rest is descriptive
+BINARY = ("success", "collision", "violation", "timeout", "approach_in_fov")
+# each metric's direction is in env.metrics.METRICS; the rest is descriptive
+LOWER_IS_BETTER = metrics.LOWER_IS_BETTER
+HIGHER_IS_BETTER = {*metrics.HIGHER_IS_BETTER, "return"}
 
 
 def paired_test(a: list[float], b: list[float], binary: bool) -> dict[str, float]:

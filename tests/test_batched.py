@@ -48,7 +48,8 @@ def _drive(num: int, steps: int, seed: int, noise: float = 0.15, **kwargs):
     {"scenario": "mixed"},
     {"scenario": "default,circular-5", "robot": {"latency_s": 0.15, "time_constant_s": 0.2}},
     {"scenario": "l_shape", "task": {"turn": True}},
-], ids=["mixed", "calibrated-base", "policy-turns"])
+    {"scenario": "mixed", "groups": "paper"},
+], ids=["mixed", "calibrated-base", "policy-turns", "paper-groups"])
 def test_batch_matches_single_env(kwargs):
     endings = {"success": 0, "violation": 0, "truncated": 0}
     for singles, single, batch, (rew, term, trunc) in _drive(6, 600, 7, **kwargs):

@@ -119,6 +119,11 @@ CASES = [
     C("train_ae.py", "--frames", "{file}", "--arch", "saev", "--out", "{out}", expect="not a readable .npz"),
     C("train_ae.py", "--frames", "{tmp}/none.npz", "--arch", "conv", "--out", "{out}", expect="file not found"),
     C("train_ae.py", "--frames", "{file}", "--arch", "saev", "--steps", "0", "--out", "{out}", expect="--steps 0"),
+    # groups calibration (issue 14)
+    C("calibrate_groups.py", "{tmp}/nosuch", "--out", "{out}.yaml", expect="nosuch: not found"),
+    C("calibrate_groups.py", "{tmp}", "--out", "{out}.yaml", expect="no features.mat at or below"),
+    C("calibrate_groups.py", "--out", "{out}", expect="expected a .yaml file name"),
+    C("calibrate_groups.py", "--per-size", "0", "--out", "{out}.yaml", expect="--per-size 0"),
 ]
 
 

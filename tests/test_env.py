@@ -59,6 +59,7 @@ def place_at_slot(env: ApproachGroupEnv, offset=(0.0, 0.0), yaw_error=0.0, speed
     w.base.reset(np.array([slot[0] + offset[0], slot[1] + offset[1], yaw]))
     w.base.vel = np.array([speed * math.cos(yaw), speed * math.sin(yaw), 0.0])
     env._slot = w.group.free_slot(w.robot_pose[:2])
+    env._clearance = w.human_clearance()  # the placed robot has not closed in on anyone (proximity cost)
     keep = speed / env.robot_params.max_speed
     return env.step(np.array([keep, 0.0], dtype=np.float32))
 
@@ -101,7 +102,7 @@ def test_intimate_zone_intrusion_ends_episode_as_failure():
 
 
 def test_proximity_cost_charges_driving_at_a_member_not_standing_beside_it():
-    env = ApproachGroupEnv()
+    env = ApproachGroupEnv(groups="paper")  # the distances below are the paper circle's (2 m between the pair)
     env.reset(seed=2)
     w, g = env.world, env.world.group
     m = g.pos[0]

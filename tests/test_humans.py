@@ -6,10 +6,15 @@ import numpy as np
 import pytest
 
 from ssbl_pb.env.humans import Group, formation_angles, widest_gap
+from ssbl_pb.env.layouts import paper_layout
 from ssbl_pb.params import FORMATIONS, SocialParams
 
 SOCIAL = SocialParams()
 FAR = np.array([30.0, 30.0])
+
+
+def paper_group(formation, n, rotation=0.0, centre=(0.0, 0.0)):
+    return Group(SOCIAL, np.array(centre), paper_layout(formation, n, SOCIAL, rotation))
 
 
 @pytest.mark.parametrize("formation", FORMATIONS)
@@ -17,7 +22,7 @@ FAR = np.array([30.0, 30.0])
 def test_group_left_alone_stays_put(formation, n):
     if formation == "circular" and n == 2:
         pytest.skip("a 2-member circle is a vis-a-vis")
-    g = Group(SOCIAL, np.array([1.0, -2.0]), formation_angles(formation, n, SOCIAL) + 0.4)
+    g = paper_group(formation, n, 0.4, (1.0, -2.0))
     start, yaw0 = g.pos.copy(), g.yaw.copy()
     for _ in range(300):
         g.step(FAR, 0.1)
@@ -30,14 +35,14 @@ def test_group_left_alone_stays_put(formation, n):
 
 def test_members_keep_comfortable_spacing():
     for n in range(2, 6):
-        g = Group(SOCIAL, np.zeros(2), formation_angles("circular", n, SOCIAL) if n > 2 else [0, math.pi])
+        g = paper_group("circular" if n > 2 else "vis_a_vis", n)
         d = np.hypot(*(g.pos[:, None] - g.pos[None]).transpose(2, 0, 1))
         d[np.diag_indices(n)] = np.inf
         assert d.min() >= SOCIAL.min_member_gap - 1e-9
 
 
 def test_newcomer_at_ospace_edge_opens_a_place():
-    g = Group(SOCIAL, np.zeros(2), formation_angles("circular", 3, SOCIAL))
+    g = paper_group("circular", 3)
     mid = 0.5 * (g.member_angles()[0] + g.member_angles()[1])
     robot = (g.base_radius + 0.1) * np.array([math.cos(mid), math.sin(mid)])
     gap0 = abs(g.member_angles()[1] - g.member_angles()[0])
@@ -52,7 +57,7 @@ def test_newcomer_at_ospace_edge_opens_a_place():
 
 
 def test_pair_turns_toward_newcomer():
-    g = Group(SOCIAL, np.zeros(2), np.array([0.0, math.pi]))
+    g = paper_group("vis_a_vis", 2)
     robot = np.array([0.0, -1.3])
     for _ in range(50):
         g.step(robot, 0.1)

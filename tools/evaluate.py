@@ -31,14 +31,15 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--shield", choices=["auto", "on", "off"], default="auto",
                     help="a trained policy's safety shield: as trained (auto, default), or forced on/off")
     for name, what in (("camera", "tools/calibrate_camera.py"), ("robot", "tools/identify_dynamics.py"),
-                       ("social", "tools/calibrate_humans.py"), ("room", "tools/import_map.py")):
+                       ("social", "tools/calibrate_humans.py"), ("room", "tools/import_map.py"),
+                       ("groups", "tools/calibrate_groups.py")):
         ap.add_argument(f"--{name}-yaml", help=f"calibrated {name} parameters ({what}'s output)")
     args = ap.parse_args(argv)
 
     from ssbl_pb.evaluation import Setup, evaluate
 
     workers = args.workers or ((os.cpu_count() or 1) if args.episodes >= 40 else 1)
-    calib = tuple((f"{k}_yaml", v) for k in ("camera", "robot", "social", "room")
+    calib = tuple((f"{k}_yaml", v) for k in ("camera", "robot", "social", "room", "groups")
                   if (v := getattr(args, f"{k}_yaml")) is not None)
     shield = {"auto": None, "on": True, "off": False}[args.shield]
     setup = Setup(args.policy, args.obs_mode, args.scenario, calib, shield)

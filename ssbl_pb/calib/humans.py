@@ -22,7 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..env.humans import Group, formation_angles
+from ..env.humans import Group
+from ..env.layouts import paper_layout
 from ..params import FORMATIONS, SocialParams
 from .io import CalibrationError
 
@@ -122,8 +123,7 @@ def sim_stats(social: SocialParams, episodes: int = 40, seconds: float = 20.0, d
     for ep in eps:
         n = 2 + ep % 4
         form = FORMATIONS[(ep // 4) % len(FORMATIONS)]
-        angles = formation_angles(form, n, social) + rng.uniform(0, 2 * math.pi)
-        g = Group(social, np.zeros(2), angles)
+        g = Group(social, np.zeros(2), paper_layout(form, n, social, rng.uniform(0, 2 * math.pi)))
         theta = rng.uniform(0, 2 * math.pi)
         robot = rng.uniform(3.0, 5.0) * np.array([math.cos(theta), math.sin(theta)])
         slot = g.free_slot(robot)

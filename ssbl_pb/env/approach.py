@@ -16,6 +16,7 @@ import numpy as np
 from ..errors import UserError
 from ..params import ConfigError, RobotParams, SocialParams, WorldParams, from_dict
 from . import observation as ob
+from .layouts import GROUP_MODELS, GroupModel, slot_keep
 from .reward import TERMS, RewardWeights, proximity_cost, reward_terms, route_distance, slot_potential, total_reward
 from .scenarios import ScenarioMix, apply_reset_options
 from .task import TaskParams
@@ -32,10 +33,12 @@ def _params(cls: type, value: Any, name: str) -> Any:
     raise ConfigError(f"{name}: expected a {cls.__name__} or a mapping, got {type(value).__name__}")
 
 
-def parse_env_params(scenario: str, world: Any, robot: Any, social: Any, reward: Any, task: Any
-                     ) -> tuple[ScenarioMix, WorldParams, RobotParams, SocialParams, RewardWeights, TaskParams]:
+def parse_env_params(scenario: str, world: Any, robot: Any, social: Any, reward: Any, task: Any,
+                     groups: Any = None, groups_yaml: str | None = None
+                     ) -> tuple[ScenarioMix, WorldParams, RobotParams, SocialParams, RewardWeights, TaskParams,
+                                GroupModel]:
     """The env's parameters from dataclasses, dicts or None (defaults), checked: the room must hold the largest
-    group the scenario may spawn."""
+    group the scenario may spawn, and the group data must hold every size it may spawn."""
     mix = ScenarioMix(scenario)
     fixed = sorted({"n_humans", "formation"} & set(world)) if isinstance(world, dict) else []
     if fixed:
@@ -45,8 +48,15 @@ def parse_env_params(scenario: str, world: Any, robot: Any, social: Any, reward:
     world_p.check_fits(social_p)
     biggest = max(max(sc.sizes) for sc in mix.members)
     WorldParams(**{**world_p.__dict__, "n_humans": biggest}).check_fits(social_p)
+    if isinstance(groups, GroupModel):
+        model = groups if groups_yaml is None else dataclasses.replace(groups, data_path=str(groups_yaml))
+    elif groups is None or isinstance(groups, str):
+        model = GroupModel(groups or "calibrated", None if groups_yaml is None else str(groups_yaml))
+    else:
+        raise ConfigError(f"groups = {groups!r}: expected one of {GROUP_MODELS}")
+    model.check_sizes({n for sc in mix.members for n in sc.sizes}, {f for sc in mix.members for f in sc.formations})
     return (mix, world_p, _params(RobotParams, robot, "robot"), social_p, _params(RewardWeights, reward, "reward"),
-            _params(TaskParams, task, "task"))
+            _params(TaskParams, task, "task"), model)
 
 
 class ApproachGroupEnv(gym.Env):
@@ -65,10 +75,14 @@ class ApproachGroupEnv(gym.Env):
         render_mode: str | None = None,
         render_width: int = 480,
         record: bool = False,
+        groups: str | GroupModel | None = None,
+        groups_yaml: str | None = None,
     ) -> None:
-        """``record`` keeps every step's state in ``trajectory`` (metrics, plots; on when rendering)."""
-        self.scenario, self.world_params, self.robot_params, self.social, self.weights, self.task = \
-            parse_env_params(scenario, world, robot, social, reward, task)
+        """``record`` keeps every step's state in ``trajectory`` (metrics, plots; on when rendering).
+        ``groups``: where members stand, ``"calibrated"`` (default: real groups' size and irregularity) or
+        ``"paper"`` (the original's 1.0 m circle); ``groups_yaml``: the real-group data (default: shipped)."""
+        self.scenario, self.world_params, self.robot_params, self.social, self.weights, self.task, self.groups = \
+            parse_env_params(scenario, world, robot, social, reward, task, groups, groups_yaml)
         if render_mode not in (None, "rgb_array"):
             raise UserError(f"render_mode {render_mode!r}: expected None or 'rgb_array'")
         if not isinstance(render_width, int) or not 64 <= render_width <= 4096:
@@ -76,7 +90,8 @@ class ApproachGroupEnv(gym.Env):
         self.render_mode = render_mode
         self.render_width = render_width
         self.record = record or render_mode is not None
-        self.world = World(self.world_params, self.robot_params, self.social)
+        keep = slot_keep(self.social, self.robot_params.reach, self.task.intimate_zone)
+        self.world = World(self.world_params, self.robot_params, self.social, self.groups, keep)
         n_act = 3 if self.task.turn else 2
         self.action_space = gym.spaces.Box(-1.0, 1.0, shape=(n_act,), dtype=np.float32)
         self.observation_space = gym.spaces.Box(-ob.OBS_LIMIT, ob.OBS_LIMIT, shape=(ob.OBS_SIZE,),
@@ -111,13 +126,15 @@ class ApproachGroupEnv(gym.Env):
                                      self._walls(), self.robot_params.max_speed, self.robot_params.max_yaw_rate,
                                      w.robot_pose[2] if self.task.turn else None)
 
+    def _keep_out(self, margin: float) -> float:
+        """Radius around the conversation centre a route to the slot keeps out of: the footprint's corners, not
+        its mean radius, must stay out of the intimate zone (plus ``margin``)."""
+        return (self.world.group.radius + self.social.human_radius + self.robot_params.reach
+                + self.task.intimate_zone + margin)
+
     def _route(self, xy: np.ndarray) -> float:
         """Distance to the free slot around the group (``reward.route_distance``)."""
-        g = self.world.group
-        # the footprint's corners, not its mean radius, must stay out of the intimate zone
-        keep_out = (g.radius + self.social.human_radius + self.robot_params.reach + self.task.intimate_zone
-                    + self.task.route_margin)
-        return route_distance(xy, self._slot, g.centre, keep_out)
+        return route_distance(xy, self._slot, self.world.group.centre, self._keep_out(self.task.route_margin))
 
     def heading_error(self) -> float:
         """Angle (rad) from the robot's heading to the conversation centre."""
@@ -128,7 +145,10 @@ class ApproachGroupEnv(gym.Env):
         g = self.world.group
         return {"t": self.world.t, "robot": self.world.robot_pose.copy(), "robot_vel": self.world.base.vel.copy(),
                 "members": g.pos.copy(), "members_yaw": g.yaw.copy(), "centre": g.centre.copy(),
-                "radius": g.radius, "slot": self._slot.copy(), "clearance": self.world.human_clearance()}
+                "radius": g.radius, "slot": self._slot.copy(), "clearance": self.world.human_clearance(),
+                "wall": float(self.world.wall_clearance().min()),  # the footprint's clearance to the nearest wall
+                # the SFFM's repulsion on the robot and on the members (metrics' social work)
+                "social_force": float(np.hypot(*g.robot_repulsion) + np.hypot(*g.repulsion.T).sum())}
 
     # -- Gymnasium API ------------------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
@@ -141,7 +161,7 @@ class ApproachGroupEnv(gym.Env):
         self._slot = self.world.group.free_slot(self.world.robot_pose[:2])
         self._potential = slot_potential(self._route(self.world.robot_pose[:2]), 0.0)
         self._clearance = self.world.human_clearance()
-        self.trajectory = [self._snapshot()] if self.record else []
+        self.trajectory = [{**self._snapshot(), "keep_out": self._keep_out(0.0)}] if self.record else []
         self._top_cam = None
         info = {"n_humans": n, "formation": formation, "start": start}
         return self._obs(), info
@@ -251,7 +271,8 @@ def make_env(obs_mode: str = "vector", camera_width: int = 84, camera_height: in
     match a calibrated camera: its intrinsics set the projection, its field of view and (when calibrated) its
     height, pitch and forward offset set ``RobotParams``. ``robot_yaml`` (``tools/identify_dynamics.py``),
     ``social_yaml`` (``tools/calibrate_humans.py``) and ``room_yaml`` (``tools/import_map.py``, its ``world``
-    section) overlay calibrated values on the defaults.
+    section) overlay calibrated values on the defaults. ``groups_yaml`` (``tools/calibrate_groups.py``) replaces
+    the real-group data the groups are drawn from (``groups="calibrated"``, the default, and scenario ``real``).
     """
     from .wrappers import OBS_MODES, wrap_obs_mode
 

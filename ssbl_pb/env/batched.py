@@ -26,6 +26,7 @@ from . import kernels
 from . import observation as ob
 from .approach import parse_env_params
 from .humans import Group
+from .layouts import GroupModel, slot_keep
 from .reward import TERMS, RewardWeights, weight_vector
 from .scenarios import apply_reset_options
 from .task import TaskParams
@@ -37,14 +38,16 @@ class BatchedApproach:
 
     def __init__(self, num: int, scenario: str = "default", world: WorldParams | dict | None = None,
                  robot: RobotParams | dict | None = None, social: SocialParams | dict | None = None,
-                 reward: RewardWeights | dict | None = None, task: TaskParams | dict | None = None) -> None:
+                 reward: RewardWeights | dict | None = None, task: TaskParams | dict | None = None,
+                 groups: str | GroupModel | None = None, groups_yaml: str | None = None) -> None:
         if not isinstance(num, int) or num < 1:
             raise UserError(f"number of copies {num!r}: expected an integer >= 1")
         self.num = num
-        self.scenario, self.world_params, self.robot_params, self.social, self.weights, self.task = \
-            parse_env_params(scenario, world, robot, social, reward, task)
+        self.scenario, self.world_params, self.robot_params, self.social, self.weights, self.task, self.groups = \
+            parse_env_params(scenario, world, robot, social, reward, task, groups, groups_yaml)
         self.dt = self.world_params.dt
         self.n_act = 3 if self.task.turn else 2
+        self._keep = slot_keep(self.social, self.robot_params.reach, self.task.intimate_zone)
         self._p = kernels.pack_params(self.world_params, self.robot_params, self.social, self.task)
         self.rngs: list[np.random.Generator] = [seeding.np_random(None)[0] for _ in range(num)]
         m = MAX_HUMANS
@@ -56,7 +59,9 @@ class BatchedApproach:
         self.count = np.full(num, 2, dtype=np.int64)
         self.pos, self.mvel, self.myaw = np.zeros((num, m, 2)), np.zeros((num, m, 2)), np.zeros((num, m))
         self.centre0, self.centre = np.zeros((num, 2)), np.zeros((num, 2))
-        self.base_radius, self.joined_radius = np.ones(num), np.ones(num)
+        self.base_radius, self.joined_radius, self.join_radius = np.ones(num), np.ones(num), np.ones(num)
+        self.ring_offset, self.comfort = np.zeros((num, m)), np.zeros((num, m))  # per member (``Group``)
+        self.keep, self.shift = np.zeros(num), np.ones(num)  # the slot's distance rule, the centre's shift
         self.radius, self.join_weight = np.ones(num), np.zeros(num)
         self.force, self.repulsion = np.zeros((num, m, 2)), np.zeros((num, m, 2))
         self.robot_force = np.zeros((num, 2))
@@ -117,19 +122,20 @@ class BatchedApproach:
         """Start copy ``i``'s next episode (``ApproachGroupEnv.reset``, same ``options``); returns its reset info."""
         rng = self.rngs[i]
         n, formation, start = apply_reset_options(self.scenario.sample(rng), options)
-        centre, angles, pose = spawn_layout(rng, self.world_params, self.robot_params, self.social, n, formation,
-                                            start)
-        g = Group(self.social, centre, angles)
+        centre, layout, pose = spawn_layout(rng, self.world_params, self.robot_params, self.social, n, formation,
+                                            start, self.groups)
+        g = Group(self.social, centre, layout, self._keep)
         g.update_centre(pose[:2])
         self.pose[i], self.vel[i], self.queue[i] = pose, 0.0, 0.0
         self.count[i] = n
         for name, value in (("pos", g.pos), ("mvel", g.vel), ("myaw", g.yaw), ("force", g.force),
-                            ("repulsion", g.repulsion)):
+                            ("repulsion", g.repulsion), ("ring_offset", g.ring_offset), ("comfort", g.comfort)):
             arr = getattr(self, name)
             arr[i] = 0.0
             arr[i, :n] = value
         self.centre0[i], self.centre[i], self.robot_force[i] = g.centre0, g.centre, g.robot_force
         self.base_radius[i], self.joined_radius[i] = g.base_radius, g.joined_radius
+        self.join_radius[i], self.keep[i], self.shift[i] = g.join_radius, g.keep, g.centre_shift
         self.radius[i], self.join_weight[i] = g.radius, g.join_weight
         self.steps[i], self.prev_accel[i], self.sums[i] = 0, 0.0, 0.0
         self.slot[i] = g.free_slot(pose[:2])
@@ -150,7 +156,8 @@ class BatchedApproach:
         """
         a = np.ascontiguousarray(actions, dtype=np.float64).reshape(self.num, self.n_act)
         kernels.step(self._p, self._w, a, self.pose, self.vel, self.queue, self.count, self.pos, self.mvel,
-                     self.myaw, self.centre0, self.base_radius, self.joined_radius, self.centre, self.radius,
+                     self.myaw, self.centre0, self.base_radius, self.joined_radius, self.join_radius,
+                     self.ring_offset, self.comfort, self.keep, self.shift, self.centre, self.radius,
                      self.join_weight, self.force, self.repulsion, self.robot_force, self.steps, self.prev_accel,
                      self.clearance, self.slot, self.potential, self.sums, self.rewards, self.flags)
         return self.rewards.copy(), self.flags[:, 0].copy(), self.flags[:, 1].copy()

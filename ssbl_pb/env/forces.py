@@ -43,7 +43,7 @@ def _off_diagonal(k: int) -> np.ndarray:
     return ~np.eye(k, dtype=bool)
 
 
-def _neighbours(dist: np.ndarray, radius: float, mask: np.ndarray | None) -> np.ndarray:
+def _neighbours(dist: np.ndarray, radius: float | np.ndarray, mask: np.ndarray | None) -> np.ndarray:
     inside = (dist < radius) & _off_diagonal(dist.shape[-1])
     return inside if mask is None else inside & mask
 
@@ -53,19 +53,22 @@ def _sum_toward(W: np.ndarray, P: np.ndarray) -> np.ndarray:
     return W @ P - W.sum(axis=-1)[..., None] * P
 
 
-def repulsion(P: np.ndarray, d_p: float, mask: np.ndarray | None = None, pair: Pair | None = None) -> np.ndarray:
+def repulsion(P: np.ndarray, d_p: float | np.ndarray, mask: np.ndarray | None = None,
+              pair: Pair | None = None) -> np.ndarray:
     """Eq. 8: ``F_r = -(d_p - d_min)^2 p_r/|p_r|``, ``p_r = sum_i (p_i - p)`` over agents inside ``d_p``.
 
-    ``d_min`` is the distance to the closest such agent. Zero when nobody is inside the personal zone.
+    ``d_min`` is the distance to the closest such agent. Zero when nobody is inside the personal zone. ``d_p``
+    may also be a (k, k) array, ``d_p[i, j]`` the zone agent ``i`` keeps from agent ``j``; the magnitude is then
+    the deepest intrusion, ``max_j (d_p[i, j] - d_ij)^2`` (the same as eq. 8 for a single radius).
     """
     _, dist = pair if pair is not None else pairwise(P)
     inside = _neighbours(dist, d_p, mask)
     if not inside.any():
         return np.zeros_like(P)
     p_r = _sum_toward(inside.astype(P.dtype), P)
-    d_min = np.where(inside, dist, d_p).min(axis=-1)
+    depth = np.where(inside, d_p - dist, 0.0).max(axis=-1)
     unit, _ = normalize(p_r)
-    return -((d_p - d_min) ** 2)[..., None] * unit
+    return -(depth ** 2)[..., None] * unit
 
 
 def equality(P: np.ndarray, d_s: float, mask: np.ndarray | None = None,

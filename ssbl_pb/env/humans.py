@@ -2,12 +2,14 @@
 
 Model (ref "Social force field model", with the departures noted in ``SocialParams``):
 
-* The members stand on the o-space circle (centre ``o``, radius ``s``) facing its centre.
-* A robot coming within ``s + join_margin`` of the centre joins progressively (weight ``w`` in [0, 1]): the
-  conversation centre moves toward it by ``w/(n+1)`` of the way, as it would if the robot were one more
-  member, and the radius grows to that of ``n + 1`` participants. Members then re-form around the new centre:
-  they step back and apart, which opens a place for the newcomer. Repulsion from the robot (eq. 8) acts
-  whenever it is inside a member's personal zone, joined or not.
+* The members stand where their layout puts them (``layouts``: calibrated on real groups, or the paper's
+  o-space circle), each at its own distance from the conversation centre ``o``, facing it.
+* A robot coming within ``join_radius + join_margin`` of the centre joins progressively (weight ``w`` in
+  [0, 1]; ``join_radius`` is the distance of its place from the centre): the ring widens toward
+  ``joined_radius``, and in the paper's model the centre moves toward the robot by ``w/(n+1)`` of the way, as
+  it would if the robot were one more member. Members then re-form around the centre: they step back and
+  apart, which opens a place for the newcomer. Repulsion from the robot (eq. 8) acts whenever it is inside a
+  member's personal zone, joined or not.
 * Each member moves by ``F = w_c n(F_c) + w_e g n(F_e) + w_r n(F_r)`` (``n`` a soft normalisation, ``g`` the
   ref's equality gate), applied as ``force_newton * n(F)`` to a 1 kg body with linear drag, integrated exactly
   over one control step (speed capped at ``max_speed``).
@@ -25,6 +27,7 @@ import numpy as np
 from ..errors import UserError
 from ..params import FORMATIONS, SocialParams
 from . import forces
+from .layouts import Layout
 
 
 def member_spacing(social: SocialParams, radius: float) -> float:
@@ -98,38 +101,77 @@ def equality_gate(ring_error: np.ndarray, social: SocialParams) -> np.ndarray:
     return np.minimum(np.maximum((np.abs(ring_error) - db) / db, 0.0), 1.0)
 
 
-class Group:
-    """State and dynamics of one conversation group of ``n`` members (arrays, metres, radians)."""
+def slot_distance(rel: np.ndarray, u: np.ndarray, radius: float, keep: float) -> float:
+    """How far from the centre, along the unit direction ``u``, the robot's place is: ``radius`` (the o-space
+    ring), or further out until its centre is ``keep`` metres from every member (``rel``: members relative to
+    the centre). Plain Python, members in index order (``kernels._free_slot`` repeats it)."""
+    t = radius
+    if keep <= 0.0:
+        return t
+    for _ in range(len(rel)):
+        moved = False
+        for qx, qy in rel.tolist():
+            b = qx * u[0] + qy * u[1]
+            h2 = qx * qx + qy * qy - b * b
+            if (t - b) * (t - b) + h2 < keep * keep:
+                t = b + math.sqrt(max(keep * keep - h2, 0.0))
+                moved = True
+        if not moved:
+            break
+    return t
 
-    def __init__(self, social: SocialParams, centre: np.ndarray, angles: np.ndarray) -> None:
+
+class Group:
+    """State and dynamics of one conversation group of ``n`` members (arrays, metres, radians).
+
+    ``layout`` (``layouts.Layout``) gives where the members stand at rest: each keeps its own distance from the
+    conversation centre (``ring_offset`` from the o-space radius) and, from fellow members, the smaller of the
+    personal zone and the distance to its nearest one at spawn (``comfort``), so any layout, real or paper, is
+    at rest when left alone. Except on the paper's circle (``layout.paper``): ``keep`` > 0 moves the free slot
+    out of the ring until the robot's centre is that far from every member (``slot_distance``), and the
+    conversation centre stays put (``centre_shift`` 0); on the paper's circle the slot stays on the ring and the
+    centre moves toward a joining robot by ``w / (n + 1)`` of the way (``centre_shift`` 1).
+    """
+
+    def __init__(self, social: SocialParams, centre: np.ndarray, layout: Layout, keep: float = 0.0) -> None:
         self.social = social
-        self.n = len(angles)
-        self.base_radius = social.ospace_radius_for(self.n)
-        self.joined_radius = max(self.base_radius, social.ospace_radius_for(self.n + 1))
+        self.n = n = len(layout.offsets)
+        self.base_radius = layout.radius
+        self.joined_radius = max(self.base_radius, layout.joined_radius)
+        self.ring_offset = layout.ring - self.base_radius  # exactly 0 on the paper's circle
+        self.keep, self.centre_shift = (0.0, 1.0) if layout.paper else (keep, 0.0)
         self.centre0 = np.asarray(centre, dtype=float).copy()
-        self.pos = self.centre0 + self.base_radius * np.stack([np.cos(angles), np.sin(angles)], axis=1)
-        self.vel = np.zeros((self.n, 2))
-        self.yaw = np.mod(np.asarray(angles, dtype=float) + math.pi, 2.0 * math.pi)
+        self.pos = self.centre0 + layout.offsets
+        self.vel = np.zeros((n, 2))
+        self.yaw = layout.yaw.copy()
         self.centre = self.centre0.copy()
         self.radius = self.base_radius
         self.join_weight = 0.0
-        self.force = np.zeros((self.n, 2))  # total SFFM force on each member (pre-normalisation sum)
-        self.repulsion = np.zeros((self.n, 2))  # its repulsion part
+        self.force = np.zeros((n, 2))  # total SFFM force on each member (pre-normalisation sum)
+        self.repulsion = np.zeros((n, 2))  # its repulsion part
         self.robot_force = np.zeros(2)  # the same field evaluated at the robot (used by rewards R1/R2)
-        k = self.n + 1
+        self.robot_repulsion = np.zeros(2)  # its repulsion part (the members' push on the robot; metrics)
+        k = n + 1
         self._mask_members = np.ones((k, k), dtype=bool)
         self._mask_members[:, -1] = False  # robot not a participant (repulsion ignores this mask)
         self._mask_joined = np.ones((k, k), dtype=bool)
+        gaps = np.hypot(*(layout.offsets[:, None] - layout.offsets[None]).transpose(2, 0, 1))
+        gaps[np.diag_indices(n)] = np.inf
+        self.comfort = np.minimum(social.personal_radius, gaps.min(axis=1))
+        self._zones = np.full((k, k), social.personal_radius)  # repulsion zones; member-member: comfort
+        self._zones[:n, :n] = self.comfort[:, None]
+        # the robot counts as joining from the slot's distance at rest (the ring on the paper's circle)
+        self.join_radius = float(np.hypot(*(self.free_slot() - self.centre0))) if self.keep > 0 else self.base_radius
 
     # -- the conversation centre as seen with a (possibly) joining robot --------------------------------
     def update_centre(self, robot_xy: np.ndarray) -> None:
         """Set ``join_weight``, ``centre`` and ``radius`` for a robot at ``robot_xy``."""
         s = self.social
         d = math.hypot(robot_xy[0] - self.centre0[0], robot_xy[1] - self.centre0[1])
-        w = (self.base_radius + s.join_margin - d) / s.join_margin
+        w = (self.join_radius + s.join_margin - d) / s.join_margin
         w = min(1.0, max(0.0, w))
         self.join_weight = w
-        self.centre = self.centre0 + (w / (self.n + 1)) * (robot_xy - self.centre0)
+        self.centre = self.centre0 + (w * self.centre_shift / (self.n + 1)) * (robot_xy - self.centre0)
         self.radius = self.base_radius + w * (self.joined_radius - self.base_radius)
 
     def field_at(self, agents: np.ndarray, joined: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -137,10 +179,10 @@ class Group:
         s = self.social
         mask = self._mask_joined if joined else self._mask_members
         pair = forces.pairwise(agents)
-        f_r = forces.repulsion(agents, s.personal_radius, pair=pair)
+        f_r = forces.repulsion(agents, self._zones, pair=pair)
         f_e, d_e = forces.equality(agents, s.social_radius, mask, pair)
-        f_c, d_c = forces.cohesion(agents, self.centre, self.radius, s.social_radius, s.public_radius, mask,
-                                   pair)
+        rings = np.append(self.radius + self.ring_offset, self.radius)
+        f_c, d_c = forces.cohesion(agents, self.centre, rings, s.social_radius, s.public_radius, mask, pair)
         return f_c, f_e, f_r, d_e + d_c
 
     def step(self, robot_xy: np.ndarray, dt: float) -> None:
@@ -150,10 +192,11 @@ class Group:
         agents = np.concatenate([self.pos, robot_xy[None, :2]])
         f_c, f_e, f_r, _ = self.field_at(agents, self.join_weight >= 0.5)
         self.robot_force = f_c[-1] + f_e[-1] + f_r[-1]
+        self.robot_repulsion = f_r[-1]
         n = self.n
         f_c, f_e, f_r = f_c[:n], f_e[:n], f_r[:n]
         rel = self.pos - self.centre
-        gate = equality_gate(np.hypot(rel[:, 0], rel[:, 1]) - self.radius, s)[:, None]
+        gate = equality_gate(np.hypot(rel[:, 0], rel[:, 1]) - (self.radius + self.ring_offset), s)[:, None]
         total = combined_force(f_c, f_e, f_r, gate, s)
         self.force = f_c + gate * f_e + f_r
         self.repulsion = f_r
@@ -182,10 +225,12 @@ class Group:
         return np.arctan2(d[:, 1], d[:, 0])
 
     def free_slot(self, robot_xy: np.ndarray | None = None) -> np.ndarray:
-        """The free slot: the middle of the widest gap between members, on the current o-space circle."""
+        """The free slot: the middle of the widest gap between members, on the current o-space circle (or out
+        along the gap's middle until the robot keeps ``keep`` from every member)."""
         toward = None
         if robot_xy is not None:
             d = robot_xy - self.centre
             toward = math.atan2(d[1], d[0])
         mid, _ = widest_gap(self.member_angles(), toward)
-        return self.centre + self.radius * np.array([math.cos(mid), math.sin(mid)])
+        u = np.array([math.cos(mid), math.sin(mid)])
+        return self.centre + slot_distance(self.pos - self.centre, u, self.radius, self.keep) * u

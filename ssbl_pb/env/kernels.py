@@ -117,7 +117,8 @@ def _base_step(p: np.ndarray, pose: np.ndarray, vel: np.ndarray, queue: np.ndarr
 # -- the members ------------------------------------------------------------------------------------------
 @njit(cache=True)
 def _group_step(p: np.ndarray, i: int, rx: float, ry: float, count: np.ndarray, pos: np.ndarray, mvel: np.ndarray,
-                myaw: np.ndarray, centre0: np.ndarray, base_r: np.ndarray, joined_r: np.ndarray, centre: np.ndarray,
+                myaw: np.ndarray, centre0: np.ndarray, base_r: np.ndarray, joined_r: np.ndarray, join_r: np.ndarray,
+                ring_off: np.ndarray, comfort: np.ndarray, shift_k: np.ndarray, centre: np.ndarray,
                 radius: np.ndarray, join_w: np.ndarray, force: np.ndarray, rep: np.ndarray,
                 robot_force: np.ndarray) -> None:
     """``Group.step`` for copy ``i`` with the robot at (rx, ry): SFFM forces (eqs. 8-10) on every agent, the
@@ -127,9 +128,10 @@ def _group_step(p: np.ndarray, i: int, rx: float, ry: float, count: np.ndarray, 
     # update_centre
     dx, dy = rx - centre0[i, 0], ry - centre0[i, 1]
     d = math.hypot(dx, dy)
-    w = min(1.0, max(0.0, (base_r[i] + p[JOIN_MARGIN] - d) / p[JOIN_MARGIN]))
+    w = min(1.0, max(0.0, (join_r[i] + p[JOIN_MARGIN] - d) / p[JOIN_MARGIN]))
     join_w[i] = w
-    cx, cy = centre0[i, 0] + (w / (n + 1)) * dx, centre0[i, 1] + (w / (n + 1)) * dy
+    shift = w * shift_k[i] / (n + 1)
+    cx, cy = centre0[i, 0] + shift * dx, centre0[i, 1] + shift * dy
     centre[i, 0], centre[i, 1] = cx, cy
     R = base_r[i] + w * (joined_r[i] - base_r[i])
     radius[i] = R
@@ -142,18 +144,20 @@ def _group_step(p: np.ndarray, i: int, rx: float, ry: float, count: np.ndarray, 
     fcx, fcy, fex, fey, frx, fry = np.zeros(k), np.zeros(k), np.zeros(k), np.zeros(k), np.zeros(k), np.zeros(k)
     d_p, d_s, d_pub = p[D_P], p[D_S], p[D_PUB]
     for a in range(k):
-        # neighbours: any other agent for repulsion; for equality and cohesion the robot only once it has joined
-        r_cnt, r_sx, r_sy, d_min = 0.0, 0.0, 0.0, d_p
+        # neighbours: any other agent for repulsion (members keep their comfort distance from each other, the
+        # personal zone from the robot); for equality and cohesion the robot only once it has joined
+        r_cnt, r_sx, r_sy, depth = 0.0, 0.0, 0.0, 0.0
         s_cnt, s_sx, s_sy, a_cnt = 0.0, 0.0, 0.0, 0.0
         for b in range(k):
             if b == a:
                 continue
             dist = math.hypot(px[b] - px[a], py[b] - py[a])
-            if dist < d_p:
+            zone = comfort[i, a] if a < n and b < n else d_p
+            if dist < zone:
                 r_cnt += 1.0
                 r_sx += px[b]
                 r_sy += py[b]
-                d_min = min(d_min, dist)
+                depth = max(depth, zone - dist)
             if b == n and not joined:
                 continue
             if dist < d_s:
@@ -166,7 +170,7 @@ def _group_step(p: np.ndarray, i: int, rx: float, ry: float, count: np.ndarray, 
         prx, pry = r_sx - r_cnt * px[a], r_sy - r_cnt * py[a]
         nr = math.hypot(prx, pry)
         if nr > EPS:
-            mag = -((d_p - d_min) ** 2)
+            mag = -(depth ** 2)
             frx[a], fry[a] = mag * (prx / nr), mag * (pry / nr)
         # eq. 9 equality
         c1 = s_cnt + 1.0
@@ -185,14 +189,14 @@ def _group_step(p: np.ndarray, i: int, rx: float, ry: float, count: np.ndarray, 
         ox, oy = cx - px[a], cy - py[a]
         do = math.hypot(ox, oy)
         if do > EPS:
-            sc = (a_cnt / c1) * (1.0 - R / do)
+            sc = (a_cnt / c1) * (1.0 - (R + ring_off[i, a] if a < n else R) / do)
             fcx[a], fcy[a] = sc * ox, sc * oy
     robot_force[i, 0] = fcx[n] + fex[n] + frx[n]
     robot_force[i, 1] = fcy[n] + fey[n] + fry[n]
     decay = math.exp(-p[DRAG] * p[DT])
     dt, sat, db = p[DT], p[SATURATION], p[DEADBAND]
     for a in range(n):
-        ring = abs(math.hypot(px[a] - cx, py[a] - cy) - R)
+        ring = abs(math.hypot(px[a] - cx, py[a] - cy) - (R + ring_off[i, a]))
         gate = min(max((ring - db) / db, 0.0), 1.0)
         sc = max(math.hypot(fcx[a], fcy[a]), sat)
         se = max(math.hypot(fex[a], fey[a]), sat)
@@ -221,8 +225,9 @@ def _group_step(p: np.ndarray, i: int, rx: float, ry: float, count: np.ndarray, 
 
 @njit(cache=True)
 def _free_slot(i: int, rx: float, ry: float, count: np.ndarray, pos: np.ndarray, centre: np.ndarray,
-               radius: np.ndarray, slot: np.ndarray) -> None:
-    """``Group.free_slot`` (``humans.widest_gap`` with the robot's side breaking ties within 10 deg)."""
+               radius: np.ndarray, slot: np.ndarray, keep: float) -> None:
+    """``Group.free_slot`` (``humans.widest_gap`` with the robot's side breaking ties within 10 deg, then
+    ``humans.slot_distance``)."""
     n = count[i]
     cx, cy = centre[i, 0], centre[i, 1]
     toward = math.atan2(ry - cy, rx - cx)
@@ -247,7 +252,21 @@ def _free_slot(i: int, rx: float, ry: float, count: np.ndarray, pos: np.ndarray,
         if err < pick_err:
             pick, pick_err = j, err
     mid = (a[pick] + gaps[pick] / 2.0) % TWO_PI
-    slot[i, 0], slot[i, 1] = cx + radius[i] * math.cos(mid), cy + radius[i] * math.sin(mid)
+    ux, uy = math.cos(mid), math.sin(mid)
+    t = radius[i]
+    if keep > 0.0:
+        for _ in range(n):
+            moved = False
+            for j in range(n):
+                qx, qy = pos[i, j, 0] - cx, pos[i, j, 1] - cy
+                b = qx * ux + qy * uy
+                h2 = qx * qx + qy * qy - b * b
+                if (t - b) * (t - b) + h2 < keep * keep:
+                    t = b + math.sqrt(max(keep * keep - h2, 0.0))
+                    moved = True
+            if not moved:
+                break
+    slot[i, 0], slot[i, 1] = cx + t * ux, cy + t * uy
 
 
 # -- the task ---------------------------------------------------------------------------------------------
@@ -297,7 +316,8 @@ def potentials(p: np.ndarray, pose: np.ndarray, slot: np.ndarray, centre: np.nda
 @njit(cache=True)
 def step(p: np.ndarray, weights: np.ndarray, actions: np.ndarray, pose: np.ndarray, vel: np.ndarray,
          queue: np.ndarray, count: np.ndarray, pos: np.ndarray, mvel: np.ndarray, myaw: np.ndarray,
-         centre0: np.ndarray, base_r: np.ndarray, joined_r: np.ndarray, centre: np.ndarray, radius: np.ndarray,
+         centre0: np.ndarray, base_r: np.ndarray, joined_r: np.ndarray, join_r: np.ndarray, ring_off: np.ndarray,
+         comfort: np.ndarray, keep: np.ndarray, shift_k: np.ndarray, centre: np.ndarray, radius: np.ndarray,
          join_w: np.ndarray, force: np.ndarray, rep: np.ndarray, robot_force: np.ndarray, steps: np.ndarray,
          prev_accel: np.ndarray, clearance: np.ndarray, slot: np.ndarray, potential: np.ndarray, sums: np.ndarray,
          rewards: np.ndarray, flags: np.ndarray) -> None:
@@ -321,10 +341,10 @@ def step(p: np.ndarray, weights: np.ndarray, actions: np.ndarray, pose: np.ndarr
         potential_before = potential[i]
         _base_step(p, pose, vel, queue, i, fx, fy, w)
         x, y = pose[i, 0], pose[i, 1]
-        _group_step(p, i, x, y, count, pos, mvel, myaw, centre0, base_r, joined_r, centre, radius, join_w, force,
-                    rep, robot_force)
+        _group_step(p, i, x, y, count, pos, mvel, myaw, centre0, base_r, joined_r, join_r, ring_off, comfort,
+                    shift_k, centre, radius, join_w, force, rep, robot_force)
         steps[i] += 1
-        _free_slot(i, x, y, count, pos, centre, radius, slot)
+        _free_slot(i, x, y, count, pos, centre, radius, slot, keep[i])
         slot_after = math.hypot(slot[i, 0] - x, slot[i, 1] - y)
         nearest, prox = np.inf, 0.0
         for j in range(n):

@@ -51,7 +51,7 @@ def run_episode(env: gym.Env, policy: Policy, seed: int, keep_trajectory: bool =
         if terminated or truncated:
             break
     m = episode_metrics(core.trajectory, info["success"], info["collision"], info["violation"], core.task,
-                        core.dt, core.social.fov_half_angle_deg)
+                        core.dt, core.social.fov_half_angle_deg, core.social.human_radius + core.robot_params.radius)
     sums = info["episode_terms"]
     m["return"] = sums["reward"]
     for k in TERMS:

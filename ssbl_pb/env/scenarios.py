@@ -1,9 +1,10 @@
 """Named scenarios: which groups are spawned and where the robot starts (issue: approaching task).
 
 ``default`` is the paper's 2-member vis-a-vis group with the robot starting anywhere around it. Each other
-name fixes a formation (sizes 2-5 where the formation allows), ``behind`` starts the robot behind a member,
-``FORMATION-N`` fixes both (e.g. ``circular-4``), a comma-separated list mixes names uniformly, and ``mixed``
-samples every formation, size and start.
+name fixes a formation (sizes 2-5 where the formation allows), ``real`` places groups of 2-5 exactly as in
+annotated real frames (``layouts.real_layout``), ``behind`` starts the robot behind a member, ``FORMATION-N``
+fixes both (e.g. ``circular-4``, ``real-3``), a comma-separated list mixes names uniformly, and ``mixed``
+samples every formation (``real`` included), size and start.
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ import dataclasses
 import numpy as np
 
 from ..errors import UserError
-from ..params import FORMATIONS
+from .layouts import LAYOUTS
 
 STARTS = ("any", "behind")
 
@@ -39,8 +40,9 @@ BASE_SCENARIOS: dict[str, Scenario] = {
     "side_by_side": Scenario("side_by_side", (2, 3, 4), ("side_by_side",)),
     "circular": Scenario("circular", (3, 4, 5), ("circular",)),
     "behind": Scenario("behind", (2, 3), ("vis_a_vis", "l_shape", "side_by_side"), "behind"),
+    "real": Scenario("real", (2, 3, 4, 5), ("real",)),
 }
-MIXED = ("vis_a_vis", "l_shape", "side_by_side", "circular", "behind")
+MIXED = ("vis_a_vis", "l_shape", "side_by_side", "circular", "behind", "real")
 SCENARIO_NAMES = (*BASE_SCENARIOS, "mixed", "FORMATION-N", "a,b,...")
 
 
@@ -50,10 +52,10 @@ def _one(name: str) -> list[Scenario]:
     if name == "mixed":
         return [BASE_SCENARIOS[m] for m in MIXED]
     form, _, size = name.rpartition("-")
-    if form in FORMATIONS and size.isdigit() and 2 <= int(size) <= 5:
+    if form in LAYOUTS and size.isdigit() and 2 <= int(size) <= 5:
         return [Scenario(name, (int(size),), (form,))]
     raise UserError(f"scenario {name!r}: expected one of {list(BASE_SCENARIOS)}, 'mixed', FORMATION-N with "
-                     f"FORMATION in {list(FORMATIONS)} and N in 2..5, or a comma-separated list of these")
+                     f"FORMATION in {list(LAYOUTS)} and N in 2..5, or a comma-separated list of these")
 
 
 class ScenarioMix:
@@ -89,8 +91,8 @@ def apply_reset_options(sample: tuple[int, str, str], options: dict | None) -> t
     start = options.get("start", start)
     if not isinstance(n, int) or not 2 <= n <= 5:
         raise UserError(f"reset option n_humans = {n!r}: expected an integer in 2..5")
-    if formation not in FORMATIONS:
-        raise UserError(f"reset option formation = {formation!r}: expected one of {list(FORMATIONS)}")
+    if formation not in LAYOUTS:
+        raise UserError(f"reset option formation = {formation!r}: expected one of {list(LAYOUTS)}")
     if start not in ("any", "behind"):
         raise UserError(f"reset option start = {start!r}: expected 'any' or 'behind'")
     return n, formation, start

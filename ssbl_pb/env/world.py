@@ -19,7 +19,8 @@ from ..urdf import urdf_path
 from . import cameras
 from .base import HolonomicBase
 from .bullet import pybullet as p
-from .humans import Group, formation_angles
+from .humans import Group
+from .layouts import GroupModel, Layout
 
 MAX_HUMANS = 5
 HUMAN_COLOURS = [(0.20, 0.70, 0.30, 1), (0.20, 0.40, 0.85, 1), (0.90, 0.50, 0.10, 1), (0.60, 0.30, 0.75, 1),
@@ -44,22 +45,24 @@ def box_circle_distance(pose: np.ndarray, half: tuple[float, float], centres: np
 
 
 def spawn_layout(rng: np.random.Generator, world: WorldParams, robot: RobotParams, social: SocialParams, n: int,
-                 formation: str, start: str = "any") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """A group's centre (2,) and members' angles (n,) and the robot's pose (x, y, yaw) for one episode.
+                 formation: str, start: str = "any", groups: GroupModel | None = None
+                 ) -> tuple[np.ndarray, Layout, np.ndarray]:
+    """A group's centre (2,) and layout (``layouts.Layout``) and the robot's pose (x, y, yaw) for one episode.
 
-    The group (an F-formation at a random place and rotation) keeps ``wall_margin`` from the walls even once
-    the robot has joined; the robot starts ``robot_spawn_min``..``robot_spawn_max`` from its centre, anywhere
-    around it or (``start="behind"``) behind a member, facing a random way.
+    The group (``groups``' layout for ``formation``, at a random place and rotation) keeps ``wall_margin`` from
+    the walls even once the robot has joined; the robot starts ``robot_spawn_min``..``robot_spawn_max`` from its
+    centre, anywhere around it or (``start="behind"``) behind a member, facing a random way.
     """
     if not isinstance(n, int | np.integer) or not 2 <= n <= MAX_HUMANS:
         raise ConfigError(f"n_humans = {n!r}: expected an integer in [2, {MAX_HUMANS}]")
     if start not in ("any", "behind"):
         raise ConfigError(f"start = {start!r}: expected 'any' or 'behind'")
     sx, sy = world.room_size
-    joined_r = max(social.ospace_radius_for(n), social.ospace_radius_for(n + 1))
-    margin = joined_r + social.human_radius + world.wall_margin
+    layout = (groups or GroupModel()).layout(formation, int(n), social, rng)
+    extent = max(layout.joined_radius, float(np.hypot(layout.offsets[:, 0], layout.offsets[:, 1]).max()))
+    margin = extent + social.human_radius + world.wall_margin
     robot_margin = robot.length / 2 + world.wall_margin
-    angles = formation_angles(formation, n, social) + rng.uniform(0, 2 * math.pi)
+    angles = np.arctan2(layout.offsets[:, 1], layout.offsets[:, 0])
     for _ in range(1000):
         centre = np.array([rng.uniform(-sx / 2 + margin, sx / 2 - margin),
                            rng.uniform(-sy / 2 + margin, sy / 2 - margin)])
@@ -75,17 +78,21 @@ def spawn_layout(rng: np.random.Generator, world: WorldParams, robot: RobotParam
     else:  # pragma: no cover - prevented by WorldParams.check_fits
         raise ConfigError(f"world.room_size = {world.room_size}: could not place a group of {n} and "
                           f"the robot after 1000 tries")
-    return centre, angles, np.array([xy[0], xy[1], rng.uniform(-math.pi, math.pi)])
+    return centre, layout, np.array([xy[0], xy[1], rng.uniform(-math.pi, math.pi)])
 
 
 class World:
     """Pepper and one conversation group in a walled room; ``reset`` spawns, ``step`` advances by ``dt``."""
 
     def __init__(self, world: WorldParams | None = None, robot: RobotParams | None = None,
-                 social: SocialParams | None = None) -> None:
+                 social: SocialParams | None = None, groups: GroupModel | None = None, keep: float = 0.0) -> None:
+        """``groups``: where members stand (``layouts.GroupModel``, calibrated by default); ``keep``: the distance
+        the robot's place keeps from every member's centre (``Group``, ``layouts.slot_keep``)."""
         self.params = world or WorldParams()
         self.robot_params = robot or RobotParams()
         self.social = social or SocialParams()
+        self.groups = groups or GroupModel()
+        self.keep = keep
         self.params.check_fits(self.social)
         self.base = HolonomicBase(self.robot_params, self.params.dt)
         self.group: Group | None = None
@@ -145,8 +152,9 @@ class World:
         """Spawn a group (F-formation at a random place and rotation) and the robot outside it."""
         n = self.params.n_humans if n_humans is None else n_humans
         form = self.params.formation if formation is None else formation
-        centre, angles, pose = spawn_layout(rng, self.params, self.robot_params, self.social, n, form, start)
-        self.group = Group(self.social, centre, angles)
+        centre, layout, pose = spawn_layout(rng, self.params, self.robot_params, self.social, n, form, start,
+                                            self.groups)
+        self.group = Group(self.social, centre, layout, self.keep)
         self.base.reset(pose)
         self.group.update_centre(self.base.pose[:2])
         self.t = 0.0
