@@ -80,11 +80,16 @@ def test_every_metric_has_a_documented_direction_and_name():
         assert f"`{name}`" in doc, name
 
 
-def test_sffm_episode_metrics_are_consistent():
+def test_episode_metrics_of_two_policies():
     env = ApproachGroupEnv(record=True)
-    m = run_episode(env, make_policy("sffm"), 2001).metrics
+    m = run_episode(env, make_policy("sffm"), 2000).metrics
     env.close()
     assert m["success"] == 1.0 and 0.5 < m["spl"] <= 1.0
     assert m["speed_max"] <= 0.35 + 1e-9 and m["speed_min"] <= m["speed_mean"] <= m["speed_max"]
-    assert 0 < m["min_ttc_s"] <= TTC_HORIZON and m["min_wall_clearance_m"] > 0
-    assert m["social_work"] > 0  # it came within the members' personal zones
+    assert 0 < m["min_ttc_s"] < TTC_HORIZON and m["min_wall_clearance_m"] > 0
+    assert m["social_work"] == 0.0  # it stayed outside every member's SFFM personal zone (1.2 m)
+    # a straight line from behind a member cuts into the group: repulsion, and a collision course
+    env = ApproachGroupEnv(record=True, scenario="behind")
+    m = run_episode(env, make_policy("straight"), 2000).metrics
+    env.close()
+    assert m["violation"] == 1.0 and m["social_work"] > 0.0 and m["min_ttc_s"] < 2.0 and m["spl"] == 0.0

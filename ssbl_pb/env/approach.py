@@ -90,7 +90,7 @@ class ApproachGroupEnv(gym.Env):
         self.render_mode = render_mode
         self.render_width = render_width
         self.record = record or render_mode is not None
-        keep = slot_keep(self.social, self.robot_params.reach, self.task.intimate_zone)
+        keep = slot_keep(self.social, self.robot_params.reach, self.task.intimate_zone, self.task.route_margin)
         self.world = World(self.world_params, self.robot_params, self.social, self.groups, keep)
         n_act = 3 if self.task.turn else 2
         self.action_space = gym.spaces.Box(-1.0, 1.0, shape=(n_act,), dtype=np.float32)

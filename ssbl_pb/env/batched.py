@@ -47,7 +47,7 @@ class BatchedApproach:
             parse_env_params(scenario, world, robot, social, reward, task, groups, groups_yaml)
         self.dt = self.world_params.dt
         self.n_act = 3 if self.task.turn else 2
-        self._keep = slot_keep(self.social, self.robot_params.reach, self.task.intimate_zone)
+        self._keep = slot_keep(self.social, self.robot_params.reach, self.task.intimate_zone, self.task.route_margin)
         self._p = kernels.pack_params(self.world_params, self.robot_params, self.social, self.task)
         self.rngs: list[np.random.Generator] = [seeding.np_random(None)[0] for _ in range(num)]
         m = MAX_HUMANS

@@ -49,12 +49,12 @@ class SFFMRobotParams:
     * equality is not gated: the gate keeps the members' formation, but it is what draws the robot along the
       o-space circle toward the gap.
 
-    Real groups stand tighter (``layouts``): the robot's place is outside their o-space ring and well inside
-    the members' personal zones (about 0.55 m between bodies for a pair). There the robot is drawn to the ring
-    its place is on (the slot's distance from the centre, never less than the o-space radius) and keeps
-    ``zone_margin`` beyond its place's clearance instead of the whole personal zone (on the paper's circle the
-    personal zone is the smaller of the two, so nothing changes there): 0 % of 40 calibrated default starts
-    joined with the personal zone, 95 % with this (docs/decisions.md, "Groups as real people stand").
+    Real groups stand tighter (``layouts``): the robot's place is outside their o-space ring and inside the
+    members' personal zones (about 0.6 m between bodies). There the robot is drawn to the ring its place is on
+    (the slot's distance from the centre, never less than the o-space radius) and keeps ``zone_margin`` beyond
+    its place's clearance (at least beyond the intimate zone) instead of the whole personal zone where that is
+    smaller (on the paper's circle it rarely is): 0 % of 40 calibrated default starts joined with the personal
+    zone, 90 % with this (docs/decisions.md, "Groups as real people stand").
     """
 
     weight_cohesion: float = 1.0
