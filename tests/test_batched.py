@@ -5,12 +5,11 @@ import math
 import numpy as np
 import pytest
 
-from ssbl_pb.env import kernels
 from ssbl_pb.env import observation as ob
 from ssbl_pb.env.approach import ApproachGroupEnv
 from ssbl_pb.env.batched import BatchedApproach
 from ssbl_pb.env.policies import SFFMPolicy, StraightPolicy
-from ssbl_pb.env.reward import TERMS, RewardWeights, route_distance, total_reward, weight_vector
+from ssbl_pb.env.reward import TERMS, RewardWeights, total_reward, weight_vector
 from ssbl_pb.env.shield import ShieldParams, shield_action, shield_actions
 from ssbl_pb.env.wrappers import ActionFilter
 
@@ -90,17 +89,6 @@ def test_batch_rejects_bad_arguments():
         BatchedApproach(2, scenario="nope")
     with pytest.raises(ValueError, match="w_smooth"):
         BatchedApproach(2).set_reward_weights(w_smooth=-1.0)
-
-
-def test_route_kernel_matches_reward_route_distance():
-    rng = np.random.default_rng(3)
-    p, slot, centre = rng.uniform(-4, 4, (200, 2)), rng.uniform(-1.5, 1.5, (200, 2)), rng.uniform(-1, 1, (200, 2))
-    keep = rng.uniform(0.5, 2.5, 200)
-    got = [kernels._route(*p[i], *slot[i], *centre[i], keep[i]) for i in range(200)]
-    want = [route_distance(p[i], slot[i], centre[i], keep[i]) for i in range(200)]
-    assert np.allclose(got, want, atol=1e-9)
-    inside = np.hypot(*(p - centre).T) < np.maximum(keep, np.hypot(*(slot - centre).T))
-    assert 10 < inside.sum() < 190  # both branches were compared
 
 
 def test_weight_vector_is_eq15():

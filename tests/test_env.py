@@ -58,8 +58,7 @@ def place_at_slot(env: ApproachGroupEnv, offset=(0.0, 0.0), yaw_error=0.0, speed
     yaw = math.atan2(to_c[1], to_c[0]) + yaw_error
     w.base.reset(np.array([slot[0] + offset[0], slot[1] + offset[1], yaw]))
     w.base.vel = np.array([speed * math.cos(yaw), speed * math.sin(yaw), 0.0])
-    env._slot = w.group.free_slot(w.robot_pose[:2])
-    env._clearance = w.human_clearance()  # the placed robot has not closed in on anyone (proximity cost)
+    env.refresh()  # the slot, and clearances the placed robot has not closed (proximity cost)
     keep = speed / env.robot_params.max_speed
     return env.step(np.array([keep, 0.0], dtype=np.float32))
 
@@ -111,7 +110,7 @@ def test_proximity_cost_charges_driving_at_a_member_not_standing_beside_it():
     # driving toward the centre (action (1, 0) in the approach frame) drives at the member
     start = m + 1.3 * u
     w.base.reset(np.array([*start, math.atan2(-u[1], -u[0])]))
-    env._clearance = w.human_clearance()
+    env.refresh()
     cost, clearances = 0.0, []
     for _ in range(20):
         _, _, term, _, info = env.step(np.array([1.0, 0.0], dtype=np.float32))
@@ -128,8 +127,8 @@ def test_proximity_cost_charges_driving_at_a_member_not_standing_beside_it():
     for action in (0.0, 1.0):
         env.reset(seed=2)
         w.base.reset(np.array([*(g.centre0 + (np.linalg.norm(m - g.centre0) + 1.25) * u), math.atan2(-u[1], -u[0])]))
-        env._clearance = w.human_clearance()
-        assert 0.45 < env._clearance[0] < 0.75
+        env.refresh()
+        assert 0.45 < w.human_clearance()[0] < 0.75
         per_step[action] = env.step(np.array([action, 0.0], dtype=np.float32))[4]["terms"]["proximity"]
     assert per_step[0.0] == 0.0 and per_step[1.0] < 0.0
 
@@ -143,7 +142,11 @@ def test_route_keeps_the_footprint_corners_out_of_the_intimate_zone():
     keep_out = g.radius + env.social.human_radius + env.robot_params.reach + env.task.intimate_zone
     from ssbl_pb.env.reward import route_distance
 
-    assert env._route(far) == pytest.approx(route_distance(far, env.slot(), g.centre, keep_out))
+    assert env.keep_out() == pytest.approx(keep_out + env.task.route_margin)
+    pose = np.array([*far, 0.0])
+    env.world.base.pose = pose
+    env.refresh()  # the shaping potential is minus the way around the group (standing still)
+    assert env.sim.potential[0] == pytest.approx(-route_distance(far, env.slot(), g.centre, keep_out))
     assert env.robot_params.reach == pytest.approx(0.5 * math.hypot(0.48, 0.43))
 
 
@@ -228,14 +231,11 @@ def test_calibration_yamls_overlay_the_defaults(tmp_path):
         make_env(room_yaml=str(tmp_path / "dyn.yaml"))
 
 
-def test_step_replaces_state_arrays_without_writing_into_them():
-    # approach.step keeps the previous arrays as the "before" states for the reward (no copies)
-    env = ApproachGroupEnv(scenario="mixed")
+def test_recorded_states_are_copies_of_the_state():
+    env = ApproachGroupEnv(scenario="mixed", record=True)
     env.reset(seed=4)
-    w, g = env.world, env.world.group
     for _ in range(30):
-        old = (w.base.pose, w.base.vel, g.pos, g.vel)
-        saved = [a.copy() for a in old]
         env.step(np.array([1.0, 0.5], dtype=np.float32))
-        for a, b in zip(old, saved, strict=True):
-            assert np.array_equal(a, b)
+    first = env.trajectory[0]
+    assert not np.array_equal(first["robot"], env.world.robot_pose)  # it moved, the record did not
+    assert not np.array_equal(first["members"], env.world.group.pos) or env.world.group.n == 0

@@ -91,44 +91,12 @@ def test_mask_excludes_neighbours():
     assert np.allclose(F[0], 0.0) and not np.allclose(F[1], 0.0)
 
 
-def test_shared_pairwise_gives_same_result():
-    rng = np.random.default_rng(3)
-    P = rng.uniform(-2, 2, size=(5, 2))
-    pair = forces.pairwise(P)
-    assert np.allclose(forces.equality(P, 5.0)[0], forces.equality(P, 5.0, pair=pair)[0])
-
-
-def test_a_batch_of_padded_scenes_matches_each_scene_alone():
-    rng = np.random.default_rng(3)
-    sizes, k = [2, 3, 6, 4], 6
-    P = rng.uniform(-2.0, 2.0, (len(sizes), k, 2))
-    mask = np.ones((len(sizes), k, k), dtype=bool)
-    own_masks = []
-    for b, n in enumerate(sizes):
-        mask[b, n:, :] = mask[b, :, n:] = False  # padding: nobody's neighbour, no neighbours
-        own = np.ones((n, n), dtype=bool)
-        own[:, -1] = False  # as in the env: the last agent (the robot) is not a participant
-        mask[b, :n, :n] = own
-        own_masks.append(own)
-    o = rng.uniform(-0.5, 0.5, (len(sizes), 1, 2))
-    s = rng.uniform(0.8, 1.3, (len(sizes), 1))
-    pad_only = mask.copy()
-    for b, n in enumerate(sizes):
-        pad_only[b, :n, :n] = True
-    batched = {
-        "repulsion": forces.repulsion(P, 1.2, pad_only),
-        "equality": forces.equality(P, 5.0, mask),
-        "cohesion": forces.cohesion(P, o, s, 5.0, 8.0, mask),
-    }
-    for b, n in enumerate(sizes):
-        q, own = P[b, :n], own_masks[b]
-        alone = {
-            "repulsion": forces.repulsion(q, 1.2),
-            "equality": forces.equality(q, 5.0, own),
-            "cohesion": forces.cohesion(q, o[b, 0], float(s[b, 0]), 5.0, 8.0, own),
-        }
-        for name, ref in alone.items():
-            got = batched[name]
-            for g, r in zip(got if isinstance(got, tuple) else (got,), ref if isinstance(ref, tuple) else (ref,),
-                            strict=True):
-                assert np.allclose(g[b, :n], r, atol=1e-12), (name, b)
+def test_repulsion_with_a_zone_per_pair_takes_the_deepest_intrusion():
+    # agent 0 keeps 0.8 m from agent 1 (at 0.5 m: 0.3 deep) and 1.2 m from agent 2 (at 1.0 m: 0.2 deep)
+    P = np.array([[0.0, 0.0], [0.5, 0.0], [0.0, 1.0]])
+    zones = np.array([[0.0, 0.8, 1.2], [0.8, 0.0, 1.2], [1.2, 1.2, 0.0]])
+    F = forces.repulsion(P, zones)
+    assert F[0] == pytest.approx(-(0.3 ** 2) * np.array([0.5, 1.0]) / math.hypot(0.5, 1.0))
+    # the per-agent function the members' step calls gives the same
+    mask = np.ones((3, 3), dtype=bool)
+    assert forces.repulsion_on(0, P, zones, mask) == pytest.approx(tuple(F[0]))

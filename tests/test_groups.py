@@ -166,7 +166,7 @@ def test_real_layouts_left_alone_stay_put():
             g = Group(SOCIAL, np.zeros(2), lay, KEEP)
             if paper:  # one o-space radius for all, members repel within the personal zone
                 g.ring_offset[:] = 0.0
-                g._zones[:n, :n] = SOCIAL.personal_radius
+                g.comfort[:] = SOCIAL.personal_radius
             start = g.pos.copy()
             for _ in range(300):
                 g.step(robot, 0.1)

@@ -83,7 +83,8 @@ def test_shielded_robot_driving_at_a_member_stops_outside_the_intimate_zone():
         u = (g.pos[0] - g.centre) / np.linalg.norm(g.pos[0] - g.centre)
         w.base.reset(np.array([*(g.pos[0] + 1.5 * u), math.atan2(-u[1], -u[0])]))
         if shielded:
-            env._obs = core._obs()
+            core.refresh()
+            env._obs = core.observe()
         info = {}
         for _ in range(60):  # full speed toward the centre, through member 0
             _, _, term, _, info = env.step(np.array([1.0, 0.0], dtype=np.float32))

@@ -7,7 +7,6 @@ camera observation modes are wrappers of this one env (``wrappers``).
 from __future__ import annotations
 
 import dataclasses
-import math
 from typing import Any
 
 import gymnasium as gym
@@ -15,10 +14,11 @@ import numpy as np
 
 from ..errors import UserError
 from ..params import ConfigError, RobotParams, SocialParams, WorldParams, from_dict
+from . import humans, kernels
 from . import observation as ob
-from .layouts import GROUP_MODELS, GroupModel, slot_keep
-from .reward import TERMS, RewardWeights, proximity_cost, reward_terms, route_distance, slot_potential, total_reward
-from .scenarios import ScenarioMix, apply_reset_options
+from .layouts import GROUP_MODELS, GroupModel
+from .reward import RewardWeights
+from .scenarios import ScenarioMix
 from .task import TaskParams
 from .world import World
 
@@ -60,7 +60,19 @@ def parse_env_params(scenario: str, world: Any, robot: Any, social: Any, reward:
 
 
 class ApproachGroupEnv(gym.Env):
-    """Pepper approaches a conversation group and joins it at the free slot."""
+    """Pepper approaches a conversation group and joins it at the free slot.
+
+    Observation: the Vector observation (``observation``, 40 floats). Action: (toward the centre, to its left) in
+    [-1, 1] (x max speed), plus a turn with ``TaskParams.turn``. Start: a group of the scenario's size and
+    formation at a random place, the robot 2.5-5.5 m away (``world.spawn_layout``). Reward: eq. 15 with our terms
+    (``reward``). Ends: success (``task.joined``), a collision or intimate-zone intrusion (terminated), or
+    ``max_steps`` (truncated). Each step's ``info``: ``terms`` (unweighted reward terms), ``success``,
+    ``collision``, ``violation``, ``slot_distance``; at the end also ``episode_terms`` and ``is_success``.
+
+    The state and its step are a batch of one of the training engine (``batched.BatchedApproach``); ``world`` is
+    the PyBullet scene showing that state (rendering, cameras, contact checks), its ``base`` and ``group`` views
+    of the batch's arrays.
+    """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 10}
 
@@ -81,145 +93,92 @@ class ApproachGroupEnv(gym.Env):
         """``record`` keeps every step's state in ``trajectory`` (metrics, plots; on when rendering).
         ``groups``: where members stand, ``"calibrated"`` (default: real groups' size and irregularity) or
         ``"paper"`` (the original's 1.0 m circle); ``groups_yaml``: the real-group data (default: shipped)."""
-        self.scenario, self.world_params, self.robot_params, self.social, self.weights, self.task, self.groups = \
-            parse_env_params(scenario, world, robot, social, reward, task, groups, groups_yaml)
+        from .batched import BatchedApproach
+
         if render_mode not in (None, "rgb_array"):
             raise UserError(f"render_mode {render_mode!r}: expected None or 'rgb_array'")
         if not isinstance(render_width, int) or not 64 <= render_width <= 4096:
             raise UserError(f"render width {render_width!r}: expected an integer in [64, 4096] pixels")
+        self.sim = BatchedApproach(1, scenario, world, robot, social, reward, task, groups, groups_yaml)
+        sim = self.sim
+        self.scenario, self.world_params, self.robot_params = sim.scenario, sim.world_params, sim.robot_params
+        self.social, self.task, self.groups = sim.social, sim.task, sim.groups
         self.render_mode = render_mode
         self.render_width = render_width
         self.record = record or render_mode is not None
-        keep = slot_keep(self.social, self.robot_params.reach, self.task.intimate_zone, self.task.route_margin)
-        self.world = World(self.world_params, self.robot_params, self.social, self.groups, keep)
-        n_act = 3 if self.task.turn else 2
-        self.action_space = gym.spaces.Box(-1.0, 1.0, shape=(n_act,), dtype=np.float32)
+        self.world = World(self.world_params, self.robot_params, self.social, self.groups, sim.keep)
+        self.world.attach(sim.bases, sim.groups_state, 0)
+        self.action_space = gym.spaces.Box(-1.0, 1.0, shape=(sim.n_act,), dtype=np.float32)
         self.observation_space = gym.spaces.Box(-ob.OBS_LIMIT, ob.OBS_LIMIT, shape=(ob.OBS_SIZE,),
                                                 dtype=np.float32)
         self.dt = self.world_params.dt
-        self._steps = 0
-        self._prev_accel = np.zeros(2)
-        self._clearance = np.zeros(0)
-        self._sums: dict[str, float] = {}
-        self._slot = np.zeros(2)
-        self._potential = 0.0
         self.trajectory: list[dict[str, Any]] = []
         self._top_cam = None
 
+    @property
+    def weights(self) -> RewardWeights:
+        return self.sim.weights
+
+    @weights.setter
+    def weights(self, value: RewardWeights | dict) -> None:
+        self.sim.weights = value
+
     def set_reward_weights(self, **changes: float) -> None:
         """Change reward weights between episodes (training schedules); unknown names raise."""
-        self.weights = from_dict(RewardWeights, {**dataclasses.asdict(self.weights), **changes}, "reward")
+        self.sim.set_reward_weights(**changes)
 
-    # -- helpers ------------------------------------------------------------------------------------------
-    def _walls(self) -> np.ndarray:
-        sx, sy = self.world_params.room_size
-        x, y = self.world.robot_pose[:2]
-        return np.array([sx / 2 - x, x + sx / 2, sy / 2 - y, y + sy / 2])
-
+    # -- the state ----------------------------------------------------------------------------------------
     def slot(self) -> np.ndarray:
         """The free slot now (world frame, metres; updated once per step)."""
-        return self._slot
-
-    def _obs(self) -> np.ndarray:
-        w, g = self.world, self.world.group
-        return ob.vector_observation(w.robot_pose, w.base.vel, g.pos, g.vel, g.centre, g.radius, self._slot,
-                                     self._walls(), self.robot_params.max_speed, self.robot_params.max_yaw_rate,
-                                     w.robot_pose[2] if self.task.turn else None)
-
-    def _keep_out(self, margin: float) -> float:
-        """Radius around the conversation centre a route to the slot keeps out of: the footprint's corners, not
-        its mean radius, must stay out of the intimate zone (plus ``margin``)."""
-        return (self.world.group.radius + self.social.human_radius + self.robot_params.reach
-                + self.task.intimate_zone + margin)
-
-    def _route(self, xy: np.ndarray) -> float:
-        """Distance to the free slot around the group (``reward.route_distance``)."""
-        return route_distance(xy, self._slot, self.world.group.centre, self._keep_out(self.task.route_margin))
+        return self.sim.slot[0]
 
     def heading_error(self) -> float:
         """Angle (rad) from the robot's heading to the conversation centre."""
-        (cx, cy), (x, y, yaw) = self.world.group.centre.tolist(), self.world.robot_pose[:3].tolist()
-        return math.remainder(math.atan2(cy - y, cx - x) - yaw, 2.0 * math.pi)
+        return kernels.heading_error(self.sim.pose[0], self.sim.centre[0])
 
-    def _snapshot(self) -> dict[str, Any]:
-        g = self.world.group
-        return {"t": self.world.t, "robot": self.world.robot_pose.copy(), "robot_vel": self.world.base.vel.copy(),
-                "members": g.pos.copy(), "members_yaw": g.yaw.copy(), "centre": g.centre.copy(),
-                "radius": g.radius, "slot": self._slot.copy(), "clearance": self.world.human_clearance(),
-                "wall": float(self.world.wall_clearance().min()),  # the footprint's clearance to the nearest wall
-                # the SFFM's repulsion on the robot and on the members (metrics' social work)
-                "social_force": float(np.hypot(*g.robot_repulsion) + np.hypot(*g.repulsion.T).sum())}
+    def keep_out(self, margin: float | None = None) -> float:
+        """Radius around the conversation centre the shaping's way to the slot keeps out of: the footprint's
+        corners, not its mean radius, must stay out of the intimate zone (plus ``margin``, default the task's)."""
+        margin = self.task.route_margin if margin is None else margin
+        return (self.world.group.radius + self.social.human_radius + self.robot_params.reach
+                + self.task.intimate_zone + margin)
+
+    def refresh(self) -> None:
+        """Recompute the slot, clearances and shaping potential after the state was moved by hand (tests, a
+        simulated robot placed somewhere), as ``reset`` does."""
+        sim, g = self.sim, self.sim.groups_state
+        n = int(g.count[0])
+        sim.slot[0] = humans.free_slot(n, g.pos[0], *g.centre[0], g.scalars[0, humans.RADIUS],
+                                       g.scalars[0, humans.KEEP], *sim.pose[0, :2], True)
+        kernels.clearances(sim._tp, sim.pose[0], n, g.pos[0], sim.clearance[0])
+        speed = float(np.hypot(*sim.vel[0, :2]))
+        sim.potential[0] = kernels.potential(sim._tp, sim.pose[0], sim.slot[0], g.centre[0],
+                                             g.scalars[0, humans.RADIUS], speed)
+        self.world.invalidate()
+
 
     # -- Gymnasium API ------------------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
         super().reset(seed=seed)
-        n, formation, start = apply_reset_options(self.scenario.sample(self.np_random), options)
-        self.world.reset(self.np_random, n_humans=n, formation=formation, start=start)
-        self._steps = 0
-        self._prev_accel = np.zeros(2)
-        self._sums = {k: 0.0 for k in (*TERMS, "reward")}
-        self._slot = self.world.group.free_slot(self.world.robot_pose[:2])
-        self._potential = slot_potential(self._route(self.world.robot_pose[:2]), 0.0)
-        self._clearance = self.world.human_clearance()
-        self.trajectory = [{**self._snapshot(), "keep_out": self._keep_out(0.0)}] if self.record else []
+        self.sim.rngs[0] = self.np_random  # the env's generator draws the episode
+        info = self.sim.reset(0, options)
+        self.world.t = 0.0
+        self.world.invalidate()
+        self.trajectory = [{**self.sim.snapshot(0, 0.0), "keep_out": self.keep_out(0.0)}] if self.record else []
         self._top_cam = None
-        info = {"n_humans": n, "formation": formation, "start": start}
-        return self._obs(), info
+        return self.observe(), info
 
-    def command(self, action: np.ndarray) -> np.ndarray:
-        """Body-frame base command (forward, left, turn) for a normalised action.
-
-        The action is (toward the centre, to the left of that) in the approach frame (``observation``), or
-        (forward, left, turn) in the body frame when the policy steers (``TaskParams.turn``).
-        """
-        a = [min(max(v, -1.0), 1.0) for v in np.asarray(action, dtype=float).ravel().tolist()]
-        rp = self.robot_params
-        if self.task.turn:
-            return np.array([a[0] * rp.max_speed, a[1] * rp.max_speed, a[2] * rp.max_yaw_rate])
-        e = self.heading_error()
-        turn = min(max(self.task.heading_gain * e, -rp.max_yaw_rate), rp.max_yaw_rate)
-        c, s = math.cos(e), math.sin(e)  # approach frame -> body frame
-        return np.array([(c * a[0] - s * a[1]) * rp.max_speed, (s * a[0] + c * a[1]) * rp.max_speed, turn])
+    def observe(self) -> np.ndarray:
+        """The Vector observation of the current state."""
+        return self.sim.observations()[0]
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
-        w, g = self.world, self.world.group
-        a = np.asarray(action, dtype=float).reshape(self.action_space.shape)  # ``command`` clips it
-        # stepping replaces these arrays (never writes into them), so the old ones are the "before" states
-        robot_before, members_before, vel_before = w.base.pose[:2], g.pos, w.base.vel[:2]
-        potential_before = self._potential  # the state's potential, computed at the end of the previous step
-        w.step(self.command(a))
-        self._steps += 1
-        xy = w.robot_pose[:2]
-        self._slot = g.free_slot(xy)
-        slot_after = math.dist(self._slot.tolist(), xy.tolist())
-        clearance = w.human_clearance()
-        collided = w.in_contact(clearance)
-        violation = collided or bool(clearance.min() < self.task.intimate_zone)
-        speed = math.hypot(*w.base.vel[:2].tolist())
-        success = (not violation and slot_after < self.task.slot_tolerance and speed < self.task.stop_speed
-                   and abs(self.heading_error()) < math.radians(self.task.heading_tolerance_deg))
-        accel = (w.base.vel[:2] - vel_before) / self.dt
-        self._potential = slot_potential(self._route(w.robot_pose[:2]), speed)
-        proximity = proximity_cost(self._clearance, clearance, self.task.intimate_zone, self.task.proximity_band)
-        self._clearance = clearance
-        terms = reward_terms(g.robot_force, w.robot_pose[:2] - robot_before, g.force, g.pos - members_before,
-                             g.repulsion, self.dt, accel, self._prev_accel, potential_before, self._potential,
-                             success, violation, proximity)
-        r = total_reward(terms, self.weights)
-        self._prev_accel = accel
-        for k, v in terms.items():
-            self._sums[k] += v
-        self._sums["reward"] += r
+        rewards, terminated, truncated = self.sim.step(np.asarray(action, dtype=float).reshape(1, -1))
+        self.world.t += self.dt
+        self.world.invalidate()
         if self.record:
-            self.trajectory.append(self._snapshot())
-        terminated = success or violation
-        truncated = not terminated and self._steps >= self.task.max_steps
-        info: dict[str, Any] = {"terms": terms, "success": success, "collision": collided,
-                                "violation": violation, "slot_distance": slot_after}
-        if terminated or truncated:
-            info["episode_terms"] = dict(self._sums)
-            info["is_success"] = success  # SB3's convention for success-rate logging
-        return self._obs(), r, terminated, truncated, info
+            self.trajectory.append(self.sim.snapshot(0, self.world.t))
+        return self.observe(), float(rewards[0]), bool(terminated[0]), bool(truncated[0]), self.sim.outcome(0)
 
     def render(self) -> np.ndarray | None:
         if self.render_mode != "rgb_array":

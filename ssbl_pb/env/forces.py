@@ -1,112 +1,164 @@
-"""Social force field model (SFFM), paper section III-C, eqs. 8-10, as pure vectorised numpy functions.
+"""Social force field model (SFFM), paper section III-C, eqs. 8-10: each force on one agent, compiled.
 
-All agents live in one array ``P`` of shape (k, 2) (metres, world frame). ``mask[i, j]`` says whether agent
-``j`` may count as a neighbour of agent ``i`` (default: every other agent); the zone radius then decides who
-actually does. Each force returns an array (k, 2); orientations likewise. Every function also takes a batch
-of independent scenes, ``P`` (..., k, 2) and ``mask`` (..., k, k), and answers per scene (groups of different
-sizes: pad ``P`` and mask the padding out), so many envs can share one call. Degenerate cases return zeros, never
-NaN: an agent with nobody in a zone feels no force from it, and coincident agents (zero separation, so no
-defined direction) exert none. ``pair`` lets a caller that evaluates several forces share one
-``pairwise(P)``; it never changes a result.
+Agents live in one array ``P`` (k, 2) (metres, world frame). ``mask[a, b]`` says whether agent ``b`` may count as
+a neighbour of agent ``a``; the zone radius then decides who actually does. ``repulsion_on``, ``equality_on`` and
+``cohesion_on`` give the force (and orientation) on agent ``a``: the members' motion (``humans.group_step``), the
+robot's field in the rewards and the SFFM baseline all call these. ``repulsion``, ``equality`` and ``cohesion``
+apply them to every agent (arrays (k, 2)), for tests and plots. Degenerate cases return zeros, never NaN: an agent
+with nobody in a zone feels no force from it, and coincident agents (no defined direction) exert none.
 """
 
 from __future__ import annotations
 
-import functools
+import math
 
 import numpy as np
+from numba import njit
 
-_EPS = 1e-9
-Pair = tuple[np.ndarray, np.ndarray]
+EPS = 1e-9
+
+
+@njit(cache=True)
+def repulsion_on(a: int, P: np.ndarray, zones: np.ndarray, mask: np.ndarray) -> tuple[float, float]:
+    """Eq. 8: ``F_r = -(d_p - d_min)^2 p_r/|p_r|``, ``p_r = sum_i (p_i - p)`` over agents inside the zone.
+
+    ``zones[a, b]`` is the personal zone agent ``a`` keeps from agent ``b`` (eq. 8's ``d_p``); the magnitude is
+    the deepest intrusion, ``max_b (d_p[a, b] - d_ab)^2`` (eq. 8 itself for a single radius). Zero when nobody
+    is inside."""
+    cnt, sx, sy, depth = 0.0, 0.0, 0.0, 0.0
+    for b in range(P.shape[0]):
+        if b == a or not mask[a, b]:
+            continue
+        dist = math.hypot(P[b, 0] - P[a, 0], P[b, 1] - P[a, 1])
+        if dist < zones[a, b]:
+            cnt += 1.0
+            sx += P[b, 0]
+            sy += P[b, 1]
+            depth = max(depth, zones[a, b] - dist)
+    prx, pry = sx - cnt * P[a, 0], sy - cnt * P[a, 1]
+    nr = math.hypot(prx, pry)
+    if nr <= EPS:
+        return 0.0, 0.0
+    return -(depth * depth) * prx / nr, -(depth * depth) * pry / nr
+
+
+@njit(cache=True)
+def equality_on(a: int, P: np.ndarray, d_s: float, mask: np.ndarray) -> tuple[float, float, float, float]:
+    """Eq. 9: ``F_e = (1 - m/|c - p|)(c - p)`` and the orientation ``d_e = sum_i (p_i - p)``.
+
+    ``c = (p + sum_i p_i)/(N_s + 1)`` over the agents inside the social zone ``d_s``; ``m`` is the mean distance
+    of those agents (``a`` included) from ``c``. Returns (F_e x, F_e y, d_e x, d_e y)."""
+    cnt, sx, sy = 0.0, 0.0, 0.0
+    for b in range(P.shape[0]):
+        if b != a and mask[a, b] and math.hypot(P[b, 0] - P[a, 0], P[b, 1] - P[a, 1]) < d_s:
+            cnt += 1.0
+            sx += P[b, 0]
+            sy += P[b, 1]
+    c1 = cnt + 1.0
+    cx, cy = (P[a, 0] + sx) / c1, (P[a, 1] + sy) / c1
+    own = math.hypot(cx - P[a, 0], cy - P[a, 1])
+    total = own
+    for b in range(P.shape[0]):
+        if b != a and mask[a, b] and math.hypot(P[b, 0] - P[a, 0], P[b, 1] - P[a, 1]) < d_s:
+            total += math.hypot(cx - P[b, 0], cy - P[b, 1])
+    dx, dy = sx - cnt * P[a, 0], sy - cnt * P[a, 1]
+    if own <= EPS:
+        return 0.0, 0.0, dx, dy
+    scale = 1.0 - (total / c1) / own
+    return scale * (cx - P[a, 0]), scale * (cy - P[a, 1]), dx, dy
+
+
+@njit(cache=True)
+def cohesion_on(a: int, P: np.ndarray, ox: float, oy: float, s: float, d_s: float, d_pub: float,
+                mask: np.ndarray) -> tuple[float, float, float, float]:
+    """Eq. 10: ``F_c = alpha (1 - s/|o - p|)(o - p)``, ``alpha = N_a/(N_s + 1)``, ``d_c = sum_i (p_i - p)``.
+
+    ``o`` is the conversation centre, ``s`` the o-space radius agent ``a`` keeps from it; ``N_a`` counts the
+    agents inside the public zone ``d_pub`` and ``N_s`` those inside the social zone ``d_s``. An agent exactly at
+    ``o`` has no defined direction and feels no cohesion. Returns (F_c x, F_c y, d_c x, d_c y)."""
+    n_a, n_s, sx, sy = 0.0, 0.0, 0.0, 0.0
+    for b in range(P.shape[0]):
+        if b == a or not mask[a, b]:
+            continue
+        dist = math.hypot(P[b, 0] - P[a, 0], P[b, 1] - P[a, 1])
+        if dist < d_pub:
+            n_a += 1.0
+            sx += P[b, 0]
+            sy += P[b, 1]
+        if dist < d_s:
+            n_s += 1.0
+    dx, dy = sx - n_a * P[a, 0], sy - n_a * P[a, 1]
+    tx, ty = ox - P[a, 0], oy - P[a, 1]
+    d = math.hypot(tx, ty)
+    if d <= EPS:
+        return 0.0, 0.0, dx, dy
+    scale = (n_a / (n_s + 1.0)) * (1.0 - s / d)
+    return scale * tx, scale * ty, dx, dy
+
+
+# -- every agent at once (tests, plots, the SFFM baseline) ------------------------------------------------------
+def _mask(P: np.ndarray, mask: np.ndarray | None) -> np.ndarray:
+    return np.ones((len(P), len(P)), dtype=np.bool_) if mask is None else np.asarray(mask, dtype=np.bool_)
+
+
+def _zones(P: np.ndarray, d_p: float | np.ndarray) -> np.ndarray:
+    return np.broadcast_to(np.asarray(d_p, dtype=float), (len(P), len(P))).astype(float)
+
+
+@njit(cache=True)
+def _repulsion_all(P: np.ndarray, zones: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    out = np.zeros_like(P)
+    for a in range(P.shape[0]):
+        out[a, 0], out[a, 1] = repulsion_on(a, P, zones, mask)
+    return out
+
+
+@njit(cache=True)
+def _equality_all(P: np.ndarray, d_s: float, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    f, d = np.zeros_like(P), np.zeros_like(P)
+    for a in range(P.shape[0]):
+        f[a, 0], f[a, 1], d[a, 0], d[a, 1] = equality_on(a, P, d_s, mask)
+    return f, d
+
+
+@njit(cache=True)
+def _cohesion_all(P: np.ndarray, o: np.ndarray, s: np.ndarray, d_s: float, d_pub: float, mask: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    f, d = np.zeros_like(P), np.zeros_like(P)
+    for a in range(P.shape[0]):
+        f[a, 0], f[a, 1], d[a, 0], d[a, 1] = cohesion_on(a, P, o[a, 0], o[a, 1], s[a], d_s, d_pub, mask)
+    return f, d
+
+
+def repulsion(P: np.ndarray, d_p: float | np.ndarray, mask: np.ndarray | None = None) -> np.ndarray:
+    """``repulsion_on`` for every agent: (k, 2). ``d_p`` a radius or a (k, k) array of zones."""
+    P = np.asarray(P, dtype=float).reshape(-1, 2)
+    return _repulsion_all(P, _zones(P, d_p), _mask(P, mask))
+
+
+def equality(P: np.ndarray, d_s: float, mask: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """``equality_on`` for every agent: forces and orientations, (k, 2) each."""
+    P = np.asarray(P, dtype=float).reshape(-1, 2)
+    return _equality_all(P, float(d_s), _mask(P, mask))
+
+
+def cohesion(P: np.ndarray, o: np.ndarray, s: float | np.ndarray, d_s: float, d_pub: float,
+             mask: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """``cohesion_on`` for every agent: forces and orientations, (k, 2) each. ``o`` one centre (2,) or one per
+    agent (k, 2); ``s`` one radius or one per agent (k,)."""
+    P = np.asarray(P, dtype=float).reshape(-1, 2)
+    o = np.broadcast_to(np.asarray(o, dtype=float), P.shape).astype(float)
+    s = np.broadcast_to(np.asarray(s, dtype=float), (len(P),)).astype(float)
+    return _cohesion_all(P, o, s, float(d_s), float(d_pub), _mask(P, mask))
 
 
 def normalize(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Unit vectors and norms of ``v`` (..., 2); a zero vector maps to zero (safe at zero length)."""
     n = np.hypot(v[..., 0], v[..., 1])
-    ok = n > _EPS
+    ok = n > EPS
     return v * (ok / np.where(ok, n, 1.0))[..., None], n
 
 
 def soft_normalize(v: np.ndarray, scale: float) -> np.ndarray:
     """``v / max(|v|, scale)``: a unit vector far from zero, linear (``v/scale``) within ``scale`` of it."""
     return v / np.maximum(np.hypot(v[..., 0], v[..., 1]), scale)[..., None]
-
-
-def pairwise(P: np.ndarray) -> Pair:
-    """``diff[i, j] = p_j - p_i`` (k, k, 2) and ``dist[i, j]`` (k, k) (with P's leading batch axes, if any)."""
-    diff = P[..., None, :, :] - P[..., :, None, :]
-    return diff, np.hypot(diff[..., 0], diff[..., 1])
-
-
-@functools.lru_cache(maxsize=16)
-def _off_diagonal(k: int) -> np.ndarray:
-    return ~np.eye(k, dtype=bool)
-
-
-def _neighbours(dist: np.ndarray, radius: float | np.ndarray, mask: np.ndarray | None) -> np.ndarray:
-    inside = (dist < radius) & _off_diagonal(dist.shape[-1])
-    return inside if mask is None else inside & mask
-
-
-def _sum_toward(W: np.ndarray, P: np.ndarray) -> np.ndarray:
-    """``sum_j W[i, j] (p_j - p_i)`` for each i."""
-    return W @ P - W.sum(axis=-1)[..., None] * P
-
-
-def repulsion(P: np.ndarray, d_p: float | np.ndarray, mask: np.ndarray | None = None,
-              pair: Pair | None = None) -> np.ndarray:
-    """Eq. 8: ``F_r = -(d_p - d_min)^2 p_r/|p_r|``, ``p_r = sum_i (p_i - p)`` over agents inside ``d_p``.
-
-    ``d_min`` is the distance to the closest such agent. Zero when nobody is inside the personal zone. ``d_p``
-    may also be a (k, k) array, ``d_p[i, j]`` the zone agent ``i`` keeps from agent ``j``; the magnitude is then
-    the deepest intrusion, ``max_j (d_p[i, j] - d_ij)^2`` (the same as eq. 8 for a single radius).
-    """
-    _, dist = pair if pair is not None else pairwise(P)
-    inside = _neighbours(dist, d_p, mask)
-    if not inside.any():
-        return np.zeros_like(P)
-    p_r = _sum_toward(inside.astype(P.dtype), P)
-    depth = np.where(inside, d_p - dist, 0.0).max(axis=-1)
-    unit, _ = normalize(p_r)
-    return -(depth ** 2)[..., None] * unit
-
-
-def equality(P: np.ndarray, d_s: float, mask: np.ndarray | None = None,
-             pair: Pair | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Eq. 9: ``F_e = (1 - m/|c - p|)(c - p)`` and orientation ``d_e = sum_i (p_i - p)``.
-
-    ``c = (p + sum_i p_i)/(N_s + 1)`` over the agents inside the social zone ``d_s``; ``m`` is the mean distance
-    of those members (the agent included) from ``c``.
-    """
-    _, dist = pair if pair is not None else pairwise(P)
-    W = _neighbours(dist, d_s, mask).astype(P.dtype)
-    WP, count = W @ P, W.sum(axis=-1)
-    count1 = (count + 1.0)[..., None]
-    c = (P + WP) / count1
-    to_c = c[..., :, None, :] - P[..., None, :, :]  # [i, j] = c_i - p_j
-    d_to_c = np.hypot(to_c[..., 0], to_c[..., 1])
-    self_d = np.diagonal(d_to_c, axis1=-2, axis2=-1)
-    m = (self_d + (W * d_to_c).sum(axis=-1)) / count1[..., 0]
-    ok = self_d > _EPS
-    scale = np.where(ok, 1.0 - m / np.where(ok, self_d, 1.0), 0.0)
-    return scale[..., None] * (c - P), WP - count[..., None] * P
-
-
-def cohesion(P: np.ndarray, o: np.ndarray, s: float, d_s: float, d_pub: float, mask: np.ndarray | None = None,
-             pair: Pair | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Eq. 10: ``F_c = alpha (1 - s/|o - p|)(o - p)``, ``alpha = N_a/(N_s + 1)``, ``d_c = sum_i (p_i - p)``.
-
-    ``o`` is the conversation centre (2,) or one per agent (k, 2), ``s`` the o-space radius; ``N_a`` counts the
-    agents inside the public zone ``d_pub`` and ``N_s`` those inside the social zone ``d_s``. An agent exactly
-    at ``o`` has no defined direction and feels no cohesion. Batched: ``o`` (..., 1, 2) and ``s`` (..., 1) give
-    each scene its own centre and radius.
-    """
-    _, dist = pair if pair is not None else pairwise(P)
-    A = _neighbours(dist, d_pub, mask).astype(P.dtype)
-    n_a = A.sum(axis=-1)
-    alpha = n_a / (_neighbours(dist, d_s, mask).sum(axis=-1) + 1.0)
-    op = o - P
-    d = np.hypot(op[..., 0], op[..., 1])
-    ok = d > _EPS
-    scale = np.where(ok, alpha * (1.0 - s / np.where(ok, d, 1.0)), 0.0)
-    return scale[..., None] * op, A @ P - n_a[..., None] * P

@@ -13,6 +13,10 @@ Model (ref "Social force field model", with the departures noted in ``SocialPara
 * Each member moves by ``F = w_c n(F_c) + w_e g n(F_e) + w_r n(F_r)`` (``n`` a soft normalisation, ``g`` the
   ref's equality gate), applied as ``force_newton * n(F)`` to a 1 kg body with linear drag, integrated exactly
   over one control step (speed capped at ``max_speed``).
+
+``group_step`` and ``free_slot`` (compiled) are the only implementation: the training batch (``kernels``), the
+env and ``Group`` (one group, for the world, calibration and tests) all run them on the arrays of
+``GroupArrays``, whose row ``i`` is one group padded to ``MAX_HUMANS`` members.
 * Members face the conversation centre. The paper's orientations ``d_e + d_c`` point at the neighbours'
   centroid, which is the same for symmetric groups but would turn an L-shaped or side-by-side pair toward each
   other and break the formation; ``field_at`` still returns them.
@@ -23,11 +27,21 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 
 from ..errors import UserError
 from ..params import FORMATIONS, SocialParams
-from . import forces
+from .base import clip, wrap_angle
+from .forces import EPS, cohesion_on, equality_on, repulsion_on
 from .layouts import Layout
+
+MAX_HUMANS = 5
+TWO_PI = 2.0 * math.pi
+# the SFFM's parameters as the compiled step reads them (``sffm_params``)
+(D_P, D_S, D_PUB, W_COH, W_EQ, W_REP, NEWTON_PER_DRAG, DRAG, SATURATION, DEADBAND, MEMBER_MAX_SPEED, TURN_RATE,
+ JOIN_MARGIN, DT, N_SFFM) = range(15)
+# per-group scalars, columns of ``GroupArrays.scalars``
+(BASE_RADIUS, JOINED_RADIUS, JOIN_RADIUS, KEEP, SHIFT, RADIUS, JOIN_WEIGHT, N_SCALARS) = range(8)
 
 
 def member_spacing(social: SocialParams, radius: float) -> float:
@@ -59,59 +73,67 @@ def formation_angles(formation: str, n: int, social: SocialParams) -> np.ndarray
     return np.concatenate([side_a, side_b])
 
 
-def widest_gap(angles: np.ndarray, toward: float | None = None, tie_deg: float = 10.0) -> tuple[float, float]:
-    """Mid-angle and size (rad) of the widest angular gap between members.
+def sffm_params(social: SocialParams, dt: float) -> np.ndarray:
+    """``SocialParams`` packed for ``group_step`` (indices: this module's constants)."""
+    p = np.zeros(N_SFFM)
+    for k, v in {D_P: social.personal_radius, D_S: social.social_radius, D_PUB: social.public_radius,
+                 W_COH: social.weight_cohesion, W_EQ: social.weight_equality, W_REP: social.weight_repulsion,
+                 NEWTON_PER_DRAG: social.force_newton / social.mass / social.drag, DRAG: social.drag,
+                 SATURATION: social.saturation, DEADBAND: social.equality_deadband,
+                 MEMBER_MAX_SPEED: social.max_speed, TURN_RATE: social.max_turn_rate,
+                 JOIN_MARGIN: social.join_margin, DT: dt}.items():
+        p[k] = v
+    return p
 
-    Gaps within ``tie_deg`` of the widest are ties; ``toward`` (an angle) picks the tie whose middle is closest
-    to it (e.g. the robot's side of a vis-a-vis pair). Plain Python: groups have at most 5 members.
-    """
-    two_pi = 2.0 * math.pi
-    a = sorted(float(x) % two_pi for x in angles)
-    gaps = [a[i + 1] - a[i] for i in range(len(a) - 1)] + [a[0] + two_pi - a[-1]]
-    best = max(gaps)
-    tie = best - math.radians(tie_deg)
-    pick, pick_err = -1, math.inf
-    for i, g in enumerate(gaps):
-        if g < tie:
+
+@njit(cache=True)
+def _gaps(angles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Angles sorted in [0, 2 pi) and the gap after each (to the next, the last wrapping to the first)."""
+    a = np.sort(angles % TWO_PI)
+    n = a.shape[0]
+    gaps = np.empty(n)
+    for j in range(n - 1):
+        gaps[j] = a[j + 1] - a[j]
+    gaps[n - 1] = a[0] + TWO_PI - a[n - 1]
+    return a, gaps
+
+
+@njit(cache=True)
+def widest_gap_toward(angles: np.ndarray, toward: float, use_toward: bool, tie_deg: float) -> tuple[float, float]:
+    """Mid-angle and size (rad) of the widest angular gap between members. Gaps within ``tie_deg`` of the widest
+    are ties; with ``use_toward`` the tie whose middle is closest to ``toward`` wins (the robot's side of a
+    vis-a-vis pair), else the widest of them."""
+    a, gaps = _gaps(angles)
+    tie = gaps.max() - math.radians(tie_deg)
+    pick, pick_err = -1, np.inf
+    for j in range(a.shape[0]):
+        if gaps[j] < tie:
             continue
-        mid = a[i] + g / 2.0
-        if toward is None:
-            err = -g  # the widest among ties
-        else:
-            err = abs(math.remainder(mid - toward, two_pi))
+        err = abs(wrap_angle(a[j] + gaps[j] / 2.0 - toward)) if use_toward else -gaps[j]
         if err < pick_err:
-            pick, pick_err = i, err
-    return (a[pick] + gaps[pick] / 2.0) % two_pi, gaps[pick]
+            pick, pick_err = j, err
+    return (a[pick] + gaps[pick] / 2.0) % TWO_PI, gaps[pick]
 
 
-def combined_force(f_c: np.ndarray, f_e: np.ndarray, f_r: np.ndarray, gate: np.ndarray | float,
-                   social: SocialParams) -> np.ndarray:
-    """The SFFM's motion force ``w_c n(F_c) + w_e g n(F_e) + w_r n(F_r)`` (ref), ``n`` a soft normalisation."""
-    k = len(f_c)
-    n = forces.soft_normalize(np.concatenate([f_c, f_e, f_r]), social.saturation)  # one call for all three
-    g = np.asarray(gate, dtype=float)
-    g = g[..., None] if g.ndim == 1 else g
-    return (social.weight_cohesion * n[:k] + (social.weight_equality * g) * n[k:2 * k]
-            + social.weight_repulsion * n[2 * k:])
+def widest_gap(angles: np.ndarray, toward: float | None = None, tie_deg: float = 10.0) -> tuple[float, float]:
+    """``widest_gap_toward`` with an optional ``toward``."""
+    return widest_gap_toward(np.asarray(angles, dtype=float), 0.0 if toward is None else float(toward),
+                             toward is not None, float(tie_deg))
 
 
-def equality_gate(ring_error: np.ndarray, social: SocialParams) -> np.ndarray:
-    """The ref's gate: equality acts only off the o-space ring (ramped over one dead band)."""
-    db = social.equality_deadband
-    return np.minimum(np.maximum((np.abs(ring_error) - db) / db, 0.0), 1.0)
-
-
-def slot_distance(rel: np.ndarray, u: np.ndarray, radius: float, keep: float) -> float:
-    """How far from the centre, along the unit direction ``u``, the robot's place is: ``radius`` (the o-space
-    ring), or further out until its centre is ``keep`` metres from every member (``rel``: members relative to
-    the centre). Plain Python, members in index order (``kernels._free_slot`` repeats it)."""
+@njit(cache=True)
+def slot_distance(rel: np.ndarray, ux: float, uy: float, radius: float, keep: float) -> float:
+    """How far from the centre, along the unit direction (ux, uy), the robot's place is: ``radius`` (the o-space
+    ring), or further out until its centre is ``keep`` metres from every member (``rel``: members relative to the
+    centre, in index order)."""
     t = radius
     if keep <= 0.0:
         return t
-    for _ in range(len(rel)):
+    for _ in range(rel.shape[0]):
         moved = False
-        for qx, qy in rel.tolist():
-            b = qx * u[0] + qy * u[1]
+        for j in range(rel.shape[0]):
+            qx, qy = rel[j, 0], rel[j, 1]
+            b = qx * ux + qy * uy
             h2 = qx * qx + qy * qy - b * b
             if (t - b) * (t - b) + h2 < keep * keep:
                 t = b + math.sqrt(max(keep * keep - h2, 0.0))
@@ -121,103 +143,201 @@ def slot_distance(rel: np.ndarray, u: np.ndarray, radius: float, keep: float) ->
     return t
 
 
+@njit(cache=True)
+def free_slot(n: int, pos: np.ndarray, cx: float, cy: float, radius: float, keep: float, rx: float, ry: float,
+              use_robot: bool) -> tuple[float, float]:
+    """The free slot: the middle of the widest gap between the ``n`` members at ``pos`` around the centre
+    (cx, cy) (ties broken toward the robot at (rx, ry) when ``use_robot``), on the o-space circle or out along
+    the gap's middle until the robot keeps ``keep`` from every member (``slot_distance``)."""
+    rel = np.empty((n, 2))
+    angles = np.empty(n)
+    for j in range(n):
+        rel[j, 0], rel[j, 1] = pos[j, 0] - cx, pos[j, 1] - cy
+        angles[j] = math.atan2(rel[j, 1], rel[j, 0])
+    mid, _ = widest_gap_toward(angles, math.atan2(ry - cy, rx - cx), use_robot, 10.0)
+    ux, uy = math.cos(mid), math.sin(mid)
+    t = slot_distance(rel, ux, uy, radius, keep)
+    return cx + t * ux, cy + t * uy
+
+
+@njit(cache=True)
+def update_centre(sp: np.ndarray, g_n: int, rx: float, ry: float, centre0: np.ndarray, join_radius: float,
+                  shift: float, base_radius: float, joined_radius: float) -> tuple[float, float, float, float]:
+    """A robot at (rx, ry) joins progressively within ``join_margin`` of its place: the joining weight ``w``, the
+    conversation centre (moved toward the robot by ``w shift/(n + 1)`` of the way) and the o-space radius
+    (widened toward ``joined_radius``). Returns (w, centre x, centre y, radius)."""
+    dx, dy = rx - centre0[0], ry - centre0[1]
+    w = clip((join_radius + sp[JOIN_MARGIN] - math.hypot(dx, dy)) / sp[JOIN_MARGIN], 0.0, 1.0)
+    k = w * shift / (g_n + 1)
+    return w, centre0[0] + k * dx, centre0[1] + k * dy, base_radius + w * (joined_radius - base_radius)
+
+
+@njit(cache=True)
+def group_step(sp: np.ndarray, i: int, rx: float, ry: float, count: np.ndarray, pos: np.ndarray, vel: np.ndarray,
+               yaw: np.ndarray, centre0: np.ndarray, centre: np.ndarray, scalars: np.ndarray, ring_offset: np.ndarray,
+               comfort: np.ndarray, force: np.ndarray, repulsion: np.ndarray, robot_force: np.ndarray) -> None:
+    """One control period of group ``i`` (rows of ``GroupArrays``' arrays, updated in place) with the robot at
+    (rx, ry): the SFFM forces (eqs. 8-10) on every agent, the members' motion under them, and the same field at
+    the robot (``robot_force``: total then repulsion part) for the rewards."""
+    n = count[i]
+    k = n + 1
+    sc = scalars[i]
+    w, cx, cy, R = update_centre(sp, n, rx, ry, centre0[i], sc[JOIN_RADIUS], sc[SHIFT], sc[BASE_RADIUS],
+                                 sc[JOINED_RADIUS])
+    sc[JOIN_WEIGHT], sc[RADIUS] = w, R
+    centre[i, 0], centre[i, 1] = cx, cy
+    P = np.empty((k, 2))
+    P[:n] = pos[i, :n]
+    P[n, 0], P[n, 1] = rx, ry
+    zones = np.full((k, k), sp[D_P])  # members keep their comfort distance from each other, d_p from the robot
+    for a in range(n):
+        for b in range(n):
+            zones[a, b] = comfort[i, a]
+    everyone = np.ones((k, k), dtype=np.bool_)
+    members = everyone.copy()  # equality and cohesion count the robot only once it has joined
+    if w < 0.5:
+        members[:, n] = False
+    decay = math.exp(-sp[DRAG] * sp[DT])
+    dt, sat, db = sp[DT], sp[SATURATION], sp[DEADBAND]
+    for a in range(k):
+        frx, fry = repulsion_on(a, P, zones, everyone)
+        fex, fey, _, _ = equality_on(a, P, sp[D_S], members)
+        ring = R + ring_offset[i, a] if a < n else R
+        fcx, fcy, _, _ = cohesion_on(a, P, cx, cy, ring, sp[D_S], sp[D_PUB], members)
+        if a == n:
+            robot_force[i, 0], robot_force[i, 1] = fcx + fex + frx, fcy + fey + fry
+            robot_force[i, 2], robot_force[i, 3] = frx, fry
+            continue
+        # the ref's gate: equality acts only off the o-space ring (ramped over one dead band)
+        gate = clip((abs(math.hypot(P[a, 0] - cx, P[a, 1] - cy) - ring) - db) / db, 0.0, 1.0)
+        force[i, a, 0], force[i, a, 1] = fcx + gate * fex + frx, fcy + gate * fey + fry
+        repulsion[i, a, 0], repulsion[i, a, 1] = frx, fry
+        # w_c n(F_c) + w_e g n(F_e) + w_r n(F_r), n a soft normalisation
+        nc, ne, nr = max(math.hypot(fcx, fcy), sat), max(math.hypot(fex, fey), sat), max(math.hypot(frx, fry), sat)
+        tx = sp[W_COH] * (fcx / nc) + (sp[W_EQ] * gate) * (fex / ne) + sp[W_REP] * (frx / nr)
+        ty = sp[W_COH] * (fcy / nc) + (sp[W_EQ] * gate) * (fey / ne) + sp[W_REP] * (fry / nr)
+        # exact solution of dv/dt = acc - drag v with acc held over dt, speed capped
+        st = max(math.hypot(tx, ty), 1.0)
+        vix, viy = tx / st * sp[NEWTON_PER_DRAG], ty / st * sp[NEWTON_PER_DRAG]
+        v0x, v0y = vel[i, a, 0], vel[i, a, 1]
+        vx, vy = vix + (v0x - vix) * decay, viy + (v0y - viy) * decay
+        speed = math.hypot(vx, vy)
+        if speed > sp[MEMBER_MAX_SPEED]:
+            vx, vy = vx * (sp[MEMBER_MAX_SPEED] / speed), vy * (sp[MEMBER_MAX_SPEED] / speed)
+        vel[i, a, 0], vel[i, a, 1] = vx, vy
+        pos[i, a, 0] = P[a, 0] + (0.5 * dt) * (v0x + vx)
+        pos[i, a, 1] = P[a, 1] + (0.5 * dt) * (v0y + vy)
+        # turn toward the conversation centre at a bounded rate
+        tox, toy = cx - pos[i, a, 0], cy - pos[i, a, 1]
+        err = (math.atan2(toy, tox) - yaw[i, a] + math.pi) % TWO_PI - math.pi
+        lim = sp[TURN_RATE] * dt
+        turn = clip(err, -lim, lim) if math.hypot(tox, toy) > EPS else 0.0
+        yaw[i, a] = (yaw[i, a] + turn) % TWO_PI
+
+
+class GroupArrays:
+    """The state of ``num`` groups, each padded to ``MAX_HUMANS`` members (``count`` are real): positions,
+    velocities and yaws of the members, the conversation centre at spawn and now, per-member ring offsets and
+    comfort distances, the SFFM forces of the last step, and the per-group scalars (``scalars[:, RADIUS]``...)."""
+
+    def __init__(self, num: int) -> None:
+        m = MAX_HUMANS
+        self.count = np.full(num, 2, dtype=np.int64)
+        self.pos, self.vel, self.yaw = np.zeros((num, m, 2)), np.zeros((num, m, 2)), np.zeros((num, m))
+        self.centre0, self.centre = np.zeros((num, 2)), np.zeros((num, 2))
+        self.scalars = np.zeros((num, N_SCALARS))
+        self.ring_offset, self.comfort = np.zeros((num, m)), np.zeros((num, m))
+        self.force, self.repulsion = np.zeros((num, m, 2)), np.zeros((num, m, 2))
+        self.robot_force = np.zeros((num, 4))  # total field at the robot, then its repulsion part
+
+    def spawn(self, i: int, social: SocialParams, centre: np.ndarray, layout: Layout, keep: float,
+              robot_xy: np.ndarray) -> None:
+        """Row ``i`` becomes a group at rest in ``layout`` around ``centre`` (see ``Group``), with the robot at
+        ``robot_xy`` (its joining weight)."""
+        n = len(layout.offsets)
+        self.count[i] = n
+        for arr in (self.pos, self.vel, self.yaw, self.ring_offset, self.comfort, self.force, self.repulsion):
+            arr[i] = 0.0
+        self.robot_force[i] = 0.0
+        self.centre0[i] = np.asarray(centre, dtype=float)
+        self.pos[i, :n] = self.centre0[i] + layout.offsets
+        self.yaw[i, :n] = layout.yaw
+        base = layout.radius
+        self.ring_offset[i, :n] = layout.ring - base  # exactly 0 on the paper's circle
+        gaps = np.hypot(*(layout.offsets[:, None] - layout.offsets[None]).transpose(2, 0, 1))
+        gaps[np.diag_indices(n)] = np.inf
+        self.comfort[i, :n] = np.minimum(social.personal_radius, gaps.min(axis=1))
+        sc = self.scalars[i]
+        sc[BASE_RADIUS], sc[JOINED_RADIUS] = base, max(base, layout.joined_radius)
+        sc[KEEP], sc[SHIFT] = (0.0, 1.0) if layout.paper else (keep, 0.0)
+        sc[RADIUS], sc[JOIN_WEIGHT] = base, 0.0
+        self.centre[i] = self.centre0[i]
+        # the robot counts as joining from the slot's distance at rest (the ring on the paper's circle)
+        sx, sy = free_slot(n, self.pos[i], *self.centre0[i], base, sc[KEEP], 0.0, 0.0, False)
+        sc[JOIN_RADIUS] = math.hypot(sx - self.centre0[i, 0], sy - self.centre0[i, 1]) if sc[KEEP] > 0 else base
+        w, cx, cy, r = update_centre(sffm_params(social, 1.0), n, float(robot_xy[0]), float(robot_xy[1]),
+                                     self.centre0[i], sc[JOIN_RADIUS], sc[SHIFT], base, sc[JOINED_RADIUS])
+        sc[JOIN_WEIGHT], sc[RADIUS] = w, r
+        self.centre[i] = cx, cy
+
+
 class Group:
-    """State and dynamics of one conversation group of ``n`` members (arrays, metres, radians).
+    """One conversation group: row ``i`` of a ``GroupArrays`` (its own, or a batch's), stepped by ``group_step``.
 
     ``layout`` (``layouts.Layout``) gives where the members stand at rest: each keeps its own distance from the
     conversation centre (``ring_offset`` from the o-space radius) and, from fellow members, the smaller of the
     personal zone and the distance to its nearest one at spawn (``comfort``), so any layout, real or paper, is
     at rest when left alone. Except on the paper's circle (``layout.paper``): ``keep`` > 0 moves the free slot
     out of the ring until the robot's centre is that far from every member (``slot_distance``), and the
-    conversation centre stays put (``centre_shift`` 0); on the paper's circle the slot stays on the ring and the
-    centre moves toward a joining robot by ``w / (n + 1)`` of the way (``centre_shift`` 1).
+    conversation centre stays put; on the paper's circle the slot stays on the ring and the centre moves toward a
+    joining robot by ``w / (n + 1)`` of the way. Attributes are views of the arrays (writes go through).
     """
 
-    def __init__(self, social: SocialParams, centre: np.ndarray, layout: Layout, keep: float = 0.0) -> None:
-        self.social = social
-        self.n = n = len(layout.offsets)
-        self.base_radius = layout.radius
-        self.joined_radius = max(self.base_radius, layout.joined_radius)
-        self.ring_offset = layout.ring - self.base_radius  # exactly 0 on the paper's circle
-        self.keep, self.centre_shift = (0.0, 1.0) if layout.paper else (keep, 0.0)
-        self.centre0 = np.asarray(centre, dtype=float).copy()
-        self.pos = self.centre0 + layout.offsets
-        self.vel = np.zeros((n, 2))
-        self.yaw = layout.yaw.copy()
-        self.centre = self.centre0.copy()
-        self.radius = self.base_radius
-        self.join_weight = 0.0
-        self.force = np.zeros((n, 2))  # total SFFM force on each member (pre-normalisation sum)
-        self.repulsion = np.zeros((n, 2))  # its repulsion part
-        self.robot_force = np.zeros(2)  # the same field evaluated at the robot (used by rewards R1/R2)
-        self.robot_repulsion = np.zeros(2)  # its repulsion part (the members' push on the robot; metrics)
-        k = n + 1
-        self._mask_members = np.ones((k, k), dtype=bool)
-        self._mask_members[:, -1] = False  # robot not a participant (repulsion ignores this mask)
-        self._mask_joined = np.ones((k, k), dtype=bool)
-        gaps = np.hypot(*(layout.offsets[:, None] - layout.offsets[None]).transpose(2, 0, 1))
-        gaps[np.diag_indices(n)] = np.inf
-        self.comfort = np.minimum(social.personal_radius, gaps.min(axis=1))
-        self._zones = np.full((k, k), social.personal_radius)  # repulsion zones; member-member: comfort
-        self._zones[:n, :n] = self.comfort[:, None]
-        # the robot counts as joining from the slot's distance at rest (the ring on the paper's circle)
-        self.join_radius = float(np.hypot(*(self.free_slot() - self.centre0))) if self.keep > 0 else self.base_radius
+    def __init__(self, social: SocialParams, centre: np.ndarray | None = None, layout: Layout | None = None,
+                 keep: float = 0.0, dt: float = 0.1, arrays: GroupArrays | None = None, i: int = 0) -> None:
+        """A new group from ``centre`` and ``layout`` (the robot far away), or a view of row ``i`` of
+        ``arrays``."""
+        self.social, self.i = social, i
+        self._sp = sffm_params(social, dt)
+        self.arrays = arrays if arrays is not None else GroupArrays(1)
+        if layout is not None:
+            self.arrays.spawn(i, social, centre, layout, keep, np.full(2, 1e9))
 
-    # -- the conversation centre as seen with a (possibly) joining robot --------------------------------
+    n = property(lambda self: int(self.arrays.count[self.i]))
+    pos = property(lambda self: self.arrays.pos[self.i, :self.n])
+    vel = property(lambda self: self.arrays.vel[self.i, :self.n])
+    yaw = property(lambda self: self.arrays.yaw[self.i, :self.n])
+    centre0 = property(lambda self: self.arrays.centre0[self.i])
+    centre = property(lambda self: self.arrays.centre[self.i])
+    ring_offset = property(lambda self: self.arrays.ring_offset[self.i, :self.n])
+    comfort = property(lambda self: self.arrays.comfort[self.i, :self.n])
+    force = property(lambda self: self.arrays.force[self.i, :self.n])
+    repulsion = property(lambda self: self.arrays.repulsion[self.i, :self.n])
+    robot_force = property(lambda self: self.arrays.robot_force[self.i, :2])
+    robot_repulsion = property(lambda self: self.arrays.robot_force[self.i, 2:])
+    base_radius = property(lambda self: float(self.arrays.scalars[self.i, BASE_RADIUS]))
+    joined_radius = property(lambda self: float(self.arrays.scalars[self.i, JOINED_RADIUS]))
+    join_radius = property(lambda self: float(self.arrays.scalars[self.i, JOIN_RADIUS]))
+    keep = property(lambda self: float(self.arrays.scalars[self.i, KEEP]))
+    centre_shift = property(lambda self: float(self.arrays.scalars[self.i, SHIFT]))
+    radius = property(lambda self: float(self.arrays.scalars[self.i, RADIUS]))
+    join_weight = property(lambda self: float(self.arrays.scalars[self.i, JOIN_WEIGHT]))
+
     def update_centre(self, robot_xy: np.ndarray) -> None:
         """Set ``join_weight``, ``centre`` and ``radius`` for a robot at ``robot_xy``."""
-        s = self.social
-        d = math.hypot(robot_xy[0] - self.centre0[0], robot_xy[1] - self.centre0[1])
-        w = (self.join_radius + s.join_margin - d) / s.join_margin
-        w = min(1.0, max(0.0, w))
-        self.join_weight = w
-        self.centre = self.centre0 + (w * self.centre_shift / (self.n + 1)) * (robot_xy - self.centre0)
-        self.radius = self.base_radius + w * (self.joined_radius - self.base_radius)
+        a, sc = self.arrays, self.arrays.scalars[self.i]
+        w, cx, cy, r = update_centre(self._sp, self.n, float(robot_xy[0]), float(robot_xy[1]), a.centre0[self.i],
+                                     sc[JOIN_RADIUS], sc[SHIFT], sc[BASE_RADIUS], sc[JOINED_RADIUS])
+        sc[JOIN_WEIGHT], sc[RADIUS] = w, r
+        a.centre[self.i] = cx, cy
 
-    def field_at(self, agents: np.ndarray, joined: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Raw SFFM forces for all agents (members then robot): cohesion, equality, repulsion, orientation."""
-        s = self.social
-        mask = self._mask_joined if joined else self._mask_members
-        pair = forces.pairwise(agents)
-        f_r = forces.repulsion(agents, self._zones, pair=pair)
-        f_e, d_e = forces.equality(agents, s.social_radius, mask, pair)
-        rings = np.append(self.radius + self.ring_offset, self.radius)
-        f_c, d_c = forces.cohesion(agents, self.centre, rings, s.social_radius, s.public_radius, mask, pair)
-        return f_c, f_e, f_r, d_e + d_c
-
-    def step(self, robot_xy: np.ndarray, dt: float) -> None:
-        """Advance the members by ``dt`` seconds given the robot's position."""
-        s = self.social
-        self.update_centre(robot_xy)
-        agents = np.concatenate([self.pos, robot_xy[None, :2]])
-        f_c, f_e, f_r, _ = self.field_at(agents, self.join_weight >= 0.5)
-        self.robot_force = f_c[-1] + f_e[-1] + f_r[-1]
-        self.robot_repulsion = f_r[-1]
-        n = self.n
-        f_c, f_e, f_r = f_c[:n], f_e[:n], f_r[:n]
-        rel = self.pos - self.centre
-        gate = equality_gate(np.hypot(rel[:, 0], rel[:, 1]) - (self.radius + self.ring_offset), s)[:, None]
-        total = combined_force(f_c, f_e, f_r, gate, s)
-        self.force = f_c + gate * f_e + f_r
-        self.repulsion = f_r
-        # exact solution of dv/dt = acc - drag v with acc held over dt
-        decay = math.exp(-s.drag * dt)
-        v_inf = forces.soft_normalize(total, 1.0) * (s.force_newton / s.mass / s.drag)
-        v0 = self.vel
-        vel = v_inf + (v0 - v_inf) * decay
-        speed = np.hypot(vel[:, 0], vel[:, 1])
-        if speed.max() > s.max_speed:
-            vel *= np.minimum(1.0, s.max_speed / speed)[:, None]
-        self.vel = vel
-        self.pos = self.pos + (0.5 * dt) * (v0 + vel)
-        # turn toward the conversation centre at a bounded rate
-        to_o = self.centre - self.pos
-        want = np.arctan2(to_o[:, 1], to_o[:, 0])
-        err = np.remainder(want - self.yaw + math.pi, 2.0 * math.pi) - math.pi
-        lim = s.max_turn_rate * dt
-        turn = np.minimum(np.maximum(err, -lim), lim)
-        turn[np.hypot(to_o[:, 0], to_o[:, 1]) <= 1e-9] = 0.0
-        self.yaw = np.remainder(self.yaw + turn, 2.0 * math.pi)
+    def step(self, robot_xy: np.ndarray, dt: float | None = None) -> None:
+        """Advance the members by one control period given the robot's position."""
+        if dt is not None and dt != self._sp[DT]:
+            self._sp = sffm_params(self.social, dt)
+        a = self.arrays
+        group_step(self._sp, self.i, float(robot_xy[0]), float(robot_xy[1]), a.count, a.pos, a.vel, a.yaw, a.centre0,
+                   a.centre, a.scalars, a.ring_offset, a.comfort, a.force, a.repulsion, a.robot_force)
 
     def member_angles(self) -> np.ndarray:
         """Members' angles around the current conversation centre (rad)."""
@@ -225,12 +345,6 @@ class Group:
         return np.arctan2(d[:, 1], d[:, 0])
 
     def free_slot(self, robot_xy: np.ndarray | None = None) -> np.ndarray:
-        """The free slot: the middle of the widest gap between members, on the current o-space circle (or out
-        along the gap's middle until the robot keeps ``keep`` from every member)."""
-        toward = None
-        if robot_xy is not None:
-            d = robot_xy - self.centre
-            toward = math.atan2(d[1], d[0])
-        mid, _ = widest_gap(self.member_angles(), toward)
-        u = np.array([math.cos(mid), math.sin(mid)])
-        return self.centre + slot_distance(self.pos - self.centre, u, self.radius, self.keep) * u
+        """The free slot now (``free_slot``; ties toward the robot when ``robot_xy`` is given)."""
+        r = (0.0, 0.0) if robot_xy is None else (float(robot_xy[0]), float(robot_xy[1]))
+        return np.array(free_slot(self.n, self.pos, *self.centre, self.radius, self.keep, *r, robot_xy is not None))

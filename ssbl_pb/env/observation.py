@@ -30,12 +30,51 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
+
+from .base import wrap_angle
 
 MAX_MEMBERS = 5
 MEMBER_FIELDS = 5
 OBS_SIZE = 14 + MAX_MEMBERS * MEMBER_FIELDS + 1
 POS_SCALE = 5.0
 OBS_LIMIT = 10.0
+
+
+@njit(cache=True)
+def fill_observation(o: np.ndarray, x: float, y: float, yaw: float, vx: float, vy: float, wz: float,
+                     members_pos: np.ndarray, members_vel: np.ndarray, cx: float, cy: float, radius: float,
+                     sx: float, sy: float, walls: tuple[float, float, float, float], max_speed: float,
+                     max_yaw_rate: float, frame_yaw: float) -> None:
+    """Write the observation (the table above) into ``o`` (OBS_SIZE,): the robot at (x, y, yaw) with world-frame
+    velocity (vx, vy, wz), the members (k, 2) in world metres, centre (cx, cy), slot (sx, sy), the distances to the
+    walls, in the frame turned by ``frame_yaw``."""
+    c, s = math.cos(frame_yaw), math.sin(frame_yaw)
+    o[:] = 0.0
+    o[0], o[1] = (c * (sx - x) + s * (sy - y)) / POS_SCALE, (c * (sy - y) - s * (sx - x)) / POS_SCALE
+    o[2], o[3] = (c * (cx - x) + s * (cy - y)) / POS_SCALE, (c * (cy - y) - s * (cx - x)) / POS_SCALE
+    o[4] = radius / POS_SCALE
+    o[5], o[6] = (c * vx + s * vy) / max_speed, (c * vy - s * vx) / max_speed
+    o[7] = wz / max_yaw_rate
+    o[8], o[9] = c, s
+    for w in range(4):
+        o[10 + w] = walls[w] / POS_SCALE
+    k = members_pos.shape[0]
+    d2 = np.empty(k)
+    for j in range(k):
+        d2[j] = (members_pos[j, 0] - x) ** 2 + (members_pos[j, 1] - y) ** 2
+    order = np.argsort(d2, kind="mergesort")  # nearest first, ties in index order
+    for r in range(min(k, MAX_MEMBERS)):
+        j = order[r]
+        dx, dy = members_pos[j, 0] - x, members_pos[j, 1] - y
+        b = 14 + MEMBER_FIELDS * r
+        o[b], o[b + 1] = (dx * c + dy * s) * (1.0 / POS_SCALE), (dx * -s + dy * c) * (1.0 / POS_SCALE)
+        o[b + 2] = members_vel[j, 0] * c + members_vel[j, 1] * s
+        o[b + 3] = members_vel[j, 0] * -s + members_vel[j, 1] * c
+        o[b + 4] = 1.0
+    o[39] = wrap_angle(yaw - frame_yaw) / math.pi
+    for t in range(o.shape[0]):
+        o[t] = min(max(o[t], -OBS_LIMIT), OBS_LIMIT)
 
 
 def vector_observation(
@@ -51,36 +90,19 @@ def vector_observation(
     max_yaw_rate: float,
     frame_yaw: float | None = None,
 ) -> np.ndarray:
-    """Build the observation; ``robot_vel`` is the world-frame (vx, vy, wz), positions are world-frame metres.
-
-    ``frame_yaw`` is the orientation of the frame vectors are expressed in (default: toward ``centre``).
-    """
-    x, y, yaw = np.asarray(robot_pose, dtype=float)[:3].tolist()
+    """``fill_observation`` from arrays (world-frame metres, ``robot_vel`` (vx, vy, wz)); ``frame_yaw`` defaults
+    to the approach frame (toward ``centre``). The robot's deploy loop builds its observation with this."""
+    x, y, yaw = (float(v) for v in np.asarray(robot_pose, dtype=float)[:3])
     if frame_yaw is None:
         frame_yaw = approach_yaw(robot_pose, centre)
-    c, s = math.cos(frame_yaw), math.sin(frame_yaw)
-
-    def to_frame(dx: float, dy: float, scale: float) -> tuple[float, float]:
-        return (c * dx + s * dy) / scale, (c * dy - s * dx) / scale
-
-    members_pos = np.asarray(members_pos, dtype=float).reshape(-1, 2)
-    k = min(len(members_pos), MAX_MEMBERS)
-    rel = members_pos - (x, y)
-    order = np.argsort(np.einsum("ij,ij->i", rel, rel), kind="stable")[:k]
-    (sx, sy), (cx, cy), (vx, vy, wz) = slot[:2].tolist(), centre[:2].tolist(), robot_vel[:3].tolist()
     obs = np.zeros(OBS_SIZE, dtype=np.float32)
-    obs[0:14] = (*to_frame(sx - x, sy - y, POS_SCALE), *to_frame(cx - x, cy - y, POS_SCALE), radius / POS_SCALE,
-                 *to_frame(vx, vy, max_speed), wz / max_yaw_rate, c, s, *(np.asarray(walls) / POS_SCALE).tolist())
-    # members' positions and velocities (world frame) -> frame, one matrix product
-    vecs = np.concatenate([rel[order], np.asarray(members_vel, dtype=float).reshape(-1, 2)[order]])
-    body = vecs @ np.array([[c, -s], [s, c]])
-    block = obs[14:14 + MAX_MEMBERS * MEMBER_FIELDS].reshape(MAX_MEMBERS, MEMBER_FIELDS)
-    block[:k, 0:2] = body[:k] * (1.0 / POS_SCALE)
-    block[:k, 2:4] = body[k:]
-    block[:k, 4] = 1.0
-    obs[39] = math.remainder(yaw - frame_yaw, 2.0 * math.pi) / math.pi
-    np.maximum(obs, -OBS_LIMIT, out=obs)
-    return np.minimum(obs, OBS_LIMIT, out=obs)
+    v = np.asarray(robot_vel, dtype=float)
+    fill_observation(obs, x, y, yaw, float(v[0]), float(v[1]), float(v[2]),
+                     np.asarray(members_pos, dtype=float).reshape(-1, 2),
+                     np.asarray(members_vel, dtype=float).reshape(-1, 2), float(centre[0]), float(centre[1]),
+                     float(radius), float(slot[0]), float(slot[1]), tuple(float(w) for w in walls[:4]),
+                     float(max_speed), float(max_yaw_rate), float(frame_yaw))
+    return obs
 
 
 def approach_yaw(robot_pose: np.ndarray, centre: np.ndarray) -> float:
@@ -93,3 +115,19 @@ def decode_members(obs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     block = np.asarray(obs[14:39], dtype=float).reshape(MAX_MEMBERS, MEMBER_FIELDS)
     present = block[:, 4] > 0.5
     return block[present, 0:2] * POS_SCALE, block[present, 2:4]
+
+
+@njit(cache=True)
+def action_command(a0: float, a1: float, a2: float, heading_error: float, turn: bool, heading_gain: float,
+                   max_speed: float, max_yaw_rate: float) -> tuple[float, float, float]:
+    """Body-frame base command (forward m/s, left m/s, turn rad/s) for a normalised action (clipped to [-1, 1]).
+
+    The action is (toward the centre, to the left of that) in the approach frame, and the base turns toward the
+    centre at ``heading_gain`` (``heading_error``: rad from the heading to the centre); with ``turn`` it is
+    (forward, left, turn) in the body frame."""
+    a0, a1 = min(max(a0, -1.0), 1.0), min(max(a1, -1.0), 1.0)
+    if turn:
+        return a0 * max_speed, a1 * max_speed, min(max(a2, -1.0), 1.0) * max_yaw_rate
+    w = min(max(heading_gain * heading_error, -max_yaw_rate), max_yaw_rate)
+    c, s = math.cos(heading_error), math.sin(heading_error)  # approach frame -> body frame
+    return (c * a0 - s * a1) * max_speed, (s * a0 + c * a1) * max_speed, w

@@ -87,13 +87,14 @@ class SFFMPolicy(Policy):
         slot = obs[0:2].astype(float) * ob.POS_SCALE
         radius = max(float(obs[4]) * ob.POS_SCALE, math.hypot(*(slot - centre)))
         agents = np.vstack([members, np.zeros((1, 2))])
-        pair = forces.pairwise(agents)
+        me, everyone = len(members), np.ones((len(agents), len(agents)), dtype=np.bool_)
         bodies = s.human_radius + q.robot_radius
         place = float(np.hypot(*(members - slot).T).min()) - bodies  # the place's clearance
         d_p = min(s.personal_radius, max(place, q.intimate_zone) + q.zone_margin) + bodies
-        f_r = forces.repulsion(agents, d_p, pair=pair)[-1]
-        f_e = forces.equality(agents, s.social_radius, pair=pair)[0][-1]
-        f_c = forces.cohesion(agents, centre, radius, s.social_radius, s.public_radius, pair=pair)[0][-1]
+        f_r = np.array(forces.repulsion_on(me, agents, np.full(everyone.shape, d_p), everyone))
+        f_e = np.array(forces.equality_on(me, agents, s.social_radius, everyone)[:2])
+        f_c = np.array(forces.cohesion_on(me, agents, float(centre[0]), float(centre[1]), radius, s.social_radius,
+                                          s.public_radius, everyone)[:2])
         return (q.weight_cohesion * forces.soft_normalize(f_c, q.saturation)
                 + q.weight_equality * forces.soft_normalize(f_e, q.saturation)
                 + q.weight_repulsion * forces.normalize(f_r)[0])

@@ -1,4 +1,4 @@
-"""Reward terms R1..R5 and effort (paper eqs. 11-15) as pure functions of one step's states.
+"""Reward terms R1..R5 and effort (paper eqs. 11-15) as pure (compiled) functions of one step's states.
 
 Per step of ``dt`` seconds, with the robot moving by ``du`` through the field ``F`` evaluated at its position at
 the start of the step and member j moving by ``du_j`` under its own total force ``F_j``:
@@ -29,11 +29,15 @@ import dataclasses
 import math
 
 import numpy as np
+from numba import njit
 
 from ..params import _check, _nonneg
+from .base import wrap_angle
 
 TERMS = ("r1_group_forming", "r2_non_increasing", "r3_time", "r4_success", "r5_altruism", "r5_repulsion",
          "effort", "smoothness", "slot_progress", "proximity", "violation")
+R1, R2, R3, R4, R5, R5_REP, EFFORT, SMOOTH, SLOT, PROX, VIOLATION = range(len(TERMS))
+N_TERMS = len(TERMS)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -82,21 +86,21 @@ class RewardWeights:
                    violation_penalty=0.0)
 
 
-def route_distance(p: np.ndarray, slot: np.ndarray, centre: np.ndarray, keep_out: float) -> float:
-    """Length of the shortest way from ``p`` to the free slot that enters the group only through the slot.
+@njit(cache=True)
+def route_length(x: float, y: float, sx: float, sy: float, cx: float, cy: float, keep_out: float) -> float:
+    """Length of the shortest way from (x, y) to the free slot (sx, sy) that enters the group only through it.
 
-    The group is a disc of radius ``keep_out`` around its centre; the way goes around it (tangent, then arc) to
-    the point of its rim on the slot's ray, then straight in. Inside the disc it is the straight distance plus
-    the arc to the slot's ray, so cutting into the group elsewhere never shortens the way (ours: it makes the
-    shaping lead around a group instead of through its members).
+    The group is a disc of radius ``keep_out`` around its centre (cx, cy); the way goes around it (tangent, then
+    arc) to the point of its rim on the slot's ray, then straight in. Inside the disc it is the straight distance
+    plus the arc to the slot's ray, so cutting into the group elsewhere never shortens the way (ours: it makes
+    the shaping lead around a group instead of through its members).
     """
-    rel = (float(p[0] - centre[0]), float(p[1] - centre[1]))
-    q = (float(slot[0] - centre[0]), float(slot[1] - centre[1]))
-    r, rq = math.hypot(*rel), math.hypot(*q)
-    dth = abs(math.remainder(math.atan2(rel[1], rel[0]) - math.atan2(q[1], q[0]), 2.0 * math.pi))
+    rx, ry, qx, qy = x - cx, y - cy, sx - cx, sy - cy
+    r, rq = math.hypot(rx, ry), math.hypot(qx, qy)
+    dth = abs(wrap_angle(math.atan2(ry, rx) - math.atan2(qy, qx)))
     R = max(keep_out, rq)
     if r < R:
-        return math.hypot(rel[0] - q[0], rel[1] - q[1]) + R * dth
+        return math.hypot(rx - qx, ry - qy) + R * dth
     beta = math.acos(R / r)
     if dth <= beta:  # the rim point on the slot's ray is in plain sight
         to_rim = math.sqrt(max(r * r + R * R - 2.0 * r * R * math.cos(dth), 0.0))
@@ -105,18 +109,25 @@ def route_distance(p: np.ndarray, slot: np.ndarray, centre: np.ndarray, keep_out
     return to_rim + (R - rq)
 
 
+def route_distance(p: np.ndarray, slot: np.ndarray, centre: np.ndarray, keep_out: float) -> float:
+    """``route_length`` for points given as arrays."""
+    return route_length(float(p[0]), float(p[1]), float(slot[0]), float(slot[1]), float(centre[0]),
+                        float(centre[1]), float(keep_out))
+
+
 BRAKE_GAIN = 5.0  # s: slot_potential's weight on speed near the slot
 BRAKE_RADIUS = 1.0  # m: within this distance of the slot
 
 
-def slot_potential(distance: float, speed: float, brake_gain: float = BRAKE_GAIN,
-                   brake_radius: float = BRAKE_RADIUS) -> float:
+@njit(cache=True)
+def slot_potential(distance: float, speed: float) -> float:
     """Potential of the robot's state for shaping (ours): minus the distance to the free slot, and minus its
-    speed (times ``brake_gain`` seconds) within ``brake_radius`` of the slot, so arriving slowly pays. Its
+    speed (times ``BRAKE_GAIN`` seconds) within ``BRAKE_RADIUS`` of the slot, so arriving slowly pays. Its
     difference between steps is potential-based shaping (Ng et al. 1999): it does not change the optimum."""
-    return -(distance + brake_gain * speed * max(0.0, 1.0 - distance / brake_radius))
+    return -(distance + BRAKE_GAIN * speed * max(0.0, 1.0 - distance / BRAKE_RADIUS))
 
 
+@njit(cache=True)
 def proximity_cost(clearance_before: np.ndarray, clearance_after: np.ndarray, intimate: float,
                    band: float) -> float:
     """Metres the robot closed on members near their intimate zone this step, each weighted by how deep it is in
@@ -127,46 +138,45 @@ def proximity_cost(clearance_before: np.ndarray, clearance_after: np.ndarray, in
     slot between two near neighbours costs (almost) nothing, while grazing a member at full speed does. Closing
     counts whoever moves; members settling around a still robot close at most a few cm per second.
     """
-    after = np.asarray(clearance_after)
-    closed = np.maximum(np.asarray(clearance_before) - after, 0.0)
-    depth = np.minimum(np.maximum((intimate + band - after) * (1.0 / band), 0.0), 1.0)
-    return float(closed @ depth)
+    cost = 0.0
+    for j in range(clearance_after.shape[0]):
+        closed = max(clearance_before[j] - clearance_after[j], 0.0)
+        cost += closed * min(max((intimate + band - clearance_after[j]) * (1.0 / band), 0.0), 1.0)
+    return cost
 
 
-def reward_terms(
-    robot_force: np.ndarray,
-    robot_du: np.ndarray,
-    member_forces: np.ndarray,
-    member_du: np.ndarray,
-    member_repulsion: np.ndarray,
-    dt: float,
-    accel: np.ndarray,
-    prev_accel: np.ndarray,
-    potential_before: float,
-    potential_after: float,
-    success: bool,
-    violation: bool,
-    proximity: float = 0.0,
-) -> dict[str, float]:
-    """Unweighted terms of one step (see the module docstring for each formula and its unit)."""
-    fx, fy = float(robot_force[0]), float(robot_force[1])
-    dx, dy = float(robot_du[0]), float(robot_du[1])
-    along = fx * dx + fy * dy  # F . du, and v . F has the same sign
-    jx, jy = float(accel[0] - prev_accel[0]), float(accel[1] - prev_accel[1])
-    rep = member_repulsion
-    return {
-        "r1_group_forming": along,
-        "r2_non_increasing": dt if along > 0.0 else 0.0,
-        "r3_time": -dt,
-        "r4_success": 1.0 if success else 0.0,
-        "r5_altruism": -float((member_forces * member_du).sum()),
-        "r5_repulsion": -float(np.hypot(rep[:, 0], rep[:, 1]).sum()) * dt,
-        "effort": -(dx * dx + dy * dy) / dt,
-        "smoothness": -math.hypot(jx, jy),
-        "slot_progress": potential_after - potential_before,
-        "proximity": -proximity,
-        "violation": -1.0 if violation else 0.0,
-    }
+@njit(cache=True)
+def step_terms(robot_force: np.ndarray, robot_du: np.ndarray, member_forces: np.ndarray, member_du: np.ndarray,
+               member_repulsion: np.ndarray, dt: float, accel: np.ndarray, prev_accel: np.ndarray,
+               potential_before: float, potential_after: float, success: bool, violation: bool,
+               proximity: float) -> np.ndarray:
+    """The unweighted terms of one step in ``TERMS`` order (the module docstring gives each formula and unit)."""
+    dx, dy = robot_du[0], robot_du[1]
+    along = robot_force[0] * dx + robot_force[1] * dy  # F . du, and v . F has the same sign
+    alt, rep = 0.0, 0.0
+    for j in range(member_forces.shape[0]):
+        alt += member_forces[j, 0] * member_du[j, 0] + member_forces[j, 1] * member_du[j, 1]
+        rep += math.hypot(member_repulsion[j, 0], member_repulsion[j, 1])
+    t = np.empty(N_TERMS)
+    t[R1], t[R2], t[R3] = along, dt if along > 0.0 else 0.0, -dt
+    t[R4] = 1.0 if success else 0.0
+    t[R5], t[R5_REP] = -alt, -rep * dt
+    t[EFFORT] = -(dx * dx + dy * dy) / dt
+    t[SMOOTH] = -math.hypot(accel[0] - prev_accel[0], accel[1] - prev_accel[1])
+    t[SLOT], t[PROX], t[VIOLATION] = potential_after - potential_before, -proximity, -1.0 if violation else 0.0
+    return t
+
+
+def reward_terms(robot_force: np.ndarray, robot_du: np.ndarray, member_forces: np.ndarray, member_du: np.ndarray,
+                 member_repulsion: np.ndarray, dt: float, accel: np.ndarray, prev_accel: np.ndarray,
+                 potential_before: float, potential_after: float, success: bool, violation: bool,
+                 proximity: float = 0.0) -> dict[str, float]:
+    """``step_terms`` by name."""
+    f = [np.asarray(v, dtype=float).reshape(-1, 2) for v in (member_forces, member_du, member_repulsion)]
+    t = step_terms(np.asarray(robot_force, dtype=float), np.asarray(robot_du, dtype=float), *f, float(dt),
+                   np.asarray(accel, dtype=float), np.asarray(prev_accel, dtype=float), float(potential_before),
+                   float(potential_after), bool(success), bool(violation), float(proximity))
+    return dict(zip(TERMS, t.tolist(), strict=True))
 
 
 def total_reward(t: dict[str, float], w: RewardWeights) -> float:

@@ -9,6 +9,7 @@ from __future__ import annotations
 import dataclasses
 import multiprocessing as mp
 import signal
+import sys
 from collections.abc import Callable, Iterable
 from concurrent.futures import ProcessPoolExecutor
 from typing import Any
@@ -50,14 +51,60 @@ def run_episode(env: gym.Env, policy: Policy, seed: int, keep_trajectory: bool =
             on_step(env)
         if terminated or truncated:
             break
-    m = episode_metrics(core.trajectory, info["success"], info["collision"], info["violation"], core.task,
-                        core.dt, core.social.fov_half_angle_deg, core.social.human_radius + core.robot_params.radius)
+    return _result(core, seed, core.trajectory, {**reset_info, **info}, keep_trajectory)
+
+
+def _result(core: Any, seed: int, trajectory: list[dict[str, Any]], info: dict[str, Any],
+            keep_trajectory: bool) -> EpisodeResult:
+    m = episode_metrics(trajectory, info["success"], info["collision"], info["violation"], core.task, core.dt,
+                        core.social.fov_half_angle_deg, core.social.human_radius + core.robot_params.radius)
     sums = info["episode_terms"]
     m["return"] = sums["reward"]
     for k in TERMS:
         m[f"term_{k}"] = sums[k]
     m["seed"] = float(seed)
-    return EpisodeResult(seed, m, core.trajectory if keep_trajectory else [], {**reset_info, **info})
+    return EpisodeResult(seed, m, trajectory if keep_trajectory else [], info)
+
+
+def batchable(env: gym.Env, policy: Policy) -> bool:
+    """Whether ``run_batch`` can play this pair: the Vector env itself (no wrappers) and a policy whose actions
+    do not depend on per-episode reseeding (the random baseline)."""
+    return env is env.unwrapped and hasattr(env, "sim") and not hasattr(policy, "reseed")
+
+
+def run_batch(env: gym.Env, policy: Policy, seeds: list[int], keep: list[bool]) -> list[EpisodeResult]:
+    """The episodes of ``seeds`` played at once in a batch of ``env``'s engine, one policy call per step for all
+    of them: episode ``i`` is the one ``run_episode(env, policy, seeds[i])`` plays (same start, same steps)."""
+    core = env.unwrapped
+    sim = core.sim.like(len(seeds))
+    infos = []
+    for i, seed in enumerate(seeds):
+        sim.seed(i, seed)
+        infos.append(sim.reset(i))
+    trajectories = [[{**sim.snapshot(i, 0.0), "keep_out": _keep_out(core, sim, i)}] for i in range(len(seeds))]
+    if hasattr(policy, "reset"):
+        policy.reset()
+    obs, state = sim.observations(), None
+    start, active = np.ones(len(seeds), dtype=bool), np.ones(len(seeds), dtype=bool)
+    out: list[EpisodeResult | None] = [None] * len(seeds)
+    t = 0.0
+    while active.any():
+        action, state = policy.predict(obs, state=state, episode_start=start, deterministic=True)
+        start[:] = False
+        _, terminated, truncated = sim.step(action)
+        t += core.dt
+        obs = sim.observations()
+        for i in np.flatnonzero(active).tolist():
+            trajectories[i].append(sim.snapshot(i, t))
+            if terminated[i] or truncated[i]:
+                active[i] = False
+                out[i] = _result(core, seeds[i], trajectories[i], {**infos[i], **sim.outcome(i)}, keep[i])
+    return out  # type: ignore[return-value]
+
+
+def _keep_out(core: Any, sim: Any, i: int) -> float:
+    """``ApproachGroupEnv.keep_out(0)`` of copy ``i``."""
+    return (float(sim.radius[i]) + core.social.human_radius + core.robot_params.reach + core.task.intimate_zone)
 
 
 # -- parallel runs: each worker builds its own env and policy once ------------------------------------------
@@ -68,40 +115,52 @@ def _init_worker(make: Callable[[], tuple[gym.Env, Policy]], child: bool = False
     if child:  # Ctrl-C is the parent's to handle: workers are shut down, they print no tracebacks
         signal.signal(signal.SIGINT, signal.SIG_IGN)
     _WORKER["env"], _WORKER["policy"] = make()
+    if "torch" in sys.modules:  # small networks: threads only wait on each other (20x slower on a busy machine)
+        sys.modules["torch"].set_num_threads(1)
 
 
-def _run_seed(args: tuple[int, bool]) -> EpisodeResult:
-    seed, keep = args
-    policy = _WORKER["policy"]
-    if hasattr(policy, "reseed"):
-        policy.reseed(seed)
-    return run_episode(_WORKER["env"], policy, seed, keep)
+def _run_jobs(jobs: list[tuple[int, bool]]) -> list[EpisodeResult]:
+    env, policy = _WORKER["env"], _WORKER["policy"]
+    if batchable(env, policy):
+        return run_batch(env, policy, [s for s, _ in jobs], [k for _, k in jobs])
+    out = []
+    for seed, keep in jobs:
+        if hasattr(policy, "reseed"):
+            policy.reseed(seed)
+        out.append(run_episode(env, policy, seed, keep))
+    return out
 
 
 def run_episodes(make: Callable[[], tuple[gym.Env, Policy]], seeds: Iterable[int], workers: int = 1,
-                 keep_trajectories: int = 0, progress: Callable[[int], None] | None = None) -> list[EpisodeResult]:
+                 keep_trajectories: int = 0, progress: Callable[[int], None] | None = None,
+                 chunk: int = 50) -> list[EpisodeResult]:
     """Episodes for ``seeds`` (in that order); ``make`` builds (env, policy) and must be picklable for
-    ``workers > 1``. Trajectories are kept for the first ``keep_trajectories`` episodes only."""
+    ``workers > 1``. Trajectories are kept for the first ``keep_trajectories`` episodes only. Episodes go in
+    chunks of up to ``chunk``, each played at once where ``batchable`` (else one by one)."""
     seeds = list(seeds)
     jobs = [(s, i < keep_trajectories) for i, s in enumerate(seeds)]
+    size = max(1, min(chunk, -(-len(jobs) // (4 * max(workers, 1)))))
+    chunks = [jobs[k:k + size] for k in range(0, len(jobs), size)]
+    out: list[EpisodeResult] = []
     if workers <= 1:
         _init_worker(make)
-        out = []
-        for job in jobs:
-            out.append(_run_seed(job))
-            if progress:
-                progress(1)
-        _WORKER["env"].close()
+        try:
+            for c in chunks:
+                out += _run_jobs(c)
+                if progress:
+                    progress(len(c))
+        finally:
+            _WORKER["env"].close()
         return out
     # a worker that fails to start breaks the pool (an error), instead of being respawned for ever
     pool = ProcessPoolExecutor(workers, mp_context=mp.get_context("spawn"), initializer=_init_worker,
                                initargs=(make, True))
-    out, done = [], False
+    done = False
     try:
-        for res in pool.map(_run_seed, jobs, chunksize=max(1, len(jobs) // (8 * workers))):
-            out.append(res)
+        for res in pool.map(_run_jobs, chunks):
+            out += res
             if progress:
-                progress(1)
+                progress(len(res))
         done = True
     finally:
         pool.shutdown(wait=done, cancel_futures=True)

@@ -16,9 +16,11 @@ import dataclasses
 import math
 
 import numpy as np
+from numba import njit
 
 from ..params import RobotParams, SocialParams, _check, _positive
-from .observation import decode_members
+from .base import footprint_distance
+from .observation import MAX_MEMBERS, MEMBER_FIELDS, POS_SCALE
 from .task import TaskParams
 
 
@@ -48,49 +50,70 @@ class ShieldParams:
 def footprint_clearance(points: np.ndarray, heading: float, p: ShieldParams) -> tuple[np.ndarray, np.ndarray]:
     """Clearance (m) from a footprint at the origin turned by ``heading`` to body circles at ``points`` (k, 2),
     and the unit directions (k, 2) from the footprint's nearest point toward each member."""
-    c, s = math.cos(heading), math.sin(heading)
-    rot = np.array([[c, -s], [s, c]])  # body -> frame
-    local = points @ rot  # frame -> body
-    half = np.array([p.half_length, p.half_width])
-    diff = local - np.clip(local, -half, half)
-    dist = np.hypot(diff[:, 0], diff[:, 1])
-    inside = dist < 1e-9
-    diff[inside] = local[inside]  # a centre inside the footprint: push straight out from the middle
-    norm = np.maximum(np.hypot(diff[:, 0], diff[:, 1]), 1e-9)
-    return dist - p.human_radius, (diff / norm[:, None]) @ rot.T
+    points = np.asarray(points, dtype=float).reshape(-1, 2)
+    out = [footprint_distance(px, py, heading, p.half_length, p.half_width) for px, py in points.tolist()]
+    dist = np.array([o[0] for o in out]) - p.human_radius
+    return dist, np.array([o[1:] for o in out]).reshape(-1, 2)
 
 
-def shield_action(obs: np.ndarray, action: np.ndarray, p: ShieldParams) -> np.ndarray:
-    """The action (approach frame, in [-1, 1]) with its excess closing speed on each member removed."""
-    members, members_vel = decode_members(obs)
-    a = np.asarray(action, dtype=np.float32)
-    if len(members) == 0:
-        return a
+@njit(cache=True)
+def shield_row(obs: np.ndarray, action: np.ndarray, out: np.ndarray, clearance_min: float, brake_accel: float,
+               max_speed: float, half_length: float, half_width: float, human_radius: float) -> None:
+    """The action (approach frame, in [-1, 1]) with its excess closing speed on each member removed, into ``out``:
+    members nearest first, each limiting the closing speed to ``sqrt(2 a (c - c_min))``."""
+    out[:] = action
     heading = float(obs[39]) * math.pi
-    clearance, toward = footprint_clearance(members, heading, p)
-    v = a[:2].astype(float) * p.max_speed
-    speed = math.hypot(v[0], v[1])
-    if speed > p.max_speed:  # the base caps the planar speed at max_speed
-        v *= p.max_speed / speed
-    for j in np.argsort(clearance):
-        allow = math.sqrt(2.0 * p.brake_accel * max(float(clearance[j]) - p.clearance_min, 0.0))
-        closing = float((v - members_vel[j]) @ toward[j])
+    clear = np.full(MAX_MEMBERS, np.inf)
+    toward = np.zeros((MAX_MEMBERS, 2))
+    for j in range(MAX_MEMBERS):
+        b = 14 + MEMBER_FIELDS * j
+        if float(obs[b + 4]) > 0.5:
+            d, ux, uy = footprint_distance(float(obs[b]) * POS_SCALE, float(obs[b + 1]) * POS_SCALE, heading,
+                                           half_length, half_width)
+            clear[j], toward[j, 0], toward[j, 1] = d - human_radius, ux, uy
+    vx, vy = float(action[0]) * max_speed, float(action[1]) * max_speed
+    speed = math.hypot(vx, vy)
+    if speed > max_speed:  # the base caps the planar speed at max_speed
+        vx, vy = vx * (max_speed / speed), vy * (max_speed / speed)
+    for j in np.argsort(clear, kind="mergesort"):
+        if clear[j] == np.inf:
+            break
+        b = 14 + MEMBER_FIELDS * j
+        allow = math.sqrt(2.0 * brake_accel * max(clear[j] - clearance_min, 0.0))
+        closing = (vx - float(obs[b + 2])) * toward[j, 0] + (vy - float(obs[b + 3])) * toward[j, 1]
         if closing > allow:
-            v = v - (closing - allow) * toward[j]
-    out = a.copy()
-    out[:2] = np.clip(v / p.max_speed, -1.0, 1.0)
-    return out
+            vx, vy = vx - (closing - allow) * toward[j, 0], vy - (closing - allow) * toward[j, 1]
+    if clear.min() < np.inf:
+        out[0] = min(max(vx / max_speed, -1.0), 1.0)
+        out[1] = min(max(vy / max_speed, -1.0), 1.0)
+
+
+@njit(cache=True)
+def _shield_rows(obs: np.ndarray, actions: np.ndarray, out: np.ndarray, clearance_min: float, brake_accel: float,
+                 max_speed: float, half_length: float, half_width: float, human_radius: float) -> None:
+    for i in range(obs.shape[0]):
+        shield_row(obs[i], actions[i], out[i], clearance_min, brake_accel, max_speed, half_length, half_width,
+                   human_radius)
 
 
 def shield_actions(obs: np.ndarray, actions: np.ndarray, p: ShieldParams) -> np.ndarray:
-    """``shield_action`` for N observations (N, OBS_SIZE) and actions (N, A) at once (compiled, ``kernels``)."""
-    from .kernels import shield
-
+    """``shield_row`` for N observations (N, OBS_SIZE) and actions (N, A) at once."""
     a = np.ascontiguousarray(actions, dtype=np.float32)
     out = np.empty_like(a)
-    shield(np.ascontiguousarray(obs, dtype=np.float32), a, p.clearance_min, p.brake_accel, p.max_speed,
-           p.half_length, p.half_width, p.human_radius, out)
+    _shield_rows(np.ascontiguousarray(obs, dtype=np.float32), a, out, *_limits(p))
     return out
+
+
+def shield_action(obs: np.ndarray, action: np.ndarray, p: ShieldParams) -> np.ndarray:
+    """``shield_row`` for one observation and action."""
+    a = np.asarray(action, dtype=np.float32).reshape(-1)
+    out = np.empty_like(a)
+    shield_row(np.asarray(obs, dtype=np.float32), a, out, *_limits(p))
+    return out
+
+
+def _limits(p: ShieldParams) -> tuple[float, ...]:
+    return p.clearance_min, p.brake_accel, p.max_speed, p.half_length, p.half_width, p.human_radius
 
 
 class SafetyShield:

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import dataclasses
 
+from numba import njit
+
 from ..params import _check, _positive
 
 
@@ -42,3 +44,12 @@ class TaskParams:
         _check(isinstance(self.route_margin, int | float) and self.route_margin >= 0, "task", "route_margin",
                self.route_margin, "a number >= 0")
         _check(isinstance(self.turn, bool), "task", "turn", self.turn, "true or false")
+
+
+@njit(cache=True)
+def joined(violation: bool, slot_distance: float, speed: float, heading_error: float, slot_tolerance: float,
+           stop_speed: float, heading_tolerance: float) -> bool:
+    """The success rule (``TaskParams``): at the free slot, stopped, facing the centre, no violation ever (an
+    episode ends at its first violation). ``heading_tolerance`` in radians."""
+    return (not violation and slot_distance < slot_tolerance and speed < stop_speed
+            and abs(heading_error) < heading_tolerance)

@@ -1,10 +1,11 @@
 """The PyBullet scene: room, Pepper, a conversation group, collisions and cameras (headless DIRECT mode).
 
-Motion is kinematic: the base (``base.HolonomicBase``) and the members (``humans.Group``) are integrated in
-numpy at the control period, and their poses are pushed to PyBullet only when PyBullet is asked something
-(rendering, contact queries). This keeps a world step near 10 kHz while PyBullet remains the scene and the
-renderer. Collisions are computed exactly in the plane (Pepper's box footprint against the members' 0.28 m
-circles and the walls' inner faces); ``pybullet_contacts`` cross-checks them with PyBullet's own geometry.
+Motion is kinematic: the base (``base.HolonomicBase``) and the members (``humans.Group``) are integrated by the
+compiled formulas at the control period, and their poses are pushed to PyBullet only when PyBullet is asked
+something (rendering, contact queries), so PyBullet remains the scene and the renderer. The world owns its state,
+or shows a batch's (``attach``: the env's state lives in ``batched.BatchedApproach``). Collisions are computed
+exactly in the plane (Pepper's box footprint against the members' 0.28 m circles and the walls' inner faces);
+``pybullet_contacts`` cross-checks them with PyBullet's own geometry.
 """
 
 from __future__ import annotations
@@ -17,12 +18,11 @@ import numpy as np
 from ..params import ConfigError, RobotParams, SocialParams, WorldParams
 from ..urdf import urdf_path
 from . import cameras
-from .base import HolonomicBase
+from .base import BaseArrays, HolonomicBase, footprint_distance, wall_clearance
 from .bullet import pybullet as p
-from .humans import Group
+from .humans import MAX_HUMANS, Group, GroupArrays
 from .layouts import GroupModel, Layout
 
-MAX_HUMANS = 5
 HUMAN_COLOURS = [(0.20, 0.70, 0.30, 1), (0.20, 0.40, 0.85, 1), (0.90, 0.50, 0.10, 1), (0.60, 0.30, 0.75, 1),
                  (0.85, 0.20, 0.25, 1)]
 _PARKED = (0.0, 0.0, -10.0)
@@ -38,10 +38,9 @@ class Collision:
 
 def box_circle_distance(pose: np.ndarray, half: tuple[float, float], centres: np.ndarray) -> np.ndarray:
     """Distance (m) from points (k, 2) to a box footprint with half-extents ``half`` at ``pose`` (0 inside)."""
-    c, s = math.cos(pose[2]), math.sin(pose[2])
-    local = (centres - pose[None, :2]) @ np.array([[c, -s], [s, c]])  # world -> body frame
-    out = np.maximum(np.abs(local) - half, 0.0)
-    return np.hypot(out[:, 0], out[:, 1])
+    x, y, yaw = (float(v) for v in pose[:3])
+    return np.array([footprint_distance(px - x, py - y, yaw, half[0], half[1])[0]
+                     for px, py in np.asarray(centres, dtype=float).reshape(-1, 2).tolist()])
 
 
 def spawn_layout(rng: np.random.Generator, world: WorldParams, robot: RobotParams, social: SocialParams, n: int,
@@ -96,6 +95,7 @@ class World:
         self.params.check_fits(self.social)
         self.base = HolonomicBase(self.robot_params, self.params.dt)
         self.group: Group | None = None
+        self._attached = False
         self.client = p.connect(p.DIRECT)
         self.t = 0.0
         self._synced = False
@@ -147,6 +147,18 @@ class World:
             pass
 
     # -- spawning -----------------------------------------------------------------------------------------
+    def attach(self, bases: BaseArrays, groups: GroupArrays, i: int) -> None:
+        """Show row ``i`` of a batch's state instead of owning one (``base`` and ``group`` become views; the
+        batch steps it: call ``invalidate`` after each change)."""
+        self.base = HolonomicBase(self.robot_params, self.params.dt, bases, i)
+        self.group = Group(self.social, dt=self.params.dt, arrays=groups, i=i)
+        self._attached = True
+        self._synced = False
+
+    def invalidate(self) -> None:
+        """The state changed outside ``step`` (an attached batch stepped): sync PyBullet before the next query."""
+        self._synced = False
+
     def reset(self, rng: np.random.Generator, n_humans: int | None = None, formation: str | None = None,
               start: str = "any") -> None:
         """Spawn a group (F-formation at a random place and rotation) and the robot outside it."""
@@ -154,9 +166,12 @@ class World:
         form = self.params.formation if formation is None else formation
         centre, layout, pose = spawn_layout(rng, self.params, self.robot_params, self.social, n, form, start,
                                             self.groups)
-        self.group = Group(self.social, centre, layout, self.keep)
         self.base.reset(pose)
-        self.group.update_centre(self.base.pose[:2])
+        if self._attached:
+            self.group.arrays.spawn(self.group.i, self.social, centre, layout, self.keep, pose[:2])
+        else:
+            self.group = Group(self.social, centre, layout, self.keep, self.params.dt)
+            self.group.update_centre(pose[:2])
         self.t = 0.0
         self._synced = False
 
@@ -183,12 +198,9 @@ class World:
 
     def wall_clearance(self) -> np.ndarray:
         """Distance (m) from the footprint's nearest corner to each wall's inner face (+x, -x, +y, -y)."""
-        sx, sy = self.params.room_size
-        x, y, yaw = self.base.pose
-        hl, hw = self.robot_params.length / 2, self.robot_params.width / 2
-        c, s = abs(math.cos(yaw)), abs(math.sin(yaw))
-        ex, ey = hl * c + hw * s, hl * s + hw * c  # the footprint's half-extent along x and y
-        return np.array([sx / 2 - x - ex, x - ex + sx / 2, sy / 2 - y - ey, y - ey + sy / 2])
+        x, y, yaw = (float(v) for v in self.base.pose)
+        return np.array(wall_clearance(x, y, yaw, self.robot_params.length / 2, self.robot_params.width / 2,
+                                       *self.params.room_size))
 
     def in_contact(self, clearance: np.ndarray | None = None) -> bool:
         """Whether ``collisions`` would list anything (cheaper; ``clearance`` as there)."""

@@ -80,7 +80,7 @@ def collect(episodes: int, size: int, seed: int = 0, policies: tuple[str, ...] =
     def grab(e, ep: int, k: int) -> None:
         rgb, seg = world.render_first_person(size, size, segmentation=True)
         rel, px = _member_pixels(world, cam, seg)
-        obs = e.unwrapped._obs()
+        obs = e.unwrapped.observe()
         for key, v in (("frames", rgb), ("episode", ep), ("speed", obs[5:7]), ("members_rel", rel),
                        ("members_px", px), ("policy", k)):
             cols[key].append(v)
