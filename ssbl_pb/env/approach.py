@@ -45,6 +45,20 @@ def parse_env_params(scenario: str, world: Any, robot: Any, social: Any, reward:
             _params(TaskParams, task, "task"))
 
 
+def approach_command(action: np.ndarray, heading_error: float, robot: RobotParams, task: TaskParams) -> np.ndarray:
+    """Body-frame base command (forward m/s, left m/s, turn rad/s) for a normalised action (clipped to [-1, 1]).
+
+    The action is (toward the centre, to the left of that) in the approach frame, and the base turns toward the
+    centre at ``task.heading_gain`` (``heading_error``: rad from the heading to the centre); with ``task.turn``
+    it is (forward, left, turn) in the body frame. The env and the deploy loop both use this."""
+    a = [min(max(v, -1.0), 1.0) for v in np.asarray(action, dtype=float).ravel().tolist()]
+    if task.turn:
+        return np.array([a[0] * robot.max_speed, a[1] * robot.max_speed, a[2] * robot.max_yaw_rate])
+    turn = min(max(task.heading_gain * heading_error, -robot.max_yaw_rate), robot.max_yaw_rate)
+    c, s = math.cos(heading_error), math.sin(heading_error)  # approach frame -> body frame
+    return np.array([(c * a[0] - s * a[1]) * robot.max_speed, (s * a[0] + c * a[1]) * robot.max_speed, turn])
+
+
 class ApproachGroupEnv(gym.Env):
     """Pepper approaches a conversation group and joins it at the free slot."""
 
@@ -146,14 +160,7 @@ class ApproachGroupEnv(gym.Env):
         The action is (toward the centre, to the left of that) in the approach frame (``observation``), or
         (forward, left, turn) in the body frame when the policy steers (``TaskParams.turn``).
         """
-        a = [min(max(v, -1.0), 1.0) for v in np.asarray(action, dtype=float).ravel().tolist()]
-        rp = self.robot_params
-        if self.task.turn:
-            return np.array([a[0] * rp.max_speed, a[1] * rp.max_speed, a[2] * rp.max_yaw_rate])
-        e = self.heading_error()
-        turn = min(max(self.task.heading_gain * e, -rp.max_yaw_rate), rp.max_yaw_rate)
-        c, s = math.cos(e), math.sin(e)  # approach frame -> body frame
-        return np.array([(c * a[0] - s * a[1]) * rp.max_speed, (s * a[0] + c * a[1]) * rp.max_speed, turn])
+        return approach_command(action, self.heading_error(), self.robot_params, self.task)
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
         w, g = self.world, self.world.group
