@@ -32,6 +32,31 @@ CASES = [
     # evaluation
     C("evaluate.py", "--policy", "nosuch", "--out", "{out}", expect="--policy 'nosuch'"),
     C("evaluate.py", "--policy", "sffm", "--episodes", "0", "--out", "{out}", expect="--episodes 0"),
+    # deploy (issue 12): nothing connects or moves before the inputs are checked
+    C("-m ssbl_pb.deploy", "--robot-ip", "127.0.0.1", "--port", "1", "--policy", "sffm", "--log-dir", "{out}",
+      expect="cannot connect to tcp://127.0.0.1:1"),
+    C("-m ssbl_pb.deploy", "--robot-ip", "10.255.255.1", "--policy", "sffm", "--log-dir", "{out}",
+      expect="cannot connect"),
+    C("-m ssbl_pb.deploy", "--log-dir", "{out}", expect="give --robot-ip"),
+    C("-m ssbl_pb.deploy", "--url", "http://pepper:80", "--log-dir", "{out}", expect="--url 'http://pepper:80'"),
+    C("-m ssbl_pb.deploy", "--robot-ip", "127.0.0.1", "--max-speed", "0.8", "--log-dir", "{out}",
+      expect="--max-speed 0.8"),
+    C("-m ssbl_pb.deploy", "--robot-ip", "127.0.0.1", "--policy", "nosuch", "--log-dir", "{out}", expect="nosuch"),
+    C("-m ssbl_pb.deploy", "--robot-ip", "127.0.0.1", "--detector", "yolo", "--log-dir", "{out}",
+      expect="--detector 'yolo'"),
+    C("-m ssbl_pb.deploy", "--robot-ip", "127.0.0.1", "--map", "{file}", "--start-pose", "0", "0", "0",
+      "--log-dir", "{out}", expect="--map"),
+    C("-m ssbl_pb.deploy", "--robot-ip", "127.0.0.1", "--start-pose", "0", "0", "0", "--log-dir", "{out}",
+      expect="--start-pose is a pose on a map"),
+    C("-m ssbl_pb.deploy", "--robot-ip", "127.0.0.1", "--log-dir", "{file}", expect="exists and is not a directory"),
+    C("-m ssbl_pb.deploy.virtual_robot", "--listen", "tcp://0.0.0.0:0", "--log", "{out}",
+      expect="not a loopback address"),
+    C("-m ssbl_pb.deploy.virtual_robot", "--listen", "127.0.0.1:9559", expect="--listen '127.0.0.1:9559'"),
+    C("-m ssbl_pb.deploy.virtual_robot", "--listen", "tcp://127.0.0.1:0", "--scenario", "nosuch", "--log", "{out}",
+      expect="scenario 'nosuch'"),
+    C("-m ssbl_pb.deploy.watchdog", "--robot", "tcp://127.0.0.1:1", expect="cannot reach ALMotion"),
+    C("-m ssbl_pb.deploy.watchdog", "--limit", "0", expect="--limit 0"),
+    C("-m ssbl_pb.deploy.plot", "{tmp}", expect="no log.jsonl"),
 ]
 
 

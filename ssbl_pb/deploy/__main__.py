@@ -17,6 +17,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import math
+import os
 import sys
 import time
 from pathlib import Path
@@ -195,5 +196,17 @@ def _run(args: argparse.Namespace, url: str, folder: Path, robot: Any, params: A
     return code
 
 
+def _run_and_exit() -> None:
+    """``cli.run(main)``, then exit without the interpreter's teardown: once the run's files are written and the
+    base stopped, native finalizers (libqi's threads and others) take ~0.5 s, which would hide how fast a fault
+    ends the process."""
+    try:
+        run(main)
+    except SystemExit as done:
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(done.code if isinstance(done.code, int) else 1)
+
+
 if __name__ == "__main__":
-    run(main)
+    _run_and_exit()

@@ -47,7 +47,10 @@ class RoomMap:
 def load_room(path: str | Path) -> RoomMap:
     """Read ``tools/import_map.py``'s room YAML and its map; ``UserError`` naming the file and field."""
     path = Path(path)
-    data = load_yaml(path)
+    try:
+        data = load_yaml(path)
+    except UserError as exc:
+        raise UserError(f"--map {exc}") from None
     for key in ("world", "map", "map_to_room"):
         if not isinstance(data.get(key), dict):
             raise UserError(f"--map {path}: no '{key}:' mapping; expected a room YAML from tools/import_map.py")
@@ -61,7 +64,11 @@ def load_room(path: str | Path) -> RoomMap:
     map_yaml = Path(str(data["map"].get("yaml", "")))
     if not map_yaml.is_absolute() and not map_yaml.is_file():
         map_yaml = path.parent / map_yaml
-    return RoomMap(path, world.room_size, pose, read_map(map_yaml))
+    try:
+        grid = read_map(map_yaml)
+    except UserError as exc:
+        raise UserError(f"--map {path}: its map does not load ({exc})") from None
+    return RoomMap(path, world.room_size, pose, grid)
 
 
 class Frames:

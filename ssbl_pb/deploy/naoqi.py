@@ -95,6 +95,7 @@ class NaoqiRobot:
         qi = import_qi()
         self.url, self.limits, self.p = url, limits or RobotParams(), params or NaoqiParams()
         self.lost = threading.Event()
+        self.unresponsive = False  # a bounded call timed out: close() tries nothing more
         self.handle: str | None = None
         self.watchdog: Any = None
         self.move_failed: list[dict[str, Any]] = []
@@ -155,6 +156,7 @@ class NaoqiRobot:
         except RuntimeError as exc:
             self._raise_if_lost(what)
             if "timeout" in str(exc).lower():
+                self.unresponsive = True
                 raise RobotNotResponding(f"{what} did not answer within {timeout * 1000:.0f} ms (robot process "
                                          f"frozen or network stalled)") from None
             raise
@@ -164,18 +166,18 @@ class NaoqiRobot:
             self.lost.set()
             raise ConnectionLost(f"connection to {self.url} lost ({what})")
 
-    def _async(self, method: Any, *args: Any) -> Any:
-        self._raise_if_lost(getattr(method, "__name__", "call"))
+    def _async(self, method: Any, *args: Any, what: str = "a call") -> Any:
+        self._raise_if_lost(what)
         try:
             return method(*args, _async=True)
         except RuntimeError:
-            self._raise_if_lost(getattr(method, "__name__", "call"))
+            self._raise_if_lost(what)
             raise
 
     # -- Robot interface -------------------------------------------------------------------------------------
     def frame(self) -> Frame | None:
-        img = self._call(self._async(self.video.getImageRemote, self.handle), "ALVideoDevice.getImageRemote",
-                         self.p.frame_timeout_s)
+        what = "ALVideoDevice.getImageRemote"
+        img = self._call(self._async(self.video.getImageRemote, self.handle, what=what), what, self.p.frame_timeout_s)
         if not img:
             return None
         w, h, layers, space = (int(v) for v in img[:4])
@@ -186,23 +188,23 @@ class NaoqiRobot:
         return Frame(rgb[..., ::-1].copy() if space == BGR else rgb, float(img[4]) + 1e-6 * float(img[5]))
 
     def odometry(self) -> Odometry:
-        pos = self._async(self.motion.getRobotPosition, True)
-        vel = self._async(self.motion.getRobotVelocity)
+        pos = self._async(self.motion.getRobotPosition, True, what="ALMotion.getRobotPosition")
+        vel = self._async(self.motion.getRobotVelocity, what="ALMotion.getRobotVelocity")
         pose = self._call(pos, "ALMotion.getRobotPosition")
         velocity = self._call(vel, "ALMotion.getRobotVelocity")
         return Odometry(np.asarray(pose, dtype=float)[:3], np.asarray(velocity, dtype=float)[:3], time.monotonic())
 
     def send(self, cmd: np.ndarray) -> np.ndarray:
         c = clamp_command(cmd, self.limits)
-        move = self._async(self.motion.move, float(c[0]), float(c[1]), float(c[2]))
-        beat = self._async(self.watchdog.heartbeat) if self.watchdog is not None else None
+        move = self._async(self.motion.move, float(c[0]), float(c[1]), float(c[2]), what="ALMotion.move")
+        beat = self._async(self.watchdog.heartbeat, what="SSBLWatchdog.heartbeat") if self.watchdog else None
         self._call(move, "ALMotion.move")
         if beat is not None:
             self._call(beat, "SSBLWatchdog.heartbeat")
         return c
 
     def stop(self) -> None:
-        self._call(self._async(self.motion.stopMove), "ALMotion.stopMove")
+        self._call(self._async(self.motion.stopMove, what="ALMotion.stopMove"), "ALMotion.stopMove")
 
     def events(self) -> list[dict[str, Any]]:
         """ALMotion/MoveFailed events since the last call (collision protection refusing or stopping a move)."""
@@ -210,19 +212,23 @@ class NaoqiRobot:
         return out
 
     def close(self) -> None:
-        """Stop, disarm the watchdog, release the camera and disconnect; never raises (best effort)."""
+        """Stop, disarm the watchdog, release the camera and disconnect; never raises (best effort: after a lost
+        connection or a call that timed out nothing more is tried, so a frozen robot costs one timeout)."""
         steps = [lambda: self.stop()]
         if self.watchdog is not None:
-            steps.append(lambda: self._call(self._async(self.watchdog.disarm), "SSBLWatchdog.disarm"))
+            steps.append(lambda: self._call(self._async(self.watchdog.disarm, what="disarm"), "SSBLWatchdog.disarm"))
         if self.handle is not None:
             handle, self.handle = self.handle, None
-            steps.append(lambda: self._call(self._async(self.video.unsubscribe, handle), "unsubscribe"))
+            steps.append(lambda: self._call(self._async(self.video.unsubscribe, handle, what="unsubscribe"),
+                                            "ALVideoDevice.unsubscribe"))
         for step in steps:
-            if self.lost.is_set():
+            if self.lost.is_set() or self.unresponsive:
                 break
             try:
                 step()
-            except (RuntimeError, ConnectionLost, RobotNotResponding, AttributeError):
+            except RobotNotResponding:
+                self.unresponsive = True
+            except (RuntimeError, ConnectionLost, AttributeError):
                 pass
         self._subscribers.clear()
         try:

@@ -181,7 +181,7 @@ class Perception:
         if self.error is not None:
             raise self.error
 
-    def stop(self, timeout_s: float = 1.0) -> None:
+    def stop(self, timeout_s: float = 0.2) -> None:
         self._stop.set()
         with self._lock:
             self._new.notify_all()

@@ -55,10 +55,12 @@ def draw(folder: str | Path, out: str | Path | None = None) -> Path:
     robot, humans = paths(rows)
     room = load_room(info["map"]) if info.get("map") else None
     pts = np.concatenate([robot[:, :2].reshape(-1, 2)] + [np.array([p for p, _ in v]) for v in humans.values()])
-    if room is not None:  # to the map frame
+    if room is not None:  # to the map frame, and the whole room in view
         robot = np.array([compose(room.map_to_room, q) for q in robot]).reshape(-1, 3)
         humans = {k: [(transform_points(room.map_to_room, p[None])[0], s) for p, s in v] for k, v in humans.items()}
-        pts = transform_points(room.map_to_room, pts)
+        sx, sy = room.room_size
+        corners = np.array([[-sx / 2, -sy / 2], [sx / 2, -sy / 2], [-sx / 2, sy / 2], [sx / 2, sy / 2]])
+        pts = transform_points(room.map_to_room, np.concatenate([pts, corners]))
     lo, hi = (pts.min(axis=0) - 1.5, pts.max(axis=0) + 1.5) if len(pts) else (np.full(2, -3.0), np.full(2, 3.0))
     scale = WIDTH / max(float(np.max(hi - lo)), 1.0)  # px per metre
     w, h = (int(math.ceil(v * scale)) for v in hi - lo)

@@ -6,7 +6,8 @@
 The group moves by the social force model; frames are TinyRenderer renders from CameraTop. Like a real Pepper
 it keeps executing the last ``move`` until told otherwise and clamps commands to its limits. It binds loopback
 addresses only unless ``--allow-remote``. Port 0 picks a free port; the first stdout line is
-``listening on URL``. ``--log`` (JSONL, flushed per line) records every simulation step: time, commanded and
+``listening on URL``. ``--write-map DIR`` writes the room as a map with the flags deploy needs to use it.
+``--log`` (JSONL, flushed per line) records every simulation step: time, commanded and
 actual velocity, room-frame pose, odometry pose, the members, the free slot and the clearance, so tests can see
 when the base really stopped. SIGUSR1 freezes the camera (frames keep their last time stamp; again to thaw).
 qi 3.1.5 facts this relies on: a service is hosted with ``Session().listenStandalone(url)`` and
@@ -32,7 +33,7 @@ from ..cli import run
 from ..errors import UserError
 from ..files import check_output_path
 from .naoqi import BGR, RESOLUTIONS, RGB, import_qi
-from .robot import SimRobot, relative
+from .robot import SimRobot, compose, relative
 
 LOOPBACK = ("127.0.0.1", "localhost", "[::1]")
 MAX_SUBSCRIPTIONS = 6  # NAOqi's limit per subscriber name
@@ -99,6 +100,35 @@ class VirtualPepper:
             with self._log_lock:
                 self._log.close()
             self._log = None
+
+
+def write_room_map(folder: Path, robot: SimRobot, resolution: float = 0.05,
+                   centre: tuple[float, float] = (2.0, 1.0)) -> tuple[Path, np.ndarray]:
+    """The simulated room as a ROS map (``map.pgm``, ``map.yaml``) and its room YAML (``room.yaml``, as
+    ``tools/import_map.py`` makes it), the room's centre at ``centre`` on the map (so the frames differ); returns
+    the room YAML and the robot's start pose on the map (x, y, yaw)."""
+    from ..calib.io import write_yaml
+    from ..calib.room_map import extract_room, read_map, room_yaml
+
+    sx, sy = robot.world.params.room_size
+    wall = robot.world.params.wall_thickness
+    margin = 1.0 + wall
+    w, h = (int(round((v + 2 * margin) / resolution)) for v in (sx, sy))
+    img = np.full((h, w), 205, np.uint8)  # unknown outside
+    m, k = int(round(1.0 / resolution)), int(round(wall / resolution))
+    img[m:h - m, m:w - m] = 0  # walls ...
+    img[m + k:h - m - k, m + k:w - m - k] = 254  # ... around the free room
+    folder.mkdir(parents=True, exist_ok=True)
+    cv2.imwrite(str(folder / "map.pgm"), img)
+    origin = (centre[0] - (sx / 2 + margin), centre[1] - (sy / 2 + margin), 0.0)
+    (folder / "map.yaml").write_text(f"image: map.pgm\nresolution: {resolution}\norigin: {list(origin)}\n"
+                                     "negate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n")
+    grid = read_map(folder / "map.yaml")
+    data = room_yaml(grid, extract_room(grid, seed=centre), centre)
+    write_yaml(folder / "room.yaml", data, header="the virtual Pepper's room (python -m ssbl_pb.deploy.virtual_robot)")
+    t = data["map_to_room"]
+    start = compose(np.array([t["x"], t["y"], t["yaw"]]), robot.start_pose)
+    return folder / "room.yaml", start
 
 
 def make_services(vp: VirtualPepper) -> tuple[Any, Any]:
@@ -169,12 +199,16 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--log", type=Path, help="JSONL log of every simulation step")
     ap.add_argument("--allow-remote", action="store_true", help="allow a non-loopback --listen address")
     ap.add_argument("--duration", type=float, default=0.0, help="exit after this many seconds (0: run until killed)")
+    ap.add_argument("--write-map", type=Path, metavar="DIR", help="write the room as a map (DIR/room.yaml for "
+                    "deploy's --map) and print the robot's --start-pose on it")
     args = ap.parse_args(argv)
     url = check_listen(args.listen, args.allow_remote)
-    if args.log is not None:
-        check_output_path(args.log, "--log", is_dir=False)
+    for path, flag, is_dir in ((args.log, "--log", False), (args.write_map, "--write-map", True)):
+        if path is not None:
+            check_output_path(path, flag, is_dir=is_dir)
     qi = import_qi()
     robot = SimRobot(args.scenario, args.seed)
+    on_map = write_room_map(args.write_map, robot) if args.write_map is not None else None
     session = qi.Session()
     try:
         session.listenStandalone(url)
@@ -190,6 +224,9 @@ def main(argv: list[str] | None = None) -> int:
     print(f"listening on {session.endpoints()[0]}", flush=True)
     print(f"scene: seed {args.seed}, {robot.info['formation']} group of {robot.info['n_humans']}, robot at "
           f"({x:.2f}, {y:.2f}, {math.degrees(yaw):.0f} deg) in the room frame", flush=True)
+    if on_map is not None:
+        (mx, my, myaw) = on_map[1]
+        print(f"map: --map {on_map[0]} --start-pose {mx:.3f} {my:.3f} {math.degrees(myaw):.2f}", flush=True)
     stop = threading.Event()
     if args.duration > 0:
         threading.Timer(args.duration, stop.set).start()
