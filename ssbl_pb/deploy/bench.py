@@ -233,3 +233,73 @@ def rss_series(pid: int, seconds: float, every: float = 5.0) -> list[tuple[float
 def environment() -> dict[str, Any]:
     """Where a benchmark ran: cores and the load average (the machine is shared)."""
     return {"cpus": os.cpu_count(), "loadavg": list(os.getloadavg()), "python": sys.version.split()[0]}
+
+
+def soak(folder: Path, seconds: float, seed: int = 500_000, policy: str = "vector") -> dict[str, Any]:
+    """Deploy held at the slot (``--continue-after-success``) for ``seconds``: its memory (RSS sampled every 5 s
+    from the loop's first tick) and late ticks. Growth compares the mean RSS of the last fifth of the run with
+    that of the second fifth (the first is warm-up: the tracker, the log and the allocator settling)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    with virtual_pepper(folder / "virtual_pepper.jsonl", seed) as (_, url):
+        proc = start_deploy(url, folder / "deploy", policy, "--continue-after-success", "--duration", str(seconds))
+        end = time.monotonic() + 120.0
+        while not (folder / "deploy" / LOG).is_file() and proc.poll() is None and time.monotonic() < end:
+            time.sleep(0.2)
+        rss = rss_series(proc.pid, seconds + 30.0)
+        proc.communicate(timeout=120)
+    summary = json.loads((folder / "deploy" / SUMMARY).read_text())
+    early = [m for t, m in rss if 0.2 * seconds <= t < 0.4 * seconds]
+    late = [m for t, m in rss if 0.8 * seconds <= t <= seconds]
+    growth = (sum(late) / len(late)) / (sum(early) / len(early)) - 1.0 if early and late else None
+    return {"seconds": seconds, "exit_code": proc.returncode, "rss_mb": rss, "rss_growth": growth,
+            **{k: summary.get(k) for k in ("outcome", "ticks", "tick_ms_median", "tick_ms_p99",
+                                           "estimate_age_ms_median", "late_tick_fraction")}}
+
+
+def markdown(res: dict[str, Any]) -> str:
+    """The benchmark's section for docs/benchmarks.md."""
+    out = []
+    runs = res.get("approaches", [])
+    if runs:
+        ok = sum(r.get("true_success", False) for r in runs)
+        claimed = sum(r.get("outcome") == "success" for r in runs)
+        intimate = sum(r.get("true_min_clearance_m", 9) < 0.45 for r in runs)
+
+        def med(key: str) -> float:
+            vals = sorted(r[key] for r in runs if r.get(key) is not None)
+            return vals[len(vals) // 2]
+
+        p99 = max(r["tick_ms_p99"] for r in runs if r.get("tick_ms_p99") is not None)
+        out += [f"**Approaches** ({len(runs)} seeded runs, seeds {runs[0]['seed']}-{runs[-1]['seed']}, scenario "
+                f"`{res['scenario']}`, policy `{res['policy']}`): success by the simulator's own rule and ground truth "
+                f"in **{ok}/{len(runs)}** (deploy claimed {claimed}); intimate-zone entries: **{intimate}**; "
+                f"smallest true clearance {min(r['true_min_clearance_m'] for r in runs):.2f} m.",
+                f"Control tick (start to command sent): median of run medians {med('tick_ms_median'):.1f} ms, worst "
+                f"run p99 {p99:.1f} ms; estimate age median {med('estimate_age_ms_median'):.0f} ms.", "",
+                "| seed | outcome | true success | slot (m) | heading (deg) | min clearance (m) | tick median / p99 "
+                "(ms) | estimate age (ms) |", "|---|---|---|---|---|---|---|---|"]
+        for r in runs:
+            out.append(f"| {r['seed']} | {r.get('outcome')} | {'yes' if r.get('true_success') else 'no'} | "
+                       f"{r.get('true_slot_m', float('nan')):.2f} | {r.get('true_heading_deg', float('nan')):.0f} | "
+                       f"{r.get('true_min_clearance_m', float('nan')):.2f} | {r.get('tick_ms_median') or 0:.1f} / "
+                       f"{r.get('tick_ms_p99') or 0:.1f} | {r.get('estimate_age_ms_median') or 0:.0f} |")
+        out.append("")
+    faults = res.get("faults", [])
+    if faults:
+        out += ["**Faults** (each injected once the base moved; times from the virtual Pepper's own log):", "",
+                "| fault | exit code | process exit (s) | stop commanded (s) | standstill (s) |",
+                "|---|---|---|---|---|"]
+        for f in faults:
+            cells = ["-" if f.get(k) is None else f"{f[k]:.2f}" for k in ("exit_s", "stop_commanded_s", "standstill_s")]
+            out.append(f"| {f['fault']} | {f['exit_code']} | " + " | ".join(cells) + " |")
+        out.append("")
+    if res.get("soak"):
+        s = res["soak"]
+        growth = "-" if s["rss_growth"] is None else f"{100 * s['rss_growth']:+.1f} %"
+        out.append(f"**Soak** ({s['seconds']:.0f} s at 10 Hz, held at the slot): memory growth {growth} "
+                   f"(RSS {s['rss_mb'][0][1]:.0f} -> {s['rss_mb'][-1][1]:.0f} MB), late ticks "
+                   f"{100 * (s['late_tick_fraction'] or 0):.2f} % of {s['ticks']}, tick median / p99 "
+                   f"{s['tick_ms_median']:.1f} / {s['tick_ms_p99']:.1f} ms.")
+    env = res.get("environment", {})
+    out.append(f"\nMachine: {env.get('cpus')} cores, load average {env.get('loadavg')} at the start (shared).")
+    return "\n".join(out) + "\n"
