@@ -1,6 +1,7 @@
 """The base-dynamics log: reading and validating it, measured body velocities, and synthetic logs.
 
-Format (CSV with a header row, one row per control tick, any extra columns ignored):
+Format (CSV with a header row, one row per control tick, any extra columns ignored; or JSONL, one object per
+tick with the same names, as ``python -m ssbl_pb.deploy`` writes its ``log.jsonl``):
 
 * ``t``: time in seconds, strictly increasing (near-uniform spacing; 10-50 Hz is fine).
 * ``cmd_vx``, ``cmd_vy``, ``cmd_wz``: the body-frame velocity command sent at ``t`` (forward m/s, left m/s,
@@ -16,6 +17,7 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import json
 import math
 from pathlib import Path
 
@@ -67,12 +69,16 @@ def read_log(path: str | Path) -> DynamicsLog:
     if not path.is_file():
         raise CalibrationError(f"{path}: file not found")
     try:
-        with path.open(newline="") as fh:
-            reader = csv.DictReader(fh)
-            header = [h.strip() for h in (reader.fieldnames or [])]
-            rows = list(reader)
-    except (OSError, UnicodeDecodeError, csv.Error) as exc:
-        raise CalibrationError(f"{path}: not a readable CSV file ({exc})") from exc
+        if path.suffix == ".jsonl":  # a deploy log (ssbl_pb.deploy.log): one object per tick, the same names
+            rows = [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
+            header = list(rows[0]) if rows else []
+        else:
+            with path.open(newline="") as fh:
+                reader = csv.DictReader(fh)
+                header = [h.strip() for h in (reader.fieldnames or [])]
+                rows = list(reader)
+    except (OSError, UnicodeDecodeError, csv.Error, json.JSONDecodeError) as exc:
+        raise CalibrationError(f"{path}: not a readable CSV or JSONL file ({exc})") from exc
     need = ("t",) + CMD
     missing = [c for c in need if c not in header]
     has_pose, has_vel = all(c in header for c in POSE), all(c in header for c in VEL)

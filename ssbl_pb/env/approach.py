@@ -59,6 +59,16 @@ def parse_env_params(scenario: str, world: Any, robot: Any, social: Any, reward:
             _params(TaskParams, task, "task"), model)
 
 
+def approach_command(action: np.ndarray, heading_error: float, robot: RobotParams, task: TaskParams) -> np.ndarray:
+    """``observation.action_command`` for an action array and the env's parameters: the body-frame base command
+    (forward m/s, left m/s, turn rad/s). The env's step and the deploy loop both use it."""
+    a = np.zeros(3)
+    flat = np.asarray(action, dtype=float).ravel()
+    a[:min(3, flat.size)] = flat[:3]
+    return np.array(ob.action_command(a[0], a[1], a[2], float(heading_error), task.turn, task.heading_gain,
+                                      robot.max_speed, robot.max_yaw_rate))
+
+
 class ApproachGroupEnv(gym.Env):
     """Pepper approaches a conversation group and joins it at the free slot.
 

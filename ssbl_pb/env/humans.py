@@ -281,6 +281,25 @@ class GroupArrays:
         self.centre[i] = cx, cy
 
 
+def measured_group(social: SocialParams, members: np.ndarray, centre: np.ndarray, keep: float, paper: bool,
+                   dt: float = 0.1) -> Group:
+    """A group at rest where ``members`` (n, 2) stand around ``centre``, by the env's model (``paper``: the
+    original's circle, else the calibrated model with the robot's place ``keep`` from every member): what a
+    robot that measures the people (deploy) feeds the policy, with the simulator's own definitions."""
+    from .layouts import free_layout, paper_layout
+
+    offsets = np.asarray(members, dtype=float).reshape(-1, 2) - centre
+    n = len(offsets)
+    if paper:
+        angles = np.arctan2(offsets[:, 1], offsets[:, 0])
+        lay = paper_layout("circular", n, social, 0.0)
+        lay = type(lay)(offsets, np.hypot(*offsets.T), np.mod(angles + math.pi, TWO_PI), lay.radius,
+                        lay.joined_radius, paper=True)
+    else:
+        lay = free_layout(offsets)
+    return Group(social, centre, lay, keep, dt)
+
+
 class Group:
     """One conversation group: row ``i`` of a ``GroupArrays`` (its own, or a batch's), stepped by ``group_step``.
 

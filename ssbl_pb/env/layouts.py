@@ -175,6 +175,12 @@ def person_growth(n: int) -> float:
     return math.sin(math.pi / n) / math.sin(math.pi / (n + 1)) - 1.0
 
 
+def free_layout(offsets: np.ndarray) -> Layout:
+    """A non-paper group standing at ``offsets`` (n, 2) from its centre: each member's ring is its own distance,
+    the o-space radius their mean, widened by ``ROBOT_ROOM`` of a person's room once the robot joins."""
+    return _free_layout(np.asarray(offsets, dtype=float).reshape(-1, 2))
+
+
 def _free_layout(offsets: np.ndarray) -> Layout:
     ring = np.hypot(offsets[:, 0], offsets[:, 1])
     radius = float(ring.mean())

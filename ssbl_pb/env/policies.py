@@ -83,6 +83,8 @@ class SFFMPolicy(Policy):
         """The combined motion force at the robot, body frame."""
         s, q = self.social, self.params
         members, _ = ob.decode_members(obs)
+        if len(members) == 0:  # nobody seen: no field
+            return np.zeros(2)
         centre = obs[2:4].astype(float) * ob.POS_SCALE
         slot = obs[0:2].astype(float) * ob.POS_SCALE
         radius = max(float(obs[4]) * ob.POS_SCALE, math.hypot(*(slot - centre)))

@@ -1,0 +1,212 @@
+"""Run the learned approach on a Pepper over NAOqi, safely: camera -> people -> policy -> base, with a log.
+
+    python -m ssbl_pb.deploy --robot-ip 192.168.1.20 --policy vector --log-dir runs/deploy1        # NAOqi 2.5
+    python -m ssbl_pb.deploy --url tcps://192.168.1.20:9503 --user nao --token PASS ...           # NAOqi 2.9
+    python -m ssbl_pb.deploy --robot-ip 127.0.0.1 --port 9559 --detector colour --log-dir runs/vp  # virtual Pepper
+    python -m ssbl_pb.deploy ... --map room.yaml --start-pose 3.2 1.5 90   # paths on the map, the real walls
+
+Ends on success (joined the group), on --duration, or on a fault; the base is stopped first in every case and the
+exit code says which (0 success, 1 a bug, 2 bad input, 3 duration, 4 person too close, 5 stale frame, 6 stale
+odometry, 7 connection lost, 8 robot not responding, 130 Ctrl-C, 143 SIGTERM; docs/deploy.md). DIR gets
+log.jsonl (one line per tick), run.json, summary.json and paths.png. Start ``python -m ssbl_pb.deploy.watchdog``
+beside the robot first, so the base stops even if this process dies.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import math
+import os
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..cli import run
+from ..errors import UserError
+from ..files import check_output_path
+from .faults import EXIT_CODES
+from .log import LOG, RunLog, write_run, write_summary
+
+BASELINES = ("sffm", "straight", "random")
+
+
+def _parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(prog="python -m ssbl_pb.deploy", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--robot-ip", help="the robot's address (NAOqi 2.5: tcp://IP:PORT)")
+    ap.add_argument("--port", type=int, default=9559, help="NAOqi port (default 9559)")
+    ap.add_argument("--url", help="full qi URL instead, e.g. tcps://IP:9503 for NAOqi 2.9 (with --user/--token)")
+    ap.add_argument("--user", help="NAOqi 2.9 login user (default nao)")
+    ap.add_argument("--token", help="NAOqi 2.9 login password/token")
+    ap.add_argument("--policy", default="vector", help="vector (shipped) | run dir | .zip | sffm | straight | random")
+    ap.add_argument("--detector", default="hog", help="hog (real people) | colour (the virtual Pepper's proxies)")
+    ap.add_argument("--camera-yaml", help="calibrated camera (tools/calibrate_camera.py); default nominal CameraTop")
+    ap.add_argument("--robot-yaml", help="identified base dynamics (tools/identify_dynamics.py)")
+    ap.add_argument("--social-yaml", help="calibrated group parameters (tools/calibrate_humans.py)")
+    ap.add_argument("--map", help="room YAML from tools/import_map.py: real walls for the policy, paths on the map")
+    ap.add_argument("--start-pose", type=float, nargs=3, metavar=("X", "Y", "YAW"),
+                    help="with --map: the robot's start pose on the map (metres, degrees)")
+    ap.add_argument("--log-dir", type=Path, help="output folder (default runs/deploy-DATE-TIME)")
+    ap.add_argument("--max-speed", type=float, default=0.35, help="m/s clamp on the base speed (default 0.35)")
+    ap.add_argument("--rate", type=float, default=10.0, help="control rate in Hz (default 10, as trained)")
+    ap.add_argument("--duration", type=float, default=60.0, help="give up after this many seconds (default 60)")
+    ap.add_argument("--stop-distance", type=float, default=0.45,
+                    help="stop when a tracked person is this close to the footprint (m, default 0.45)")
+    ap.add_argument("--stale", type=float, default=0.5, help="stop when frame or odometry is older (s, default 0.5)")
+    ap.add_argument("--continue-after-success", action="store_true", help="hold the slot until --duration")
+    ap.add_argument("--require-watchdog", action="store_true", help="refuse to run without deploy.watchdog")
+    ap.add_argument("--quiet", action="store_true", help="no status line")
+    return ap
+
+
+def _number(flag: str, value: float, lo: float, hi: float, unit: str) -> None:
+    if not (math.isfinite(value) and lo < value <= hi):
+        raise UserError(f"{flag} {value:g}: expected a number in ({lo:g}, {hi:g}] {unit}")
+
+
+def _params(args: argparse.Namespace) -> Any:
+    """Every input checked before anything connects or is written: (params, robot, social, task, policy, frames)."""
+    from ..env.approach import core_kwargs
+    from ..env.task import TaskParams
+    from ..params import RobotParams, SocialParams, from_dict
+    from .frames import Frames, load_room
+    from .loop import DeployParams
+    from .perceive import DETECTORS
+
+    _number("--max-speed", args.max_speed, 0.0, 0.55, "m/s (Pepper's hardware max is 0.55)")
+    _number("--rate", args.rate, 0.0, 50.0, "Hz")
+    _number("--duration", args.duration, 0.0, 86400.0, "s")
+    _number("--stop-distance", args.stop_distance, 0.0, 3.0, "m")
+    _number("--stale", args.stale, 0.0, 10.0, "s")
+    if args.detector not in DETECTORS:
+        raise UserError(f"--detector {args.detector!r}: expected one of {list(DETECTORS)}")
+    if args.start_pose is not None and args.map is None:
+        raise UserError("--start-pose is a pose on a map: give --map room.yaml too")
+    kwargs, _ = core_kwargs(camera_yaml=args.camera_yaml, robot_yaml=args.robot_yaml, social_yaml=args.social_yaml)
+    robot = from_dict(RobotParams, kwargs.get("robot"), "robot")
+    social = from_dict(SocialParams, kwargs.get("social"), "social")
+    task = TaskParams()
+    params = DeployParams(rate_hz=args.rate, max_speed=args.max_speed, stale_s=args.stale,
+                          stop_distance=args.stop_distance, duration_s=args.duration,
+                          continue_after_success=args.continue_after_success, status_s=0.0 if args.quiet else 1.0)
+    start = None
+    if args.start_pose is not None:
+        x, y, yaw = args.start_pose
+        start = np.array([x, y, math.radians(yaw)])
+    frames = Frames(load_room(args.map) if args.map else None, start)
+    frames.check_start()
+    return params, robot, social, task, _policy(args.policy, robot, social, task), frames
+
+
+def _policy(spec: str, robot: Any, social: Any, task: Any) -> Any:
+    """A baseline by name or a trained Vector model, its shield braking within this robot's limits."""
+    import gymnasium as gym
+
+    from ..env import observation as ob
+    from ..env.policies import make_policy
+    from ..env.shield import ShieldParams
+    from ..env.trained import load_trained
+
+    if spec in BASELINES:
+        return make_policy(spec, robot, social, seed=0)
+    space = gym.spaces.Box(-ob.OBS_LIMIT, ob.OBS_LIMIT, shape=(ob.OBS_SIZE,), dtype=np.float32)
+    return load_trained(spec, space, None, ShieldParams.from_env(robot, social, task))
+
+
+def _warm_up(policy: Any) -> None:
+    """One prediction before the robot moves: torch's first call took 0.3 s (measured on the virtual Pepper: the
+    first approach ticks took 306, 140 and 79 ms without it). Also one torch thread (a small MLP; more only
+    contend with detection) and a 1 ms GIL switch interval, so the control thread gets the interpreter back
+    within ~1 ms of each robot call while the detector thread runs Python (5 ms by default)."""
+    from ..env import observation as ob
+
+    sys.setswitchinterval(0.001)
+    if hasattr(policy, "model"):  # a trained model (baselines need no torch)
+        import torch
+
+        torch.set_num_threads(1)
+    policy.predict(np.zeros(ob.OBS_SIZE, dtype=np.float32), state=None, episode_start=np.ones(1, dtype=bool),
+                   deterministic=True)
+    if hasattr(policy, "reset"):
+        policy.reset()
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
+    from .naoqi import NaoqiRobot, robot_url
+
+    url = robot_url(args.robot_ip, args.port, args.url)
+    folder = args.log_dir or Path("runs") / time.strftime("deploy-%Y%m%d-%H%M%S")
+    check_output_path(folder, "--log-dir")
+    if (folder / LOG).exists():
+        raise UserError(f"--log-dir {folder}: already holds a deploy log; choose a new folder")
+    params, robot_params, social, task, policy, frames = _params(args)
+    _warm_up(policy)
+    limits = dataclasses.replace(robot_params, max_speed=params.max_speed)
+    robot = NaoqiRobot(url, limits, user=args.user, token=args.token)
+    try:
+        if robot.watchdog is None:
+            if args.require_watchdog:
+                raise UserError(f"{url}: no SSBLWatchdog service; start python -m ssbl_pb.deploy.watchdog --robot "
+                                f"{url} first (or drop --require-watchdog)")
+            print("warning: no watchdog on the robot: if this process dies the base keeps its last command "
+                  "(docs/deploy.md, python -m ssbl_pb.deploy.watchdog)", file=sys.stderr)
+        folder.mkdir(parents=True, exist_ok=True)
+    except BaseException:
+        robot.close()
+        raise
+    return _run(args, url, folder, robot, params, robot_params, social, task, policy, frames)
+
+
+def _run(args: argparse.Namespace, url: str, folder: Path, robot: Any, params: Any, robot_params: Any, social: Any,
+         task: Any, policy: Any, frames: Any) -> int:
+    from ..perception.camera import PinholeCamera
+    from .loop import DeployLoop, Setup, status_printer
+    from .perceive import Perception
+    from .plot import draw
+
+    camera = PinholeCamera.from_yaml(args.camera_yaml) if args.camera_yaml else None
+    perception = Perception(robot, time.monotonic, args.detector, robot_params, camera, social=social)
+    write_run(folder, {"url": url, "policy": args.policy,
+                       "detector": args.detector, "map": args.map, "deploy": dataclasses.asdict(params),
+                       "robot": dataclasses.asdict(robot_params), "watchdog": robot.watchdog is not None,
+                       "started": time.strftime("%Y-%m-%d %H:%M:%S"), **frames.info()})
+    log = RunLog(folder)
+    loop = DeployLoop(Setup(robot, policy, perception, frames, robot_params, social, task), params, log,
+                      status=None if args.quiet else status_printer())
+    try:
+        outcome, message = loop.run()
+    finally:
+        log.close()
+        code = EXIT_CODES[loop.outcome]
+        write_summary(folder, log.summary(loop.outcome, code, loop.message,
+                                          {"stop": loop.stop_note or "stopMove sent", **frames.info(),
+                                           "perception": perception.info()}))
+        if loop.outcome != "exception":
+            draw(folder)
+    stop = f"; {loop.stop_note}" if loop.stop_note else "; base stopped"
+    if outcome == "success":
+        print(f"success: {message} -> {folder}")
+    else:
+        print(f"stopped ({outcome}): {message}{stop} -> {folder}", file=sys.stderr)
+    return code
+
+
+def _run_and_exit() -> None:
+    """``cli.run(main)``, then exit without the interpreter's teardown: once the run's files are written and the
+    base stopped, native finalizers (libqi's threads and others) take ~0.5 s, which would hide how fast a fault
+    ends the process."""
+    try:
+        run(main)
+    except SystemExit as done:
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(done.code if isinstance(done.code, int) else 1)
+
+
+if __name__ == "__main__":
+    _run_and_exit()

@@ -1,0 +1,305 @@
+"""Deploy against the virtual Pepper in subprocesses, as a user runs it: approaches scored by the simulator's
+ground truth, faults timed from the virtual Pepper's own log, and a soak. Used by ``tools/bench_deploy.py`` and
+the tests.
+
+Times: "stop commanded" is when the virtual base received the stop (its command became zero); "standstill" is
+when it stood still (it decelerates at Pepper's 0.3 m/s^2, about 1.2 s from full speed, as the real base does).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import math
+import os
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+from ..env.task import TaskParams
+from .log import LOG, SUMMARY
+from .virtual_robot import load_log
+
+FAULTS = ("robot_killed", "camera_frozen", "robot_frozen", "sigint", "sigterm", "policy_exception", "deploy_killed")
+
+
+def _module(name: str, *args: str) -> list[str]:
+    return [sys.executable, "-m", name, *args]
+
+
+def _first_line(proc: subprocess.Popen, timeout: float) -> str:
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        line = proc.stdout.readline() if proc.stdout else ""
+        if line.strip():
+            return line.strip()
+        if proc.poll() is not None:
+            raise RuntimeError(f"{proc.args}: exited with {proc.returncode} before saying anything")
+    raise RuntimeError(f"{proc.args}: said nothing within {timeout} s")
+
+
+@contextlib.contextmanager
+def virtual_pepper(log: Path, seed: int = 0, scenario: str = "default") -> Iterator[tuple[subprocess.Popen, str]]:
+    """A virtual Pepper on a free loopback port: (process, url); terminated (and continued, if stopped) on exit."""
+    proc = subprocess.Popen(_module("ssbl_pb.deploy.virtual_robot", "--listen", "tcp://127.0.0.1:0", "--seed",
+                                    str(seed), "--scenario", scenario, "--log", str(log)),
+                            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    try:
+        url = _first_line(proc, 60.0).split()[-1]
+        yield proc, url
+    finally:
+        if proc.poll() is None:
+            with contextlib.suppress(ProcessLookupError):
+                proc.send_signal(signal.SIGCONT)
+                proc.terminate()
+            try:
+                proc.wait(10)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait()
+
+
+def start_deploy(url: str, folder: Path, policy: str = "vector", *extra: str) -> subprocess.Popen:
+    return subprocess.Popen(_module("ssbl_pb.deploy", "--url", url, "--policy", policy, "--detector", "colour",
+                                    "--log-dir", str(folder), "--quiet", *extra),
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def wait_moving(log: Path, timeout: float = 60.0, speed: float = 0.15) -> float:
+    """Wall time at which the virtual base first moves faster than ``speed`` (m/s)."""
+    end = time.time() + timeout
+    while time.time() < end:
+        if log.is_file():
+            for line in log.read_text().splitlines()[-50:]:
+                with contextlib.suppress(json.JSONDecodeError):
+                    row = json.loads(line)
+                    if row.get("kind") == "state" and math.hypot(*row["vel"][:2]) > speed:
+                        return float(row["wall"])
+        time.sleep(0.1)
+    raise RuntimeError(f"{log}: the base did not move within {timeout} s")
+
+
+def stop_times(log: Path, t_event: float) -> dict[str, float | None]:
+    """Seconds from ``t_event`` (wall) until the base's command was zero, and until it stood still, for good."""
+    _, states, _ = load_log(log)
+    after = [s for s in states if s["wall"] >= t_event]
+    out: dict[str, float | None] = {"stop_commanded_s": None, "standstill_s": None}
+    for key, still in (("stop_commanded_s", lambda s: not any(s["cmd"])),
+                       ("standstill_s", lambda s: max(abs(v) for v in s["vel"]) < 1e-3)):
+        for i, s in enumerate(after):
+            if all(still(r) for r in after[i:]):
+                out[key] = s["wall"] - t_event
+                break
+    return out
+
+
+def truth_score(vp_log: Path, deploy_dir: Path, task: TaskParams | None = None) -> dict[str, Any]:
+    """The simulator's success rule at the deploy's last tick (slot distance, heading, speed) and the smallest
+    true clearance to any member over the run (an intimate-zone entry fails it)."""
+    task = task or TaskParams()
+    _, states, _ = load_log(vp_log)
+    rows = [json.loads(line) for line in (deploy_dir / LOG).read_text().splitlines() if line.strip()]
+    if not rows or not states:
+        return {"true_success": False, "reason": "no log"}
+    end = rows[-1]["wall"]
+    during = [s for s in states if rows[0]["wall"] - 0.1 <= s["wall"] <= end + 0.1] or states
+    last = min(states, key=lambda s: abs(s["wall"] - end))
+    (x, y, yaw), (cx, cy) = last["pose"], last["centre"]
+    heading = abs(math.degrees(math.remainder(math.atan2(cy - y, cx - x) - yaw, 2 * math.pi)))
+    slot = math.dist(last["pose"][:2], last["slot"])
+    clearance = min(s["clearance"] for s in during)
+    speed = math.hypot(*last["vel"][:2])
+    ok = (slot < task.slot_tolerance and heading < task.heading_tolerance_deg and speed < task.stop_speed
+          and clearance >= task.intimate_zone)
+    return {"true_success": ok, "true_slot_m": slot, "true_heading_deg": heading, "true_speed": speed,
+            "true_min_clearance_m": clearance, "collision": any(s["collision"] for s in during)}
+
+
+def run_approach(folder: Path, seed: int, policy: str = "vector", scenario: str = "default",
+                 duration: float = 60.0) -> dict[str, Any]:
+    """One approach against a fresh virtual Pepper: the deploy summary plus the ground-truth score."""
+    folder.mkdir(parents=True, exist_ok=True)
+    vp_log = folder / "virtual_pepper.jsonl"
+    with virtual_pepper(vp_log, seed, scenario) as (_, url):
+        proc = start_deploy(url, folder / "deploy", policy, "--duration", str(duration))
+        _, err = proc.communicate(timeout=duration + 120)
+    summary = json.loads((folder / "deploy" / SUMMARY).read_text())
+    return {"seed": seed, "exit_code": proc.returncode, **summary, **truth_score(vp_log, folder / "deploy"),
+            "stderr_tail": err.strip().splitlines()[-1:] if err.strip() else []}
+
+
+def _rss_mb(pid: int) -> float | None:
+    with contextlib.suppress(OSError):
+        for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+            if line.startswith("VmRSS:"):
+                return int(line.split()[1]) / 1024.0
+    return None
+
+
+def run_fault(fault: str, folder: Path, seed: int = 11, policy: str = "straight") -> dict[str, Any]:
+    """Inject ``fault`` (one of ``FAULTS``) once the base moves; exit code, exit and stop times.
+
+    ``policy_exception`` runs the loop in this process (a policy that raises) over qi; ``deploy_killed`` runs
+    the watchdog beside the virtual Pepper and kills deploy with SIGKILL."""
+    if fault not in FAULTS:
+        raise ValueError(f"fault {fault!r}: expected one of {FAULTS}")
+    folder.mkdir(parents=True, exist_ok=True)
+    vp_log = folder / "virtual_pepper.jsonl"
+    out: dict[str, Any] = {"fault": fault}
+    with virtual_pepper(vp_log, seed) as (vp, url):
+        if fault == "policy_exception":
+            return {**out, **_policy_exception(url, folder, vp_log)}
+        dog = None
+        if fault == "deploy_killed":
+            dog = subprocess.Popen(_module("ssbl_pb.deploy.watchdog", "--robot", url), stdout=subprocess.PIPE,
+                                   stderr=subprocess.DEVNULL, text=True)
+            _first_line(dog, 30.0)
+        try:
+            proc = start_deploy(url, folder / "deploy", policy, "--duration", "60")
+            wait_moving(vp_log)
+            t_event = time.time()
+            target = {"robot_killed": (vp, signal.SIGKILL), "camera_frozen": (vp, signal.SIGUSR1),
+                      "robot_frozen": (vp, signal.SIGSTOP), "sigint": (proc, signal.SIGINT),
+                      "sigterm": (proc, signal.SIGTERM), "deploy_killed": (proc, signal.SIGKILL)}[fault]
+            target[0].send_signal(target[1])
+            try:
+                _, err = proc.communicate(timeout=30)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                _, err = proc.communicate()
+                out["hung"] = True
+            out.update(exit_code=proc.returncode, exit_s=time.time() - t_event, stderr=err.strip().splitlines()[-1:])
+            if fault == "robot_frozen":
+                vp.send_signal(signal.SIGCONT)
+            time.sleep(1.5)  # let the log show what the base did next
+        finally:
+            if dog is not None:
+                dog.terminate()
+                dog.wait(10)
+    if fault != "robot_killed":
+        out.update(stop_times(vp_log, t_event))
+    return out
+
+
+def _policy_exception(url: str, folder: Path, vp_log: Path) -> dict[str, Any]:
+    """The loop in this process over qi, with a policy that raises after a second of driving."""
+    import numpy as np
+
+    from ..params import RobotParams
+    from .frames import Frames
+    from .loop import DeployLoop, DeployParams, Setup
+    from .naoqi import NaoqiRobot
+    from .perceive import Perception
+
+    class Raising:
+        calls, raised_at = 0, None
+
+        def predict(self, obs: Any, state: Any = None, episode_start: Any = None, deterministic: bool = True
+                    ) -> tuple[Any, Any]:
+            self.calls += 1
+            if self.calls > 15:
+                self.raised_at = time.time()
+                raise RuntimeError("injected policy fault")
+            return np.array([1.0, 0.0]), None
+
+    robot = NaoqiRobot(url, RobotParams())
+    policy = Raising()
+    loop = DeployLoop(Setup(robot, policy, Perception(robot, time.monotonic, "colour"), Frames()),
+                      DeployParams(status_s=0))
+    with contextlib.suppress(RuntimeError):
+        loop.run()
+    time.sleep(1.5)
+    t_event = policy.raised_at
+    return {"exit_code": loop.exit_code, "outcome": loop.outcome, "raised": t_event is not None,
+            **(stop_times(vp_log, t_event) if t_event else {})}
+
+
+def rss_series(pid: int, seconds: float, every: float = 5.0) -> list[tuple[float, float]]:
+    """(elapsed s, RSS MB) of a process sampled every ``every`` s for ``seconds`` (or until it exits)."""
+    out, t0 = [], time.monotonic()
+    while time.monotonic() - t0 < seconds:
+        rss = _rss_mb(pid)
+        if rss is None:
+            break
+        out.append((time.monotonic() - t0, rss))
+        time.sleep(every)
+    return out
+
+
+def environment() -> dict[str, Any]:
+    """Where a benchmark ran: cores and the load average (the machine is shared)."""
+    return {"cpus": os.cpu_count(), "loadavg": list(os.getloadavg()), "python": sys.version.split()[0]}
+
+
+def soak(folder: Path, seconds: float, seed: int = 500_000, policy: str = "vector") -> dict[str, Any]:
+    """Deploy held at the slot (``--continue-after-success``) for ``seconds``: its memory (RSS sampled every 5 s
+    from the loop's first tick) and late ticks. Growth compares the mean RSS of the last fifth of the run with
+    that of the second fifth (the first is warm-up: the tracker, the log and the allocator settling)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    with virtual_pepper(folder / "virtual_pepper.jsonl", seed) as (_, url):
+        proc = start_deploy(url, folder / "deploy", policy, "--continue-after-success", "--duration", str(seconds))
+        end = time.monotonic() + 120.0
+        while not (folder / "deploy" / LOG).is_file() and proc.poll() is None and time.monotonic() < end:
+            time.sleep(0.2)
+        rss = rss_series(proc.pid, seconds + 30.0)
+        proc.communicate(timeout=120)
+    summary = json.loads((folder / "deploy" / SUMMARY).read_text())
+    early = [m for t, m in rss if 0.2 * seconds <= t < 0.4 * seconds]
+    late = [m for t, m in rss if 0.8 * seconds <= t <= seconds]
+    growth = (sum(late) / len(late)) / (sum(early) / len(early)) - 1.0 if early and late else None
+    return {"seconds": seconds, "exit_code": proc.returncode, "rss_mb": rss, "rss_growth": growth,
+            **{k: summary.get(k) for k in ("outcome", "ticks", "tick_ms_median", "tick_ms_p99",
+                                           "estimate_age_ms_median", "late_tick_fraction")}}
+
+
+def markdown(res: dict[str, Any]) -> str:
+    """The benchmark's section for docs/benchmarks.md."""
+    out = []
+    runs = res.get("approaches", [])
+    if runs:
+        ok = sum(r.get("true_success", False) for r in runs)
+        claimed = sum(r.get("outcome") == "success" for r in runs)
+        intimate = sum(r.get("true_min_clearance_m", 9) < 0.45 for r in runs)
+
+        def med(key: str) -> float:
+            vals = sorted(r[key] for r in runs if r.get(key) is not None)
+            return vals[len(vals) // 2]
+
+        p99 = max(r["tick_ms_p99"] for r in runs if r.get("tick_ms_p99") is not None)
+        out += [f"**Approaches** ({len(runs)} seeded runs, seeds {runs[0]['seed']}-{runs[-1]['seed']}, scenario "
+                f"`{res['scenario']}`, policy `{res['policy']}`): success by the simulator's own rule and ground truth "
+                f"in **{ok}/{len(runs)}** (deploy claimed {claimed}); intimate-zone entries: **{intimate}**; "
+                f"smallest true clearance {min(r['true_min_clearance_m'] for r in runs):.2f} m.",
+                f"Control tick (start to command sent): median of run medians {med('tick_ms_median'):.1f} ms, worst "
+                f"run p99 {p99:.1f} ms; estimate age median {med('estimate_age_ms_median'):.0f} ms.", "",
+                "| seed | outcome | true success | slot (m) | heading (deg) | min clearance (m) | tick median / p99 "
+                "(ms) | estimate age (ms) |", "|---|---|---|---|---|---|---|---|"]
+        for r in runs:
+            out.append(f"| {r['seed']} | {r.get('outcome')} | {'yes' if r.get('true_success') else 'no'} | "
+                       f"{r.get('true_slot_m', float('nan')):.2f} | {r.get('true_heading_deg', float('nan')):.0f} | "
+                       f"{r.get('true_min_clearance_m', float('nan')):.2f} | {r.get('tick_ms_median') or 0:.1f} / "
+                       f"{r.get('tick_ms_p99') or 0:.1f} | {r.get('estimate_age_ms_median') or 0:.0f} |")
+        out.append("")
+    faults = res.get("faults", [])
+    if faults:
+        out += ["**Faults** (each injected once the base moved; times from the virtual Pepper's own log):", "",
+                "| fault | exit code | process exit (s) | stop commanded (s) | standstill (s) |",
+                "|---|---|---|---|---|"]
+        for f in faults:
+            cells = ["-" if f.get(k) is None else f"{f[k]:.2f}" for k in ("exit_s", "stop_commanded_s", "standstill_s")]
+            out.append(f"| {f['fault']} | {f['exit_code']} | " + " | ".join(cells) + " |")
+        out.append("")
+    if res.get("soak"):
+        s = res["soak"]
+        growth = "-" if s["rss_growth"] is None else f"{100 * s['rss_growth']:+.1f} %"
+        out.append(f"**Soak** ({s['seconds']:.0f} s at 10 Hz, held at the slot): memory growth {growth} "
+                   f"(RSS {s['rss_mb'][0][1]:.0f} -> {s['rss_mb'][-1][1]:.0f} MB), late ticks "
+                   f"{100 * (s['late_tick_fraction'] or 0):.2f} % of {s['ticks']}, tick median / p99 "
+                   f"{s['tick_ms_median']:.1f} / {s['tick_ms_p99']:.1f} ms.")
+    env = res.get("environment", {})
+    out.append(f"\nMachine: {env.get('cpus')} cores, load average {env.get('loadavg')} at the start (shared).")
+    return "\n".join(out) + "\n"

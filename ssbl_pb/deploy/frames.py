@@ -1,0 +1,127 @@
+"""Where the robot is: odometry frame -> room frame (the policy's walls) -> map frame (the log's paths).
+
+With ``--map room.yaml --start-pose X Y YAW`` (``tools/import_map.py``'s room YAML; the start pose in the map
+frame, read off the map) the room frame is the room's, so the policy sees the real walls, and paths are drawn on
+the occupancy map. Without a map the room frame is the odometry frame and the walls are reported 5 m away on
+every side: the middle of the training room (10 m), a place the policy knows, with no wall near.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..calib.room_map import OccupancyMap, read_map
+from ..errors import UserError
+from ..params import WorldParams, load_yaml
+from .robot import compose, relative
+
+NO_WALLS = 5.0  # m to each wall without a map: half the default room (WorldParams.room_size)
+
+
+def transform_points(frame: np.ndarray, xy: np.ndarray) -> np.ndarray:
+    """Points (n, 2) given in ``frame`` (a pose x, y, yaw) -> the frame that pose is expressed in."""
+    c, s = math.cos(frame[2]), math.sin(frame[2])
+    xy = np.asarray(xy, dtype=float).reshape(-1, 2)
+    return xy @ np.array([[c, s], [-s, c]]) + np.asarray(frame[:2], dtype=float)
+
+
+def inverse(pose: np.ndarray) -> np.ndarray:
+    return relative(np.asarray(pose, dtype=float), np.zeros(3))
+
+
+@dataclasses.dataclass
+class RoomMap:
+    """A room YAML: the room's size, the map <- room transform and the occupancy map it was cut from."""
+
+    path: Path
+    room_size: tuple[float, float]
+    map_to_room: np.ndarray  # pose of the room frame in the map frame
+    grid: OccupancyMap
+
+
+def load_room(path: str | Path) -> RoomMap:
+    """Read ``tools/import_map.py``'s room YAML and its map; ``UserError`` naming the file and field."""
+    path = Path(path)
+    try:
+        data = load_yaml(path)
+    except UserError as exc:
+        raise UserError(f"--map {exc}") from None
+    for key in ("world", "map", "map_to_room"):
+        if not isinstance(data.get(key), dict):
+            raise UserError(f"--map {path}: no '{key}:' mapping; expected a room YAML from tools/import_map.py")
+    size = data["world"].get("room_size", WorldParams.room_size)
+    try:
+        world = WorldParams(room_size=tuple(float(v) for v in size))
+        t = data["map_to_room"]
+        pose = np.array([float(t["x"]), float(t["y"]), float(t["yaw"])])
+    except (TypeError, ValueError, KeyError) as exc:
+        raise UserError(f"--map {path}: bad room_size or map_to_room ({exc})") from None
+    map_yaml = Path(str(data["map"].get("yaml", "")))
+    if not map_yaml.is_absolute() and not map_yaml.is_file():
+        map_yaml = path.parent / map_yaml
+    try:
+        grid = read_map(map_yaml)
+    except UserError as exc:
+        raise UserError(f"--map {path}: its map does not load ({exc})") from None
+    return RoomMap(path, world.room_size, pose, grid)
+
+
+class Frames:
+    """Odometry -> room -> map, fixed at the first odometry reading (``anchor``)."""
+
+    def __init__(self, room: RoomMap | None = None, start_map: np.ndarray | None = None) -> None:
+        self.room = room
+        self.start_map = None if start_map is None else np.asarray(start_map, dtype=float)
+        self.room_from_odom: np.ndarray | None = None  # pose of the odometry frame in the room frame
+
+    def check_start(self) -> None:
+        """The start pose must lie on a free cell of the map (before anything moves)."""
+        if self.room is None:
+            return
+        if self.start_map is None:
+            raise UserError("--map needs --start-pose X Y YAW (the robot's pose on the map, metres and degrees)")
+        grid = self.room.grid
+        col, row = (int(v) for v in np.floor(grid.map_to_pixel(self.start_map[:2])[0] + 0.5))
+        h, w = grid.shape
+        if not (0 <= row < h and 0 <= col < w):
+            raise UserError(f"--start-pose {self.start_map[0]:g} {self.start_map[1]:g}: outside the map "
+                            f"{grid.yaml_path}")
+        if grid.grid[row, col] != 0:
+            state = {1: "occupied", -1: "unknown"}[int(grid.grid[row, col])]
+            raise UserError(f"--start-pose {self.start_map[0]:g} {self.start_map[1]:g}: an {state} cell of the map "
+                            f"{grid.yaml_path}; expected free space")
+
+    def anchor(self, odom_pose: np.ndarray) -> None:
+        if self.room_from_odom is not None:
+            return
+        if self.room is None:
+            self.room_from_odom = np.zeros(3)
+            return
+        start_room = relative(self.room.map_to_room, self.start_map)
+        self.room_from_odom = compose(start_room, inverse(odom_pose))
+
+    def room_pose(self, odom_pose: np.ndarray) -> np.ndarray:
+        return compose(self.room_from_odom, odom_pose)
+
+    def room_points(self, xy: np.ndarray) -> np.ndarray:
+        return transform_points(self.room_from_odom, xy)
+
+    def map_pose(self, odom_pose: np.ndarray) -> np.ndarray | None:
+        return None if self.room is None else compose(self.room.map_to_room, self.room_pose(odom_pose))
+
+    def walls(self, room_pose: np.ndarray) -> np.ndarray:
+        """Distances to the walls (+x, -x, +y, -y) as ``env.approach`` computes them."""
+        if self.room is None:
+            return np.full(4, NO_WALLS)
+        (sx, sy), (x, y) = self.room.room_size, room_pose[:2]
+        return np.array([sx / 2 - x, x + sx / 2, sy / 2 - y, y + sy / 2])
+
+    def info(self) -> dict[str, Any]:
+        return {"map": None if self.room is None else str(self.room.path),
+                "start_pose_map": None if self.start_map is None else self.start_map.tolist(),
+                "room_from_odom": None if self.room_from_odom is None else self.room_from_odom.tolist()}

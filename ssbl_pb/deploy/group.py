@@ -1,0 +1,216 @@
+"""From tracked people to the group the policy sees: members (remembered while out of view), the conversation
+centre, the o-space radius and the free slot, all in the odometry frame.
+
+Pepper's camera sees 56 deg: at the free slot the members stand 60-90 deg to either side, so tracks of people
+who leave the view are kept as *remembered* members (standing still where last seen) until their place comes
+back into view, unoccluded and within detection range, and nobody is found there for ``forget_frames`` frames.
+The group's geometry is the simulator's (``env.humans.measured_group``: the centre, the o-space radius, the
+joining weight and the free slot come from the same functions the env steps). The centre is measured: three or
+more members give it by a least-squares circle fit; a pair gives its midpoint (the calibrated model: real pairs
+stand symmetric about their centre), or, in the paper's model, a point on the robot's side of the chord at the
+model's radius (``SocialParams.ospace_radius_for``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any
+
+import numpy as np
+
+from ..env.humans import measured_group
+from ..params import SocialParams
+from ..perception.camera import PinholeCamera
+from ..perception.tracker import Tracker, TrackerParams
+
+BODY_HEIGHT = 1.14  # m: the point of a person checked against the view (torso middle, urdf/human.urdf)
+
+
+@dataclasses.dataclass(frozen=True)
+class GroupParams:
+    """How long people are remembered and when they count as visible (ours)."""
+
+    forget_frames: int = 5  # frames a remembered member's place is in clear view with nobody there
+    same_person_m: float = 0.6  # a new track this close to a remembered member replaces it
+    view_margin: float = 0.1  # fraction of the image width at each side where people are not expected whole
+    max_range_m: float = 6.0  # people farther away are not expected to be detected
+    person_halfwidth_m: float = 0.3  # for occlusion: a person hides what lies behind this half-width
+    coast_tau_s: float = 1.0  # before a group is known, a remembered member's last velocity decays with this
+    #                           time constant (once it is known, the social force model moves them)
+
+
+@dataclasses.dataclass
+class Member:
+    """One person in the odometry frame (m, m/s, m^2); ``seen``: detected in the last frame (False for a
+    coasting track or a remembered member)."""
+
+    id: int
+    pos: np.ndarray
+    vel: np.ndarray
+    cov: np.ndarray
+    seen: bool = True
+    unseen_in_view: int = 0
+
+
+def group_circle(members: np.ndarray, robot_xy: np.ndarray, social: SocialParams, paper: bool = False
+                 ) -> tuple[np.ndarray, float]:
+    """Conversation centre (2,) and o-space radius (m) of members (n >= 2, (n, 2)); see the module docstring."""
+    pts = np.asarray(members, dtype=float).reshape(-1, 2)
+    n = len(pts)
+    if n < 2:
+        raise ValueError(f"group_circle: {n} member(s); need 2 or more")
+    if n == 2:
+        mid, half = 0.5 * (pts[0] + pts[1]), 0.5 * float(np.hypot(*(pts[1] - pts[0])))
+        r = social.ospace_radius_for(2)
+        if not paper or half >= r or half < 1e-6:
+            return mid, max(half, 1e-6)
+        normal = np.array([pts[0, 1] - pts[1, 1], pts[1, 0] - pts[0, 0]]) / (2.0 * half)
+        if normal @ (robot_xy - mid) < 0:
+            normal = -normal
+        return mid + math.sqrt(r * r - half * half) * normal, r
+    # algebraic (Kasa) circle fit: x^2 + y^2 + D x + E y + F = 0
+    a = np.column_stack([pts, np.ones(n)])
+    b = -(pts ** 2).sum(axis=1)
+    sol, *_ = np.linalg.lstsq(a, b, rcond=None)
+    centre = -0.5 * sol[:2]
+    r2 = float(centre @ centre - sol[2])
+    mean = pts.mean(axis=0)
+    if not (r2 > 0 and math.sqrt(r2) <= 3.0 * social.ospace_radius_for(n + 1)):  # collinear: fall back
+        return mean, float(np.hypot(*(pts - mean).T).mean())
+    return centre, math.sqrt(r2)
+
+
+class GroupModel:
+    """The group the policy sees: centre, o-space radius, joining weight and free slot, by the env's model.
+
+    Members re-form around a joining robot over seconds, while the model's centre and radius follow the robot
+    at once (``humans.update_centre``): the centre the policy was trained on is not the circle through the
+    members while they move. So the centre before joining (``centre0``) is measured from the members while the
+    robot is outside the joining zone (smoothed over frames), and held while it is inside. ``keep`` and
+    ``paper`` are the training env's (``layouts.slot_keep``; the groups model).
+    """
+
+    def __init__(self, social: SocialParams, keep: float, paper: bool = False, smoothing: float = 0.3) -> None:
+        self.social, self.keep, self.paper, self.smoothing = social, keep, paper, smoothing
+        self.centre0: np.ndarray | None = None
+        self.n = 0
+
+    def reset(self) -> None:
+        self.centre0, self.n = None, 0
+
+    def group(self, members: np.ndarray, centre: np.ndarray) -> Any:
+        """The env's group standing where ``members`` stand around ``centre`` (``humans.measured_group``)."""
+        return measured_group(self.social, members, centre, self.keep, self.paper)
+
+    def update(self, members: np.ndarray, robot_xy: np.ndarray) -> tuple[np.ndarray, float, float, np.ndarray]:
+        """Centre (2,), o-space radius (m), joining weight and free slot (2,) for members (n >= 2, (n, 2)) and
+        the robot."""
+        members = np.asarray(members, dtype=float).reshape(-1, 2)
+        n = len(members)
+        measured, _ = group_circle(members, robot_xy, self.social, self.paper)
+        if self.centre0 is None or n != self.n:
+            self.centre0, self.n = measured, n
+        else:
+            probe = self.group(members, measured)
+            probe.update_centre(robot_xy)
+            if probe.join_weight == 0.0:  # not joining: measure centre0
+                self.centre0 = self.centre0 + self.smoothing * (measured - self.centre0)
+        g = self.group(members, self.centre0)
+        g.update_centre(robot_xy)
+        return g.centre.copy(), g.radius, g.join_weight, g.free_slot(robot_xy)
+
+
+def default_model(social: SocialParams) -> GroupModel:
+    """``GroupModel`` with the robot's place as the default robot and task keep it (``layouts.slot_keep``)."""
+    from ..env.layouts import slot_keep
+    from ..env.task import TaskParams
+    from ..params import RobotParams
+
+    task = TaskParams()
+    return GroupModel(social, slot_keep(social, RobotParams().reach, task.intimate_zone, task.route_margin))
+
+
+def _se2(pose: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    c, s = math.cos(pose[2]), math.sin(pose[2])
+    return np.array([[c, -s], [s, c]]), np.asarray(pose[:2], dtype=float)
+
+
+class GroupTracker:
+    """The Kalman tracker (ego-motion compensated) plus the memory of people out of view."""
+
+    def __init__(self, camera: PinholeCamera, tracker: TrackerParams | None = None,
+                 params: GroupParams | None = None, social: SocialParams | None = None,
+                 model: GroupModel | None = None) -> None:
+        """``model``: the group model moving remembered members (default: the env's defaults)."""
+        self.camera = camera
+        self.tracker = Tracker(tracker)
+        self.p = params or GroupParams()
+        self.social = social or SocialParams()
+        self.model = model or default_model(self.social)
+        self.members: dict[int, Member] = {}
+        self.centre0: np.ndarray | None = None  # the group's centre before joining (the loop's ``GroupModel``)
+
+    def visible(self, xy_robot: np.ndarray, seen_robot: np.ndarray) -> np.ndarray:
+        """Which robot-frame points (k, 2) a detector should find: in range, inside the image's middle part,
+        and not hidden behind a nearer seen person (``seen_robot``, (m, 2))."""
+        xy = np.asarray(xy_robot, dtype=float).reshape(-1, 2)
+        pts = np.column_stack([xy, np.full(len(xy), BODY_HEIGHT)])
+        u = self.camera.robot_to_pixel(pts)[:, 0]
+        margin = self.p.view_margin * self.camera.width
+        rng = np.hypot(xy[:, 0], xy[:, 1])
+        ok = (np.isfinite(u) & (u >= margin) & (u <= self.camera.width - 1 - margin) & (rng <= self.p.max_range_m)
+              & (xy[:, 0] > 0))
+        if len(seen_robot):
+            bearing, s_bearing = np.arctan2(xy[:, 1], xy[:, 0]), np.arctan2(seen_robot[:, 1], seen_robot[:, 0])
+            s_rng = np.hypot(seen_robot[:, 0], seen_robot[:, 1])
+            width = np.arctan2(self.p.person_halfwidth_m, np.maximum(rng, 1e-3))[:, None] + np.arctan2(
+                self.p.person_halfwidth_m, np.maximum(s_rng, 1e-3))[None, :]
+            gap = np.abs(np.remainder(bearing[:, None] - s_bearing[None, :] + math.pi, 2 * math.pi) - math.pi)
+            hidden = ((s_rng[None, :] < rng[:, None] - 0.2) & (gap < width)).any(axis=1)
+            ok &= ~hidden
+        return ok
+
+    def predict(self, seen: list[Member], gone: list[Member], robot_xy: np.ndarray, dt: float) -> None:
+        """Move the members out of view by ``dt``: by the social force model around the group (as tracking with
+        social-force motion priors does, Luber et al., ICRA 2010), or, before a group is known, with their last
+        velocity decaying over ``coast_tau_s``."""
+        if not gone:
+            return
+        if self.centre0 is None or len(seen) + len(gone) < 2:
+            decay = math.exp(-dt / self.p.coast_tau_s)
+            for m in gone:
+                m.pos = m.pos + m.vel * (self.p.coast_tau_s * (1.0 - decay))  # exact for v(t) = v0 exp(-t / tau)
+                m.vel = m.vel * decay
+            return
+        everyone = seen + gone
+        group = self.model.group(np.array([m.pos for m in everyone]), self.centre0)
+        group.vel[:] = np.array([m.vel for m in everyone])
+        group.step(np.asarray(robot_xy, dtype=float), dt)
+        for m, q, v in zip(gone, group.pos[len(seen):], group.vel[len(seen):], strict=True):
+            m.pos, m.vel = q, v
+
+    def update(self, detections: np.ndarray, dt: float, pose: np.ndarray) -> list[Member]:
+        """One frame's robot-frame ground detections (n, 2) taken at odometry ``pose``; returns the members."""
+        states = self.tracker.update(np.asarray(detections, dtype=float).reshape(-1, 2), dt=dt, odom=pose)
+        rot, t = _se2(pose)
+        seen = {}
+        for st in states:
+            seen[st.id] = Member(st.id, rot @ st.position + t, rot @ st.velocity, rot @ st.covariance[:2, :2] @ rot.T,
+                                 st.misses == 0)
+        seen_robot = np.array([st.position for st in states]).reshape(-1, 2)
+        gone = [m for k, m in self.members.items() if k not in seen]
+        for m in gone:
+            m.seen = False
+        self.predict(list(seen.values()), gone, pose[:2], dt)
+        if gone:
+            local = (np.array([m.pos for m in gone]) - t) @ rot  # odometry -> robot frame
+            in_view = self.visible(local, seen_robot)
+            seen_xy = np.array([m.pos for m in seen.values()]).reshape(-1, 2)
+            for m, vis in zip(gone, in_view, strict=True):
+                m.unseen_in_view = m.unseen_in_view + 1 if vis else 0
+                dup = len(seen_xy) and float(np.hypot(*(seen_xy - m.pos).T).min()) < self.p.same_person_m
+                if dup or m.unseen_in_view >= self.p.forget_frames:
+                    del self.members[m.id]
+        self.members.update(seen)
+        return list(self.members.values())

@@ -1,0 +1,301 @@
+"""The deploy loop: odometry + the newest tracked people -> the Vector observation (the simulator's layout) ->
+the policy (with its smoothing and safety shield) -> the command clamp -> the robot, ``rate_hz`` times a second.
+
+Safety, on by default: speed clamped to ``max_speed``; the run stops when a tracked person comes within
+``stop_distance`` of the footprint, when the newest frame or odometry is older than ``stale_s``, on any
+exception, on SIGINT/SIGTERM and on connection loss; every robot call is bounded; the base is stopped before
+the loop returns in every case (``faults.EXIT_CODES`` names how it ended). While fewer than two people are
+known the robot turns in place to find the group (``search``); the run succeeds by the task's own rule
+(``TaskParams``) applied to the estimated group.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import signal
+import sys
+import threading
+import time
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from ..env import observation as ob
+from ..env.approach import approach_command
+from ..env.layouts import slot_keep
+from ..env.shield import ShieldParams, footprint_clearance
+from ..env.task import TaskParams
+from ..errors import Terminated
+from ..params import RobotParams, SocialParams, _check, _positive
+from .faults import EXIT_CODES, DeployFault, HumanTooClose, StaleFrame, StaleOdometry
+from .frames import Frames
+from .group import GroupModel
+from .log import RunLog, dynamics_columns
+from .perceive import Perception
+from .robot import Robot
+
+
+@dataclasses.dataclass(frozen=True)
+class DeployParams:
+    """The loop's rate and safety limits (flags of ``python -m ssbl_pb.deploy``)."""
+
+    rate_hz: float = 10.0  # the policy's control period (WorldParams.dt = 0.1 s)
+    max_speed: float = 0.35  # m/s clamp on the planar speed (NAOqi default, RobotParams.max_speed)
+    stale_s: float = 0.5  # newest frame / odometry older than this stops the run (ROS cmd_vel muxes, lerobot)
+    stop_distance: float = 0.45  # m between bodies: Hall's intimate zone (TaskParams.intimate_zone)
+    duration_s: float = 60.0  # twice the simulated episode (30 s) to leave time for the search
+    settle_s: float = 0.5  # s standing still at start while the tracker confirms what is in view
+    search_turn: float = 0.5  # rad/s in place while fewer than two people are known (half NAOqi's default)
+    sidestep_s: float = 3.0  # s stepping sideways when one person hides the others (after a full turn) ...
+    sidestep_speed: float = 0.2  # m/s ... 0.6 m: at 3-5 m that opens a person's width between the lines of sight
+    first_frame_s: float = 5.0  # s allowed for the camera's first frame
+    continue_after_success: bool = False  # hold the slot (policy running) until --duration instead of ending
+    status_s: float = 1.0  # seconds between status lines (0: none)
+
+    def __post_init__(self) -> None:
+        _positive("deploy", self, "rate_hz", "max_speed", "stale_s", "stop_distance", "duration_s", "search_turn",
+                  "first_frame_s")
+        _check(self.rate_hz <= 50, "deploy", "rate_hz", self.rate_hz, "<= 50 Hz")
+        _check(self.max_speed <= 0.55, "deploy", "max_speed", self.max_speed, "<= 0.55 m/s (Pepper's hardware max)")
+        _check(self.settle_s >= 0 and self.status_s >= 0, "deploy", "settle_s", self.settle_s, ">= 0")
+
+
+@dataclasses.dataclass
+class Setup:
+    """What the loop drives: the robot, the policy and the models it needs (all already checked)."""
+
+    robot: Robot
+    policy: Any  # ``predict(obs, state, episode_start, deterministic) -> (action, state)``
+    perception: Perception
+    frames: Frames
+    robot_params: RobotParams = dataclasses.field(default_factory=RobotParams)
+    social: SocialParams = dataclasses.field(default_factory=SocialParams)
+    task: TaskParams = dataclasses.field(default_factory=TaskParams)
+    groups: str = "calibrated"  # the group model the policy was trained with (``env.layouts.GROUP_MODELS``)
+
+
+class DeployLoop:
+    """Runs ``Setup`` until success, ``duration_s`` or a fault; ``run`` returns (outcome, message)."""
+
+    def __init__(self, setup: Setup, params: DeployParams | None = None, log: RunLog | None = None,
+                 now: Callable[[], float] = time.monotonic, sleep: Callable[[float], None] = time.sleep,
+                 status: Callable[[str], None] | None = None) -> None:
+        self.s, self.p, self.log, self.now, self.sleep = setup, params or DeployParams(), log, now, sleep
+        self.status = status
+        self.shield = ShieldParams.from_env(setup.robot_params, setup.social, setup.task)
+        self.period = 1.0 / self.p.rate_hz
+        self.outcome, self.message, self.stop_note = "exception", "", ""
+        self._policy_state: Any = None
+        self._approaching = False
+        self._search_side = 0.0
+        self._turned, self._last_yaw, self._sidestep_left = 0.0, None, 0
+        self.group = GroupModel(setup.social, slot_keep(setup.social, setup.robot_params.reach,
+                                                        setup.task.intimate_zone, setup.task.route_margin),
+                                paper=setup.groups == "paper")
+        setup.perception.group_model = self.group  # people out of view move by the same model
+        self._last_status = -math.inf
+
+    # -- one tick --------------------------------------------------------------------------------------------
+    def _members(self, now: float) -> tuple[np.ndarray, np.ndarray, list[Any], float | None, int]:
+        est, _ = self.s.perception.snapshot()
+        if est is None or not est.members:
+            return np.zeros((0, 2)), np.zeros((0, 2)), [], None, 0 if est is None else est.detections
+        age = now - est.capture
+        pos = np.array([m.pos + m.vel * age for m in est.members])
+        return pos, np.array([m.vel for m in est.members]), est.members, age, est.detections
+
+    def _act(self, pose: np.ndarray, vel: np.ndarray, pos: np.ndarray, mvel: np.ndarray
+             ) -> tuple[np.ndarray, dict[str, Any]]:
+        """The policy's body command for a known group (odometry-frame inputs), and what it saw."""
+        s, fr = self.s, self.s.frames
+        if not self._approaching:  # a new approach: fresh group model, policy filter and state
+            self.group.reset()
+            if hasattr(s.policy, "reset"):
+                s.policy.reset()
+            self._policy_state, self._approaching = None, True
+        centre, radius, joining, slot = self.group.update(pos, pose[:2])
+        s.perception.centre0 = self.group.centre0
+        room = fr.room_pose(pose)
+        rot = fr.room_from_odom[2]
+        c, sn = math.cos(rot), math.sin(rot)
+        mvel_room = mvel @ np.array([[c, sn], [-sn, c]])
+        cy, sy = math.cos(room[2]), math.sin(room[2])
+        vel_room = np.array([cy * vel[0] - sy * vel[1], sy * vel[0] + cy * vel[1], vel[2]])
+        centre_room, slot_room = fr.room_points(np.array([centre, slot]))
+        obs = ob.vector_observation(room, vel_room, fr.room_points(pos), mvel_room, centre_room, radius, slot_room,
+                                    fr.walls(room), s.robot_params.max_speed, s.robot_params.max_yaw_rate)
+        start = np.array([self._policy_state is None])
+        action, self._policy_state = s.policy.predict(obs, state=self._policy_state, episode_start=start,
+                                                      deterministic=True)
+        heading = math.remainder(math.atan2(centre[1] - pose[1], centre[0] - pose[0]) - pose[2], 2 * math.pi)
+        cmd = approach_command(action, heading, s.robot_params, s.task)
+        slot_dist = float(np.hypot(*(slot - pose[:2])))
+        success = (slot_dist < s.task.slot_tolerance and math.hypot(vel[0], vel[1]) < s.task.stop_speed
+                   and abs(heading) < math.radians(s.task.heading_tolerance_deg))
+        return cmd, {"centre": centre, "radius": radius, "joining": joining, "slot": slot, "slot_distance_m": slot_dist,
+                     "heading_error_deg": math.degrees(heading), "action": np.asarray(action).ravel(),
+                     "success": success}
+
+    def tick(self, t0: float, elapsed: float, late: bool) -> bool:
+        """One control period; True when the run has succeeded."""
+        s, p = self.s, self.p
+        s.perception.check()
+        s.perception.step()
+        odo = s.robot.odometry()
+        s.frames.anchor(odo.pose)
+        s.perception.odometry.append((odo.stamp, odo.pose))
+        now = self.now()
+        if now - odo.stamp > p.stale_s:
+            raise StaleOdometry(f"odometry is {now - odo.stamp:.2f} s old (limit {p.stale_s:g} s)")
+        _, capture = s.perception.snapshot()
+        if now - capture > p.stale_s:
+            raise StaleFrame(f"newest camera frame is {now - capture:.2f} s old (limit {p.stale_s:g} s): camera "
+                             f"frozen or frames not arriving")
+        pos, mvel, members, age, detections = self._members(now)
+        clearance = (footprint_clearance(pos - odo.pose[:2], float(odo.pose[2]), self.shield)[0] if len(pos)
+                     else np.zeros(0))
+        if len(clearance) and clearance.min() < p.stop_distance:
+            raise HumanTooClose(f"a tracked person is {clearance.min():.2f} m from the robot "
+                                f"(--stop-distance {p.stop_distance:g} m)")
+        info: dict[str, Any] = {}
+        if elapsed < p.settle_s:
+            state, cmd = "settle", np.zeros(3)
+        elif len(pos) < 2:
+            s.perception.centre0 = None
+            state, cmd = self._search(odo.pose, pos)
+        else:
+            cmd, info = self._act(odo.pose, odo.velocity, pos, mvel)
+            state = "joined" if info["success"] else "approach"
+        sent = s.robot.send(cmd)
+        tick_ms = 1000.0 * (self.now() - t0)
+        events = s.robot.events() if hasattr(s.robot, "events") else []
+        if self.log is not None:
+            fr = s.frames
+            self.log.write({
+                "t": elapsed, "wall": time.time(), "state": state, **dynamics_columns(odo.pose, sent),
+                "vel": odo.velocity, "room_pose": fr.room_pose(odo.pose), "map_pose": fr.map_pose(odo.pose),
+                "cmd_policy": cmd, "humans": [{"id": m.id, "x": float(q[0]), "y": float(q[1]), "vx": float(m.vel[0]),
+                                               "vy": float(m.vel[1]), "cov": m.cov, "seen": m.seen}
+                                              for m, q in zip(members, pos, strict=True)],
+                **{k: v for k, v in info.items() if k != "success"}, "detections": detections,
+                "min_clearance_m": float(clearance.min()) if len(clearance) else None,
+                "estimate_age_ms": None if age is None else 1000.0 * age, "frame_age_ms": 1000.0 * (now - capture),
+                "tick_ms": tick_ms, "late": late, "events": events})
+        self._report(now, elapsed, state, len(members), sum(m.seen for m in members), info)
+        return state == "joined"
+
+    def _search(self, pose: np.ndarray, pos: np.ndarray) -> tuple[str, np.ndarray]:
+        """Fewer than two people known: turn in place (toward the one known person's side first); after a full
+        turn with still one person known (the others hidden behind them), step sideways for ``sidestep_s``
+        while facing that person, for another line of sight, and turn again."""
+        p = self.p
+        if self._approaching or self._search_side == 0.0:  # a new search
+            d = pos.mean(axis=0) - pose[:2] if len(pos) else np.array([1.0, 1.0])
+            self._search_side = 1.0 if math.remainder(math.atan2(d[1], d[0]) - pose[2], 2 * math.pi) >= 0 else -1.0
+            self._turned, self._sidestep_left = 0.0, 0
+        self._approaching = False
+        if self._last_yaw is not None:
+            self._turned += abs(math.remainder(pose[2] - self._last_yaw, 2 * math.pi))
+        self._last_yaw = float(pose[2])
+        if self._turned >= 2 * math.pi and len(pos) == 1:
+            self._turned, self._sidestep_left = 0.0, int(round(p.sidestep_s * p.rate_hz))
+        if self._sidestep_left > 0 and len(pos) == 1:
+            self._sidestep_left -= 1
+            d = pos[0] - pose[:2]
+            heading = math.remainder(math.atan2(d[1], d[0]) - pose[2], 2 * math.pi)
+            turn = float(np.clip(self.s.task.heading_gain * heading, -p.search_turn, p.search_turn))
+            return "sidestep", np.array([0.0, self._search_side * p.sidestep_speed, turn])
+        return "search", np.array([0.0, 0.0, self._search_side * p.search_turn])
+
+    def _report(self, now: float, elapsed: float, state: str, known: int, seen: int, info: dict[str, Any]) -> None:
+        if self.status is None or not self.p.status_s or now - self._last_status < self.p.status_s:
+            return
+        self._last_status = now
+        slot = f"slot {info['slot_distance_m']:.2f} m" if "slot_distance_m" in info else "slot -"
+        self.status(f"t {elapsed:5.1f} s  {self.p.rate_hz:g} Hz  humans {known} ({seen} in view)  {slot}  {state}")
+
+    # -- the run ---------------------------------------------------------------------------------------------
+    def _wait_first_frame(self) -> None:
+        end = self.now() + self.p.first_frame_s
+        while True:
+            self.s.perception.check()
+            self.s.perception.step()
+            if math.isfinite(self.s.perception.snapshot()[1]):
+                return
+            if self.now() > end:
+                raise StaleFrame(f"no camera frame within {self.p.first_frame_s:g} s")
+            self.sleep(0.02)
+
+    def run(self) -> tuple[str, str]:
+        """Until success, ``duration_s`` or a fault; the base is stopped on every way out. Faults return
+        (outcome, message); SIGINT/SIGTERM and exceptions propagate after the stop."""
+        s, p = self.s, self.p
+        try:
+            s.perception.start()
+            self._wait_first_frame()
+            start = self.now()
+            k = 0
+            while True:
+                t0 = self.now()
+                late = t0 - (start + k * self.period) > 0.5 * self.period
+                elapsed = t0 - start
+                if elapsed >= p.duration_s:
+                    self.outcome, self.message = "duration", f"--duration {p.duration_s:g} s elapsed"
+                    break
+                if self.tick(t0, elapsed, late) and not p.continue_after_success:
+                    self.outcome, self.message = "success", f"joined the group after {elapsed:.1f} s"
+                    break
+                k += 1
+                if self.now() - (start + k * self.period) > self.period:  # far behind: do not burst to catch up
+                    k = int((self.now() - start) / self.period) + 1
+                self.sleep(max(0.0, start + k * self.period - self.now()))
+        except DeployFault as fault:
+            self.outcome, self.message = fault.outcome, str(fault)
+        except Terminated:
+            self.outcome, self.message = "sigterm", "SIGTERM"
+            raise
+        except KeyboardInterrupt:
+            self.outcome, self.message = "sigint", "SIGINT"
+            raise
+        except BaseException as exc:
+            self.outcome, self.message = "exception", f"{type(exc).__name__}: {exc}"
+            raise
+        finally:
+            self._shutdown()
+        return self.outcome, self.message
+
+    def _shutdown(self) -> None:
+        """Stop the base, the workers and the robot; a Ctrl-C or SIGTERM meanwhile is ignored (the run is
+        ending anyway; a second Ctrl-C must not cut the stop short)."""
+        old = {}
+        if threading.current_thread() is threading.main_thread():
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                old[sig] = signal.signal(sig, signal.SIG_IGN)
+        try:
+            try:
+                self.s.robot.stop()
+            except DeployFault as fault:
+                self.stop_note = f"stop not confirmed ({fault})"
+            self.s.perception.stop()
+            self.s.robot.close()
+        finally:
+            for sig, handler in old.items():
+                signal.signal(sig, handler)
+
+    @property
+    def exit_code(self) -> int:
+        return EXIT_CODES[self.outcome]
+
+
+def status_printer(stream: Any = None) -> Callable[[str], None]:
+    """Status lines on stderr: rewritten in place on a terminal, one line each otherwise."""
+    stream = stream or sys.stderr
+    tty = hasattr(stream, "isatty") and stream.isatty()
+
+    def show(line: str) -> None:
+        stream.write(("\r" + line + "\x1b[K") if tty else line + "\n")
+        stream.flush()
+
+    return show

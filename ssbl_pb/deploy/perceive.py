@@ -1,0 +1,197 @@
+"""Camera frames to tracked people, off the control tick: a grabber keeps the newest frame, a detector worker
+runs detector -> ground-plane projection -> tracker (ego-motion compensated) on the newest frame it has not
+seen. A slow detector ages the estimate; it never delays a command. In lockstep (tests) both run inline.
+
+Times: frames carry the robot's clock; the local capture time is ``stamp + offset`` with ``offset`` the
+smallest (receive time - stamp) seen so far, so a frozen camera (time stamps that stop changing) ages the
+newest frame even though frames keep arriving.
+"""
+
+from __future__ import annotations
+
+import collections
+import dataclasses
+import math
+import threading
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from ..errors import UserError
+from ..params import RobotParams, SocialParams
+from ..perception.camera import PinholeCamera
+from ..perception.sim_eval import ProxyGeometry, boxes_to_ground, sim_camera
+from ..perception.tracker import TrackerParams
+from .group import GroupTracker, Member
+from .robot import Frame, Robot
+
+DETECTORS = ("colour", "hog")
+TORSO_HALF_DEPTH = 0.18  # m: a torso box's edges lie on the torso's near face, this far in front of the body's
+#                          axis on average (urdf/human.urdf torso 0.26 x 0.46 m: half-depth 0.13, half-width 0.23);
+#                          measured on the virtual Pepper, the estimates otherwise fall 0.13-0.23 m short
+
+
+# the colour detector's ground error is ~0.05 m median (docs/benchmarks_tracking.md); people in a group stand or
+# step slowly, so a lower acceleration noise than the street-tracking default keeps coasting tracks in place
+TRACKER = TrackerParams(meas_std=0.1, birth_hits=2, accel_std=0.7)
+
+
+def make_detector(name: str) -> tuple[Callable[[np.ndarray], np.ndarray], bool]:
+    """A detector for RGB frames and whether its boxes are torsos (``colour``: the simulated people's
+    saturated torsos, for the virtual Pepper) or whole people (``hog``: OpenCV's people detector)."""
+    from ..perception.detectors import ColourDetector, HogDetector, HogParams
+
+    if name == "colour":
+        from ..env.world import HUMAN_COLOURS
+
+        return ColourDetector(HUMAN_COLOURS), True
+    if name == "hog":
+        # Pepper's QVGA frames show a standing person 2-5 m away 100-250 px tall: downscales fit the 128 px window
+        hog = HogDetector(HogParams(scales=(0.5, 0.7, 1.0)))
+        return (lambda rgb: hog(np.ascontiguousarray(rgb[..., ::-1]))), False
+    raise UserError(f"--detector {name!r}: expected one of {list(DETECTORS)}")
+
+
+def pose_at(history: collections.deque, t: float) -> np.ndarray:
+    """Odometry pose at local time ``t``, interpolated in ``history`` ((time, pose) pairs, oldest first)."""
+    items = list(history)
+    if not items:
+        raise ValueError("pose_at: no odometry yet")
+    if t <= items[0][0]:
+        return items[0][1]
+    for (t0, p0), (t1, p1) in zip(items, items[1:], strict=False):
+        if t0 <= t <= t1:
+            w = (t - t0) / (t1 - t0) if t1 > t0 else 1.0
+            yaw = p0[2] + w * math.remainder(p1[2] - p0[2], 2 * math.pi)
+            return np.array([p0[0] + w * (p1[0] - p0[0]), p0[1] + w * (p1[1] - p0[1]), yaw])
+    return items[-1][1]
+
+
+@dataclasses.dataclass
+class Estimate:
+    """Members (odometry frame) from the frame captured at local time ``capture``; ``detections`` in it."""
+
+    members: list[Member]
+    capture: float
+    detections: int
+
+
+class Perception:
+    """Grabber + detector worker; ``latest`` is the newest estimate, ``capture`` the newest frame's time."""
+
+    def __init__(self, robot: Robot, now: Callable[[], float], detector: str = "colour",
+                 robot_params: RobotParams | None = None, camera: PinholeCamera | None = None,
+                 tracker: TrackerParams | None = None, social: SocialParams | None = None, threaded: bool = True,
+                 poll_s: float = 0.02) -> None:
+        """``camera``: a calibrated camera (rescaled to the frames); default Pepper's nominal CameraTop."""
+        self.robot, self.now, self.threaded, self.poll_s = robot, now, threaded, poll_s
+        self.detect, self.torso = make_detector(detector)
+        self.robot_params = robot_params or RobotParams()
+        self.calibrated = camera
+        self.tracker_params = tracker
+        self.social = social or SocialParams()
+        self.centre0: np.ndarray | None = None  # set by the loop: the group's centre before joining (odometry)
+        self.group_model: Any = None  # set by the loop: its ``group.GroupModel`` (moves people out of view)
+        self.odometry: collections.deque = collections.deque(maxlen=200)  # (local time, pose), from the loop
+        self.offset = math.inf
+        self.newest: Frame | None = None
+        self.capture = -math.inf  # local capture time of the newest frame
+        self.latest: Estimate | None = None
+        self.error: BaseException | None = None
+        self._group: GroupTracker | None = None
+        self._done: float | None = None  # stamp of the last processed frame
+        self._lock = threading.Lock()
+        self._new = threading.Condition(self._lock)
+        self._stop = threading.Event()
+        self._threads: list[threading.Thread] = []
+
+    # -- the two jobs ----------------------------------------------------------------------------------------
+    def grab(self) -> bool:
+        """Fetch the robot's newest frame; True when it is new."""
+        frame = self.robot.frame()
+        if frame is None:
+            return False
+        with self._lock:
+            if self.newest is not None and frame.stamp == self.newest.stamp:
+                return False
+            self.offset = min(self.offset, self.now() - frame.stamp)
+            self.newest, self.capture = frame, frame.stamp + self.offset
+            self._new.notify_all()
+        return True
+
+    def process(self) -> bool:
+        """Detect and track on the newest frame if it has not been processed; True when it was."""
+        with self._lock:
+            frame, capture = self.newest, self.capture
+            if frame is None or frame.stamp == self._done or not self.odometry:
+                return False
+            pose = pose_at(self.odometry, capture)
+        prev, self._done = self._done, frame.stamp
+        h, w = frame.image.shape[:2]
+        if self._group is None or self._group.camera.width != w:
+            cam = self.calibrated.scaled(w, h) if self.calibrated is not None else sim_camera(self.robot_params, w, h)
+            params = self.tracker_params or TRACKER
+            self._group = GroupTracker(cam, params, social=self.social, model=self.group_model)
+        self._group.centre0 = self.centre0
+        boxes = self.detect(frame.image)
+        # a box cut by the image's side puts the person off by up to half a body: only whole ones count
+        boxes = boxes[(boxes[:, 0] > 1) & (boxes[:, 0] + boxes[:, 2] < w - 1)]
+        xy = boxes_to_ground(self._group.camera, boxes, ProxyGeometry(), torso=self.torso)
+        xy = xy[np.isfinite(xy[:, 0])]
+        if self.torso and len(xy):
+            rng = np.hypot(xy[:, 0], xy[:, 1])[:, None]
+            xy = xy * (1.0 + TORSO_HALF_DEPTH / np.maximum(rng, 1e-6))
+        dt = frame.stamp - prev if prev is not None and 0 < frame.stamp - prev < 1.0 else 0.1
+        members = self._group.update(xy, dt, pose)
+        est = Estimate([dataclasses.replace(m) for m in members], capture, len(xy))
+        with self._lock:
+            self.latest = est
+        return True
+
+    # -- running them ----------------------------------------------------------------------------------------
+    def _run(self, job: Callable[[], bool], wait: Callable[[], None]) -> None:
+        try:
+            while not self._stop.is_set():
+                if not job():
+                    wait()
+        except BaseException as exc:  # handed to the control loop, which stops the base and re-raises it
+            self.error = exc
+
+    def _wait_new(self) -> None:
+        with self._lock:
+            self._new.wait(self.poll_s)
+
+    def start(self) -> None:
+        if not self.threaded:
+            return
+        for name, job, wait in (("grab", self.grab, lambda: self._stop.wait(self.poll_s)),
+                                ("detect", self.process, self._wait_new)):
+            th = threading.Thread(target=self._run, args=(job, wait), name=f"deploy-{name}", daemon=True)
+            th.start()
+            self._threads.append(th)
+
+    def step(self) -> None:
+        """Inline mode: grab and process once (the loop calls this each tick)."""
+        if not self.threaded:
+            self.grab()
+            self.process()
+
+    def check(self) -> None:
+        """Re-raise a worker's exception in the caller (the control loop)."""
+        if self.error is not None:
+            raise self.error
+
+    def stop(self, timeout_s: float = 0.2) -> None:
+        self._stop.set()
+        with self._lock:
+            self._new.notify_all()
+        for th in self._threads:
+            th.join(timeout_s)
+
+    def snapshot(self) -> tuple[Estimate | None, float]:
+        with self._lock:
+            return self.latest, self.capture
+
+    def info(self) -> dict[str, Any]:
+        return {"offset_s": self.offset, "torso_boxes": self.torso}

@@ -1,0 +1,250 @@
+"""A virtual Pepper: ALMotion and ALVideoDevice served over libqi, backed by the simulated world (``SimRobot``).
+
+    python -m ssbl_pb.deploy.virtual_robot --listen tcp://127.0.0.1:9559 --seed 3 --log vp.jsonl
+    python -m ssbl_pb.deploy --robot-ip 127.0.0.1 --policy vector --detector colour --log-dir runs/deploy1
+
+The group moves by the social force model; frames are TinyRenderer renders from CameraTop. Like a real Pepper
+it keeps executing the last ``move`` until told otherwise and clamps commands to its limits. It binds loopback
+addresses only unless ``--allow-remote``. Port 0 picks a free port; the first stdout line is
+``listening on URL``. ``--write-map DIR`` writes the room as a map with the flags deploy needs to use it.
+``--log`` (JSONL, flushed per line) records every simulation step: time, commanded and
+actual velocity, room-frame pose, odometry pose, the members, the free slot and the clearance, so tests can see
+when the base really stopped. SIGUSR1 freezes the camera (frames keep their last time stamp; again to thaw).
+qi 3.1.5 facts this relies on: a service is hosted with ``Session().listenStandalone(url)`` and
+``registerService``; every public method is exported (helpers carry ``@qi.nobind``); image bytes must be
+declared (``@qi.bind("(iiiiiiriffff)", ...)``) or they arrive as their text repr.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import signal
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+
+from ..cli import run
+from ..errors import UserError
+from ..files import check_output_path
+from .naoqi import BGR, RESOLUTIONS, RGB, import_qi
+from .robot import SimRobot, compose, relative
+
+LOOPBACK = ("127.0.0.1", "localhost", "[::1]")
+MAX_SUBSCRIPTIONS = 6  # NAOqi's limit per subscriber name
+
+
+def check_listen(url: str, allow_remote: bool) -> str:
+    """The listen URL, refused unless ``tcp://HOST:PORT`` on a loopback host (or ``allow_remote``)."""
+    host, _, port = url.removeprefix("tcp://").rpartition(":")
+    if not url.startswith("tcp://") or not host or not port.isdigit() or int(port) > 65535:
+        raise UserError(f"--listen {url!r}: expected tcp://HOST:PORT (port 0 picks a free one)")
+    if host not in LOOPBACK and not allow_remote:
+        raise UserError(f"--listen {url!r}: {host} is not a loopback address; a virtual robot answers anyone who "
+                        f"reaches it, so add --allow-remote to listen there")
+    return url
+
+
+class VirtualPepper:
+    """The simulation thread's state shared with the qi services (one lock: the ``SimRobot``'s)."""
+
+    def __init__(self, robot: SimRobot, log: Path | None = None, fps_max: int = 30) -> None:
+        self.robot = robot
+        self.epoch = time.time()  # the robot clock of frame stamps: wall time at start + sim time
+        self.frozen = False
+        self.fps = 0
+        self.subs: dict[str, tuple[int, int]] = {}  # handle -> (resolution, colour space)
+        self.fps_max = fps_max
+        self._log = open(log, "a", buffering=1) if log is not None else None  # closed in close()
+        self._log_lock = threading.Lock()
+        self.write({"kind": "start", "wall": time.time(), "start_pose": robot.start_pose.tolist(), **robot.info})
+
+    def write(self, row: dict[str, Any]) -> None:
+        if self._log is not None:
+            with self._log_lock:
+                self._log.write(json.dumps(row) + "\n")
+
+    def step_row(self) -> None:
+        r = self.robot
+        truth = r.truth()
+        self.write({"kind": "state", "wall": time.time(), **truth, "odom": relative(r.start_pose, truth["pose"])
+                    .tolist()})
+
+    def run(self, stop: threading.Event) -> None:
+        """Advance the world in real time (and render the camera at the subscribed rate) until ``stop``."""
+        dt = self.robot.world.params.dt
+        t0 = time.monotonic()
+        next_frame = 0.0
+        while not stop.is_set():
+            behind = time.monotonic() - t0 - self.robot.t
+            if behind > 1.0:  # stopped (SIGSTOP) or starved: do not replay the gap, jump it
+                self.write({"kind": "time_jump", "wall": time.time(), "t": self.robot.t, "skipped": behind})
+                t0 += behind
+            if behind < dt:
+                time.sleep(dt - behind)
+                continue
+            self.robot.advance(dt)
+            self.step_row()
+            if self.fps and not self.frozen and self.robot.t >= next_frame:
+                self.robot.render()
+                next_frame = self.robot.t + 1.0 / self.fps - 1e-6
+
+    def close(self) -> None:
+        self.robot.close()
+        if self._log is not None:
+            with self._log_lock:
+                self._log.close()
+            self._log = None
+
+
+def write_room_map(folder: Path, robot: SimRobot, resolution: float = 0.05,
+                   centre: tuple[float, float] = (2.0, 1.0)) -> tuple[Path, np.ndarray]:
+    """The simulated room as a ROS map (``map.pgm``, ``map.yaml``) and its room YAML (``room.yaml``, as
+    ``tools/import_map.py`` makes it), the room's centre at ``centre`` on the map (so the frames differ); returns
+    the room YAML and the robot's start pose on the map (x, y, yaw)."""
+    from ..calib.io import write_yaml
+    from ..calib.room_map import extract_room, read_map, room_yaml
+
+    sx, sy = robot.world.params.room_size
+    wall = robot.world.params.wall_thickness
+    margin = 1.0 + wall
+    w, h = (int(round((v + 2 * margin) / resolution)) for v in (sx, sy))
+    img = np.full((h, w), 205, np.uint8)  # unknown outside
+    m, k = int(round(1.0 / resolution)), int(round(wall / resolution))
+    img[m:h - m, m:w - m] = 0  # walls ...
+    img[m + k:h - m - k, m + k:w - m - k] = 254  # ... around the free room
+    folder.mkdir(parents=True, exist_ok=True)
+    cv2.imwrite(str(folder / "map.pgm"), img)
+    origin = (centre[0] - (sx / 2 + margin), centre[1] - (sy / 2 + margin), 0.0)
+    (folder / "map.yaml").write_text(f"image: map.pgm\nresolution: {resolution}\norigin: {list(origin)}\n"
+                                     "negate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n")
+    grid = read_map(folder / "map.yaml")
+    data = room_yaml(grid, extract_room(grid, seed=centre), centre)
+    write_yaml(folder / "room.yaml", data, header="the virtual Pepper's room (python -m ssbl_pb.deploy.virtual_robot)")
+    t = data["map_to_room"]
+    start = compose(np.array([t["x"], t["y"], t["yaw"]]), robot.start_pose)
+    return folder / "room.yaml", start
+
+
+def make_services(vp: VirtualPepper) -> tuple[Any, Any]:
+    """ALMotion and ALVideoDevice objects with NAOqi's method names and return layouts."""
+    qi = import_qi()
+    robot = vp.robot
+
+    class ALMotion:
+        def move(self, x: float, y: float, theta: float) -> None:
+            robot.send(np.array([x, y, theta], dtype=float))
+
+        def stopMove(self) -> None:
+            robot.stop()
+            vp.write({"kind": "call", "wall": time.time(), "t": robot.t, "call": "stopMove"})
+
+        def getRobotPosition(self, use_sensors: bool) -> list[float]:
+            return [float(v) for v in robot.odometry().pose]
+
+        def getRobotVelocity(self) -> list[float]:
+            return [float(v) for v in robot.odometry().velocity]
+
+        def robotIsWakeUp(self) -> bool:
+            return True
+
+    class ALVideoDevice:
+        def subscribeCamera(self, name: str, camera: int, resolution: int, colour: int, fps: int) -> str:
+            if resolution not in RESOLUTIONS or colour not in (RGB, BGR) or camera != 0:
+                raise RuntimeError(f"virtual Pepper: camera {camera}, resolution {resolution}, colour space {colour}"
+                                   f" not served (CameraTop 0; resolutions {sorted(RESOLUTIONS)}; RGB 11 or BGR 13)")
+            for k in range(MAX_SUBSCRIPTIONS):
+                handle = f"{name}_{k}"
+                if handle not in vp.subs:
+                    vp.subs[handle] = (resolution, colour)
+                    robot.image_size = RESOLUTIONS[resolution]
+                    vp.fps = max(1, min(int(fps), vp.fps_max))
+                    vp.write({"kind": "call", "wall": time.time(), "t": robot.t, "call": "subscribeCamera",
+                              "handle": handle})
+                    return handle
+            raise RuntimeError(f"ALVideoDevice: {MAX_SUBSCRIPTIONS} subscriptions named {name!r} already exist")
+
+        @qi.bind("(iiiiiiriffff)", ("s",))
+        def getImageRemote(self, handle: str) -> list[Any]:
+            if handle not in vp.subs:
+                raise RuntimeError(f"ALVideoDevice.getImageRemote: unknown handle {handle!r}")
+            frame = robot.frame() or robot.render()
+            resolution, colour = vp.subs[handle]
+            w, h = RESOLUTIONS[resolution]
+            img = frame.image if frame.image.shape[1] == w else cv2.resize(frame.image, (w, h))
+            img = img[..., ::-1] if colour == BGR else img
+            stamp = vp.epoch + frame.stamp
+            half_h, half_v = math.radians(robot.world.robot_params.camera_hfov_deg) / 2, math.atan(
+                math.tan(math.radians(robot.world.robot_params.camera_hfov_deg) / 2) * h / w)
+            return [w, h, 3, colour, int(stamp), int(round((stamp % 1.0) * 1e6)) % 1000000,
+                    np.ascontiguousarray(img).tobytes(), 0, -half_h, -half_v, half_h, half_v]
+
+        def unsubscribe(self, handle: str) -> bool:
+            vp.write({"kind": "call", "wall": time.time(), "t": robot.t, "call": "unsubscribe", "handle": handle})
+            return vp.subs.pop(handle, None) is not None
+
+    return ALMotion(), ALVideoDevice()
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--listen", default="tcp://127.0.0.1:9559", help="tcp://HOST:PORT (default %(default)s)")
+    ap.add_argument("--seed", type=int, default=0, help="episode seed of the simulated scene (default 0)")
+    ap.add_argument("--scenario", default="default", help="default | mixed | FORMATION[-N] | ... (as evaluate)")
+    ap.add_argument("--log", type=Path, help="JSONL log of every simulation step")
+    ap.add_argument("--allow-remote", action="store_true", help="allow a non-loopback --listen address")
+    ap.add_argument("--duration", type=float, default=0.0, help="exit after this many seconds (0: run until killed)")
+    ap.add_argument("--write-map", type=Path, metavar="DIR", help="write the room as a map (DIR/room.yaml for "
+                    "deploy's --map) and print the robot's --start-pose on it")
+    args = ap.parse_args(argv)
+    url = check_listen(args.listen, args.allow_remote)
+    for path, flag, is_dir in ((args.log, "--log", False), (args.write_map, "--write-map", True)):
+        if path is not None:
+            check_output_path(path, flag, is_dir=is_dir)
+    qi = import_qi()
+    robot = SimRobot(args.scenario, args.seed)
+    on_map = write_room_map(args.write_map, robot) if args.write_map is not None else None
+    session = qi.Session()
+    try:
+        session.listenStandalone(url)
+    except RuntimeError as exc:
+        robot.close()
+        raise UserError(f"--listen {url}: cannot listen there ({exc})") from None
+    vp = VirtualPepper(robot, args.log)
+    motion, video = make_services(vp)
+    session.registerService("ALMotion", motion)
+    session.registerService("ALVideoDevice", video)
+    signal.signal(signal.SIGUSR1, lambda *_: setattr(vp, "frozen", not vp.frozen))
+    x, y, yaw = robot.start_pose
+    print(f"listening on {session.endpoints()[0]}", flush=True)
+    print(f"scene: seed {args.seed}, {robot.info['formation']} group of {robot.info['n_humans']}, robot at "
+          f"({x:.2f}, {y:.2f}, {math.degrees(yaw):.0f} deg) in the room frame", flush=True)
+    if on_map is not None:
+        (mx, my, myaw) = on_map[1]
+        print(f"map: --map {on_map[0]} --start-pose {mx:.3f} {my:.3f} {math.degrees(myaw):.2f}", flush=True)
+    stop = threading.Event()
+    if args.duration > 0:
+        threading.Timer(args.duration, stop.set).start()
+    try:
+        vp.run(stop)
+    finally:
+        stop.set()
+        session.close()
+        vp.close()
+    return 0
+
+
+def load_log(path: str | Path) -> tuple[dict[str, Any], list[dict[str, Any]], list[dict[str, Any]]]:
+    """A virtual Pepper log: its start row, its state rows and its other rows (calls, time jumps)."""
+    rows = [json.loads(line) for line in Path(path).read_text().splitlines() if line.strip()]
+    start = next(r for r in rows if r["kind"] == "start")
+    return start, [r for r in rows if r["kind"] == "state"], [r for r in rows if r["kind"] not in ("start", "state")]
+
+
+if __name__ == "__main__":
+    run(main)

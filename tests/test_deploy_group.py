@@ -1,0 +1,88 @@
+"""From tracked people to the policy's group: circle, free slot, the joining model and the memory of people out of
+view, held against the simulator's own group (env.humans)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from ssbl_pb.deploy.group import GroupModel, GroupTracker, group_circle
+from ssbl_pb.env.humans import Group
+from ssbl_pb.env.layouts import free_layout, paper_layout, slot_keep
+from ssbl_pb.env.task import TaskParams
+from ssbl_pb.params import RobotParams, SocialParams
+from ssbl_pb.perception.sim_eval import sim_camera
+from ssbl_pb.perception.tracker import TrackerParams
+
+SOCIAL = SocialParams()
+
+
+def test_circle_through_three_or_more_members():
+    centre = np.array([1.0, -2.0])
+    angles = np.array([0.3, 2.0, 4.0, 5.0])
+    pts = centre + 1.3 * np.column_stack([np.cos(angles), np.sin(angles)])
+    c, r = group_circle(pts, np.array([5.0, 5.0]), SOCIAL)
+    assert c == pytest.approx(centre) and r == pytest.approx(1.3)
+
+
+def test_a_pair_is_centred_on_its_midpoint_or_in_the_paper_model_on_the_robot_side_of_its_chord():
+    a, b = np.array([-0.8, 0.0]), np.array([0.8, 0.0])  # 1.6 m apart, the paper model's radius is 1.0 m
+    c, r = group_circle(np.array([a, b]), np.array([0.0, -3.0]), SOCIAL)
+    assert c == pytest.approx([0.0, 0.0]) and r == pytest.approx(0.8)  # real pairs: symmetric about the centre
+    c, r = group_circle(np.array([a, b]), np.array([0.0, -3.0]), SOCIAL, paper=True)
+    assert r == 1.0 and c == pytest.approx([0.0, -0.6])  # sqrt(1 - 0.8^2) toward the robot
+    c, r = group_circle(np.array([[-1.2, 0.0], [1.2, 0.0]]), np.array([0.0, 3.0]), SOCIAL, paper=True)
+    assert c == pytest.approx([0, 0]) and r == pytest.approx(1.2)  # wider than the model: the midpoint
+
+
+def test_slot_and_joining_match_the_simulated_group():
+    keep = slot_keep(SOCIAL, RobotParams().reach, TaskParams().intimate_zone, TaskParams().route_margin)
+    for paper, formation, n in ((True, "l_shape", 3), (True, "circular", 4), (False, "circular", 4),
+                                (False, "vis_a_vis", 2)):
+        lay = paper_layout(formation, n, SOCIAL, 0.7) if paper else free_layout(
+            paper_layout(formation, n, SOCIAL, 0.7).offsets * 0.6)  # a tighter, real-sized group
+        g = Group(SOCIAL, np.array([0.5, 0.5]), lay, keep)
+        model = GroupModel(SOCIAL, keep, paper, smoothing=1.0)
+        far, near = np.array([4.0, -1.0]), g.free_slot(np.array([4.0, -1.0])) * 1.1
+        centre, radius, w, slot = model.update(g.pos, far)
+        assert centre == pytest.approx(g.centre0) and w == 0.0, formation
+        assert slot == pytest.approx(g.free_slot(far)) and radius == pytest.approx(g.radius), formation
+        g.update_centre(near)  # inside the joining zone the measured centre is held, the model joins the robot
+        centre, radius, w, slot = model.update(g.pos + 0.02, near)
+        # (the members moved 2 cm: the place, hence the joining distance, moves by about that much)
+        assert w == pytest.approx(g.join_weight, abs=0.05) and w > 0 and centre == pytest.approx(g.centre), formation
+        assert radius == pytest.approx(g.radius, abs=0.01), formation
+
+
+def _tracker() -> GroupTracker:
+    cam = sim_camera(RobotParams(), 320, 240)
+    return GroupTracker(cam, TrackerParams(dt=0.1, birth_hits=2, meas_std=0.05), social=SOCIAL)
+
+
+def test_a_person_leaving_the_view_is_remembered_and_forgotten_once_their_place_is_clear():
+    gt = _tracker()
+    person = np.array([[3.0, 0.0]])
+    for _ in range(3):
+        members = gt.update(person, 0.1, np.zeros(3))
+    assert len(members) == 1 and members[0].seen
+    # the robot turns 90 deg left: the person is now out of view (to its right), so nothing is detected
+    for _ in range(30):
+        members = gt.update(np.zeros((0, 2)), 0.1, np.array([0.0, 0.0, math.pi / 2]))
+    assert len(members) == 1 and not members[0].seen
+    assert members[0].pos == pytest.approx([3.0, 0.0], abs=0.1)  # still where it was, in the odometry frame
+    # turning back, its place is in clear view but nobody is there: forgotten after forget_frames
+    for _ in range(gt.p.forget_frames):
+        members = gt.update(np.zeros((0, 2)), 0.1, np.zeros(3))
+    assert members == []
+
+
+def test_a_hidden_person_is_not_forgotten():
+    gt = _tracker()
+    near, far = np.array([2.0, 0.0]), np.array([4.0, 0.05])
+    for _ in range(3):
+        gt.update(np.array([near, far]), 0.1, np.zeros(3))
+    for _ in range(20):  # the far one stands right behind the near one: hidden, not gone
+        members = gt.update(np.array([near]), 0.1, np.zeros(3))
+    assert len(members) == 2

@@ -1,0 +1,120 @@
+"""The real NAOqi path over qi against the virtual Pepper on loopback (a free port per test): the robot interface,
+each fault of the issue's list (exit code names it; the virtual base ends stopped per its own log), and robots
+that cannot be used. Whole approaches over qi are the benchmark's (tools/bench_deploy.py): real time is slow."""
+
+from __future__ import annotations
+
+import json
+import socket
+import subprocess
+import sys
+import threading
+import time
+
+import numpy as np
+import pytest
+
+pytest.importorskip("qi")
+
+from ssbl_pb.deploy.bench import FAULTS, run_fault, virtual_pepper  # noqa: E402
+from ssbl_pb.deploy.naoqi import NaoqiRobot, RobotError  # noqa: E402
+from ssbl_pb.deploy.virtual_robot import load_log  # noqa: E402
+from ssbl_pb.params import RobotParams  # noqa: E402
+
+
+def test_robot_interface_over_qi(tmp_path):
+    log = tmp_path / "vp.jsonl"
+    with virtual_pepper(log, seed=3) as (_, url):
+        for _ in range(7):  # NAOqi allows 6 subscriptions per name: only works if each run unsubscribes
+            robot = NaoqiRobot(url, RobotParams(max_speed=0.2))
+            robot.close()
+        robot = NaoqiRobot(url, RobotParams(max_speed=0.2))
+        try:
+            time.sleep(0.3)
+            frame = robot.frame()
+            assert frame.image.shape == (240, 320, 3) and frame.image.dtype == np.uint8
+            assert frame.image.std() > 10  # a rendered scene, not the bytes' text repr
+            assert robot.odometry().pose == pytest.approx([0, 0, 0], abs=1e-9)
+            assert robot.send(np.array([0.5, 0.0, 0.0])) == pytest.approx([0.2, 0.0, 0.0])  # our clamp
+            time.sleep(1.5)
+            odo = robot.odometry()
+            assert odo.velocity[0] == pytest.approx(0.2, abs=1e-6) and odo.pose[0] > 0.1
+            robot.stop()
+            time.sleep(1.0)  # 0.2 m/s at 0.3 m/s^2: 0.67 s to stand still
+        finally:
+            robot.close()
+    _, states, calls = load_log(log)
+    names = [c["call"] for c in calls]
+    assert names.count("subscribeCamera") == 8 and names.count("unsubscribe") == 8
+    assert states[-1]["cmd"] == [0.0, 0.0, 0.0] and states[-1]["vel"] == pytest.approx([0, 0, 0], abs=1e-9)
+
+
+EXPECTED = {"robot_killed": 7, "camera_frozen": 5, "robot_frozen": 8, "sigint": 130, "sigterm": 143,
+            "policy_exception": 1, "deploy_killed": -9}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("fault", FAULTS)
+def test_each_fault_stops_the_base_and_names_itself(fault, tmp_path):
+    res = run_fault(fault, tmp_path)
+    assert res["exit_code"] == EXPECTED[fault], res
+    assert not res.get("hung"), res
+    if fault != "robot_killed":  # the virtual Pepper lived on: its own log shows the base stopped for good
+        assert res["stop_commanded_s"] is not None and res["standstill_s"] is not None, res
+    if fault in ("camera_frozen", "deploy_killed"):
+        assert res["stop_commanded_s"] > 0.4  # by the staleness limit / the watchdog, not before
+    summary = tmp_path / "deploy" / "summary.json"
+    if fault in ("robot_killed", "camera_frozen", "robot_frozen", "sigint", "sigterm"):
+        outcome = {"robot_killed": "connection_lost", "camera_frozen": "stale_frame",
+                   "robot_frozen": "robot_not_responding"}.get(fault, fault)
+        assert json.loads(summary.read_text())["outcome"] == outcome
+
+
+def _deploy(*argv: str, timeout: float = 30) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "ssbl_pb.deploy", "--policy", "sffm", "--detector", "colour",
+                           *argv], capture_output=True, text=True, timeout=timeout)
+
+
+def test_a_port_where_nothing_speaks_qi_is_one_line_within_5_s(tmp_path):
+    server = socket.socket()
+    server.bind(("127.0.0.1", 0))
+    server.listen(1)
+    port = server.getsockname()[1]
+    threading.Thread(target=lambda: server.accept(), daemon=True).start()  # accepts, then says nothing
+    try:
+        t0 = time.monotonic()
+        res = _deploy("--robot-ip", "127.0.0.1", "--port", str(port), "--log-dir", str(tmp_path / "out"))
+        took = time.monotonic() - t0
+    finally:
+        server.close()
+    lines = res.stderr.strip().splitlines()
+    assert res.returncode == 2 and len(lines) == 1 and "cannot connect" in lines[0], res.stderr
+    assert took < 5.0 + 3.0  # the 3 s connect bound plus Python's start-up on a shared machine
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_robot_without_the_camera_service_is_refused(tmp_path):
+    import qi
+
+    qi.logging.setLevel(qi.logging.ERROR)
+
+    class Motion:
+        def move(self, x: float, y: float, t: float) -> None: ...
+        def stopMove(self) -> None: ...  # noqa: N802
+        def getRobotPosition(self, s: bool) -> list[float]: return [0.0, 0.0, 0.0]  # noqa: N802
+        def getRobotVelocity(self) -> list[float]: return [0.0, 0.0, 0.0]  # noqa: N802
+
+    session = qi.Session()
+    session.listenStandalone("tcp://127.0.0.1:0")
+    session.registerService("ALMotion", Motion())
+    try:
+        res = _deploy("--url", session.endpoints()[0], "--log-dir", str(tmp_path / "out"))
+    finally:
+        session.close()
+    assert res.returncode == 2 and "no ALVideoDevice service" in res.stderr, res.stderr
+    assert not (tmp_path / "out").exists()
+
+
+def test_connecting_to_nothing_raises_a_user_error():
+    with pytest.raises(RobotError, match="cannot connect"):
+        NaoqiRobot("tcp://127.0.0.1:1")
