@@ -124,7 +124,6 @@ CASES = [
     C("calibrate_groups.py", "{tmp}", "--out", "{out}.yaml", expect="no features.mat at or below"),
     C("calibrate_groups.py", "--out", "{out}", expect="expected a .yaml file name"),
     C("calibrate_groups.py", "--per-size", "0", "--out", "{out}.yaml", expect="--per-size 0"),
-    C("evaluate.py", "--policy", "sffm", "--episodes", "0", "--out", "{out}", expect="--episodes 0"),
     # deploy (issue 12): nothing connects or moves before the inputs are checked
     C("-m ssbl_pb.deploy", "--robot-ip", "127.0.0.1", "--port", "1", "--policy", "sffm", "--log-dir", "{out}",
       expect="cannot connect to tcp://127.0.0.1:1"),
@@ -150,6 +149,9 @@ CASES = [
     C("-m ssbl_pb.deploy.watchdog", "--robot", "tcp://127.0.0.1:1", expect="cannot reach ALMotion"),
     C("-m ssbl_pb.deploy.watchdog", "--limit", "0", expect="--limit 0"),
     C("-m ssbl_pb.deploy.plot", "{tmp}", expect="no log.jsonl"),
+    C("bench_deploy.py", "--faults", "meteor", "--out", "{out}", expect="--faults meteor"),
+    C("bench_deploy.py", "--runs", "-1", "--out", "{out}", expect="argument --runs"),
+    C("bench_deploy.py", "--policy", "nosuch", "--out", "{out}", expect="--policy 'nosuch'"),
 ]
 
 

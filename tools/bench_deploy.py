@@ -8,11 +8,10 @@ timings and a soak. Writes OUT.json and OUT.md (the docs/benchmarks.md section) 
 
 from __future__ import annotations
 
-import argparse
 import shutil
 from pathlib import Path
 
-from ssbl_pb.cli import progress_bar, run
+from ssbl_pb.cli import ArgumentParser, int_at_least, progress_bar, run
 from ssbl_pb.errors import UserError
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -21,20 +20,27 @@ ROOT = Path(__file__).resolve().parents[1]
 def main(argv: list[str] | None = None) -> int:
     from ssbl_pb.deploy.bench import FAULTS
 
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--runs", type=int, default=20, help="seeded approaches (default 20)")
+    ap = ArgumentParser(description=__doc__)
+    ap.add_argument("--runs", type=int_at_least(0), default=20, help="seeded approaches (default 20)")
     ap.add_argument("--seed", type=int, default=500_000, help="first held-out seed")
     ap.add_argument("--scenario", default="default", help="the virtual Pepper's scenario (default: the paper's)")
-    ap.add_argument("--policy", default="vector")
+    ap.add_argument("--policy", default="vector", help="the policy deploy runs (default: the shipped vector)")
     ap.add_argument("--faults", default=",".join(FAULTS), help=f"comma list of {', '.join(FAULTS)}, or none")
     ap.add_argument("--soak", type=float, default=600.0, help="soak seconds (0: none)")
-    ap.add_argument("--out", type=Path, default=ROOT / "results" / "bench_deploy")
+    ap.add_argument("--out", type=Path, default=ROOT / "results" / "bench_deploy",
+                    help="results stem: OUT.json, OUT.md and the runs' logs in OUT/")
     args = ap.parse_args(argv)
     faults = [] if args.faults == "none" else args.faults.split(",")
     bad = sorted(set(faults) - set(FAULTS))
-    if bad or args.runs < 0 or args.soak < 0:
-        raise UserError(f"--faults {bad} / --runs {args.runs} / --soak {args.soak}: expected faults among "
-                        f"{list(FAULTS)} and counts >= 0")
+    if bad:
+        raise UserError(f"--faults {','.join(bad)}: expected a comma list of {', '.join(FAULTS)}, or none")
+    if args.soak < 0:
+        raise UserError(f"--soak {args.soak}: expected seconds >= 0")
+    from ssbl_pb.evaluation import check_policy_spec
+    from ssbl_pb.files import check_output_path
+
+    check_policy_spec(args.policy)
+    check_output_path(args.out.with_suffix(".json"), is_dir=False)
 
     from ssbl_pb.deploy.bench import environment, markdown, run_approach, run_fault, soak
     from ssbl_pb.files import write_json, write_text

@@ -13,14 +13,13 @@ Examples:
 
 from __future__ import annotations
 
-import argparse
 from pathlib import Path
 
-from ssbl_pb.cli import progress_bar, run
+from ssbl_pb.cli import ArgumentParser, progress_bar, run
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = ArgumentParser(description=__doc__)
     ap.add_argument("--episodes", type=int, required=True, help="number of episodes")
     ap.add_argument("--out", type=Path, required=True, help="output .npz")
     ap.add_argument("--size", type=int, default=64, help="frame side in pixels (the encoder's input; default 64)")

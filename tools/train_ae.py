@@ -13,16 +13,15 @@ Examples:
 
 from __future__ import annotations
 
-import argparse
 from pathlib import Path
 
-from ssbl_pb.cli import run
+from ssbl_pb.cli import ArgumentParser, run
 
 
 def main(argv: list[str] | None = None) -> int:
     from ssbl_pb.perception.autoencoders import ARCHS, DEFAULT_SIZE, SIZES
 
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = ArgumentParser(description=__doc__)
     ap.add_argument("--frames", type=Path, required=True, help=".npz from tools/collect_frames.py")
     ap.add_argument("--arch", required=True, help=f"one of {', '.join(ARCHS)}")
     ap.add_argument("--out", type=Path, required=True, help="output directory")

@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from ..cli import run
+from ..cli import ArgumentParser, run
 from ..errors import UserError
 from ..files import check_output_path
 from .faults import EXIT_CODES
@@ -35,8 +35,7 @@ BASELINES = ("sffm", "straight", "random")
 
 
 def _parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(prog="python -m ssbl_pb.deploy", description=__doc__,
-                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = ArgumentParser(prog="python -m ssbl_pb.deploy", description=__doc__)
     ap.add_argument("--robot-ip", help="the robot's address (NAOqi 2.5: tcp://IP:PORT)")
     ap.add_argument("--port", type=int, default=9559, help="NAOqi port (default 9559)")
     ap.add_argument("--url", help="full qi URL instead, e.g. tcps://IP:9503 for NAOqi 2.9 (with --user/--token)")

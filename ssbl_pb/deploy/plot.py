@@ -9,7 +9,6 @@ Drawn with OpenCV (already loaded for detection), so a run that ends on a fault 
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 from pathlib import Path
@@ -19,7 +18,7 @@ import cv2
 import numpy as np
 
 from ..calib.io import write_image
-from ..cli import run
+from ..cli import ArgumentParser, run
 from ..errors import UserError
 from ..files import check_output_path
 from .frames import inverse, load_room, transform_points
@@ -108,7 +107,7 @@ def draw(folder: str | Path, out: str | Path | None = None) -> Path:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = ArgumentParser(description=__doc__)
     ap.add_argument("dir", type=Path, help="a deploy log folder (python -m ssbl_pb.deploy --log-dir)")
     ap.add_argument("--out", type=Path, help="PNG to write (default DIR/paths.png)")
     args = ap.parse_args(argv)

@@ -17,7 +17,6 @@ declared (``@qi.bind("(iiiiiiriffff)", ...)``) or they arrive as their text repr
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import signal
@@ -29,7 +28,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from ..cli import run
+from ..cli import ArgumentParser, run
 from ..errors import UserError
 from ..files import check_output_path
 from .naoqi import BGR, RESOLUTIONS, RGB, import_qi
@@ -192,7 +191,7 @@ def make_services(vp: VirtualPepper) -> tuple[Any, Any]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = ArgumentParser(description=__doc__)
     ap.add_argument("--listen", default="tcp://127.0.0.1:9559", help="tcp://HOST:PORT (default %(default)s)")
     ap.add_argument("--seed", type=int, default=0, help="episode seed of the simulated scene (default 0)")
     ap.add_argument("--scenario", default="default", help="default | mixed | FORMATION[-N] | ... (as evaluate)")

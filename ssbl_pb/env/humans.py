@@ -293,8 +293,8 @@ def measured_group(social: SocialParams, members: np.ndarray, centre: np.ndarray
     if paper:
         angles = np.arctan2(offsets[:, 1], offsets[:, 0])
         lay = paper_layout("circular", n, social, 0.0)
-        lay = type(lay)(offsets, np.hypot(*offsets.T), np.mod(angles + math.pi, TWO_PI), lay.radius,
-                        lay.joined_radius, paper=True)
+        lay = type(lay)(offsets, np.full(n, lay.radius), np.mod(angles + math.pi, TWO_PI), lay.radius,
+                        lay.joined_radius, paper=True)  # the paper's members all belong on the o-space circle
     else:
         lay = free_layout(offsets)
     return Group(social, centre, lay, keep, dt)
