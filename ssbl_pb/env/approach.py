@@ -198,7 +198,7 @@ class ApproachGroupEnv(gym.Env):
         self._clearance = clearance
         terms = reward_terms(g.robot_force, w.robot_pose[:2] - robot_before, g.force, g.pos - members_before,
                              g.repulsion, self.dt, accel, self._prev_accel, potential_before, self._potential,
-                             success, violation, proximity)
+                             success, violation, proximity, (self.task.max_steps - self._steps) * self.dt)
         r = total_reward(terms, self.weights)
         self._prev_accel = accel
         for k, v in terms.items():

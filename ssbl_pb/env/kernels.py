@@ -372,7 +372,8 @@ def step(p: np.ndarray, weights: np.ndarray, actions: np.ndarray, pose: np.ndarr
         for j in range(n):
             alt += force[i, j, 0] * (pos[i, j, 0] - mb[j, 0]) + force[i, j, 1] * (pos[i, j, 1] - mb[j, 1])
             reps += math.hypot(rep[i, j, 0], rep[i, j, 1])
-        terms = (along, dt if along > 0.0 else 0.0, -dt, 1.0 if success else 0.0, -alt, -reps * dt,
+        r3 = -(dt + (p[MAX_STEPS] - steps[i]) * dt) if violation else -dt  # a violation pays the time it cut short
+        terms = (along, dt if along > 0.0 else 0.0, r3, 1.0 if success else 0.0, -alt, -reps * dt,
                  -(dux * dux + duy * duy) / dt, -math.hypot(ax - prev_accel[i, 0], ay - prev_accel[i, 1]),
                  potential[i] - potential_before, -prox, -1.0 if violation else 0.0)
         r = 0.0

@@ -6,7 +6,8 @@ the start of the step and member j moving by ``du_j`` under its own total force 
 * R1 (eq. 11, group forming): ``F . du`` (the line-integral increment).
 * R2 (eq. 12, non-increasing energy): ``dt`` if the robot moves along the field (``v . F > 0``, the original
   code's test) else 0.
-* R3 (eq. 13, time): ``-dt``.
+* R3 (eq. 13, time): ``-dt``; a step that ends the episode by a violation also pays the time it cut short
+  (``remaining``), so that crashing early never costs less than waiting for the time-out (ours, issue 14).
 * R4 (success bonus): 1 on the step that completes the approach.
 * R5 (eq. 14, altruism): ``-sum_j F_j . du_j`` plus the original's repulsion term ``-sum_j |F_rep,j| dt``
   weighted by ``w_rep`` (how much the robot pushes the members).
@@ -147,8 +148,10 @@ def reward_terms(
     success: bool,
     violation: bool,
     proximity: float = 0.0,
+    remaining: float = 0.0,
 ) -> dict[str, float]:
-    """Unweighted terms of one step (see the module docstring for each formula and its unit)."""
+    """Unweighted terms of one step (see the module docstring for each formula and its unit); ``remaining`` is
+    the episode's time left (s) after this step, charged to R3 when it ends in a violation."""
     fx, fy = float(robot_force[0]), float(robot_force[1])
     dx, dy = float(robot_du[0]), float(robot_du[1])
     along = fx * dx + fy * dy  # F . du, and v . F has the same sign
@@ -157,7 +160,7 @@ def reward_terms(
     return {
         "r1_group_forming": along,
         "r2_non_increasing": dt if along > 0.0 else 0.0,
-        "r3_time": -dt,
+        "r3_time": -(dt + remaining) if violation else -dt,
         "r4_success": 1.0 if success else 0.0,
         "r5_altruism": -float((member_forces * member_du).sum()),
         "r5_repulsion": -float(np.hypot(rep[:, 0], rep[:, 1]).sum()) * dt,
