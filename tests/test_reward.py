@@ -37,6 +37,10 @@ def test_each_term_by_hand():
     assert t1["r2_non_increasing"] == pytest.approx(DT)
     assert t2["r2_non_increasing"] == 0.0
     assert t1["r3_time"] == pytest.approx(-DT) and t2["r3_time"] == pytest.approx(-DT)
+    # a violation with 12.3 s left pays that time too: ending early never beats the time-out
+    crash = reward_terms(**{**s1, "violation": True}, dt=DT, remaining=12.3)
+    assert crash["r3_time"] == pytest.approx(-DT - 12.3) and crash["violation"] == -1.0
+    assert reward_terms(**s1, dt=DT, remaining=12.3)["r3_time"] == pytest.approx(-DT)
     assert t1["r4_success"] == 0.0 and t2["r4_success"] == 1.0
     # R5: -sum F_j . du_j; repulsion part -sum |F_rep| dt
     assert t1["r5_altruism"] == 0.0

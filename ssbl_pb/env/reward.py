@@ -6,7 +6,8 @@ the start of the step and member j moving by ``du_j`` under its own total force 
 * R1 (eq. 11, group forming): ``F . du`` (the line-integral increment).
 * R2 (eq. 12, non-increasing energy): ``dt`` if the robot moves along the field (``v . F > 0``, the original
   code's test) else 0.
-* R3 (eq. 13, time): ``-dt``.
+* R3 (eq. 13, time): ``-dt``; a step that ends the episode by a violation also pays the time it cut short
+  (``remaining``), so that crashing early never costs less than waiting for the time-out (ours, issue 14).
 * R4 (success bonus): 1 on the step that completes the approach.
 * R5 (eq. 14, altruism): ``-sum_j F_j . du_j`` plus the original's repulsion term ``-sum_j |F_rep,j| dt``
   weighted by ``w_rep`` (how much the robot pushes the members).
@@ -149,8 +150,9 @@ def proximity_cost(clearance_before: np.ndarray, clearance_after: np.ndarray, in
 def step_terms(robot_force: np.ndarray, robot_du: np.ndarray, member_forces: np.ndarray, member_du: np.ndarray,
                member_repulsion: np.ndarray, dt: float, accel: np.ndarray, prev_accel: np.ndarray,
                potential_before: float, potential_after: float, success: bool, violation: bool,
-               proximity: float) -> np.ndarray:
-    """The unweighted terms of one step in ``TERMS`` order (the module docstring gives each formula and unit)."""
+               proximity: float, remaining: float) -> np.ndarray:
+    """The unweighted terms of one step in ``TERMS`` order (the module docstring gives each formula and unit);
+    ``remaining`` is the episode's time left (s) after this step, charged to R3 when it ends in a violation."""
     dx, dy = robot_du[0], robot_du[1]
     along = robot_force[0] * dx + robot_force[1] * dy  # F . du, and v . F has the same sign
     alt, rep = 0.0, 0.0
@@ -158,7 +160,7 @@ def step_terms(robot_force: np.ndarray, robot_du: np.ndarray, member_forces: np.
         alt += member_forces[j, 0] * member_du[j, 0] + member_forces[j, 1] * member_du[j, 1]
         rep += math.hypot(member_repulsion[j, 0], member_repulsion[j, 1])
     t = np.empty(N_TERMS)
-    t[R1], t[R2], t[R3] = along, dt if along > 0.0 else 0.0, -dt
+    t[R1], t[R2], t[R3] = along, dt if along > 0.0 else 0.0, -(dt + remaining) if violation else -dt
     t[R4] = 1.0 if success else 0.0
     t[R5], t[R5_REP] = -alt, -rep * dt
     t[EFFORT] = -(dx * dx + dy * dy) / dt
@@ -170,12 +172,12 @@ def step_terms(robot_force: np.ndarray, robot_du: np.ndarray, member_forces: np.
 def reward_terms(robot_force: np.ndarray, robot_du: np.ndarray, member_forces: np.ndarray, member_du: np.ndarray,
                  member_repulsion: np.ndarray, dt: float, accel: np.ndarray, prev_accel: np.ndarray,
                  potential_before: float, potential_after: float, success: bool, violation: bool,
-                 proximity: float = 0.0) -> dict[str, float]:
+                 proximity: float = 0.0, remaining: float = 0.0) -> dict[str, float]:
     """``step_terms`` by name."""
     f = [np.asarray(v, dtype=float).reshape(-1, 2) for v in (member_forces, member_du, member_repulsion)]
     t = step_terms(np.asarray(robot_force, dtype=float), np.asarray(robot_du, dtype=float), *f, float(dt),
                    np.asarray(accel, dtype=float), np.asarray(prev_accel, dtype=float), float(potential_before),
-                   float(potential_after), bool(success), bool(violation), float(proximity))
+                   float(potential_after), bool(success), bool(violation), float(proximity), float(remaining))
     return dict(zip(TERMS, t.tolist(), strict=True))
 
 
