@@ -43,6 +43,13 @@ CASES = [
     C("train_ae.py", "--frames", "{file}", "--arch", "saev", "--out", "{out}", expect="not a readable .npz"),
     C("train_ae.py", "--frames", "{tmp}/none.npz", "--arch", "conv", "--out", "{out}", expect="file not found"),
     C("train_ae.py", "--frames", "{file}", "--arch", "saev", "--steps", "0", "--out", "{out}", expect="--steps 0"),
+    C("table1.py", "--budget", "huge", "--out", "{out}", expect="--budget 'huge'"),
+    C("table1.py", "--budget", "smoke", "--seeds", "0", "--out", "{out}", expect="--seeds 0"),
+    C("table1.py", "--budget", "smoke", "--rows", "nosuch", "--out", "{out}", expect="row 'nosuch'"),
+    C("table1.py", "--budget", "smoke", "--saev", "{file}", "--out", "{out}", expect="unreadable"),
+    C("table1.py", "--budget", "smoke", "--out", "{file}", expect="not a directory"),
+    C("train_pb.py", "--obs-mode", "camera", "--encoder", "conv", "--set", "encoder_checkpoint={file}",
+      "--out", "{out}", expect="encoder checkpoint"),
 ]
 
 
