@@ -1,0 +1,86 @@
+#!/usr/bin/env python
+"""Benchmarks of the camera state representations: encoder frames/s, camera-mode training throughput against
+the raw TinyRenderer frame rate, the autoencoders' training time and quality, a linear probe of the features
+to the members' positions (SAEV vs conv), and the SAEV keypoint detector in the simulated tracker.
+
+Writes OUT (JSON) and prints a Markdown summary (docs/benchmarks.md, "Camera state representations").
+
+Examples:
+    python tools/bench_camera.py --frames results/frames/frames.npz --saev results/ae/saev/encoder.pt \\
+        --conv results/ae/conv/encoder.pt --out results/bench_camera.json
+    python tools/bench_camera.py --only encoders --out results/bench_encoders.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+from ssbl_pb.cli import run
+
+PARTS = ("encoders", "throughput", "autoencoders", "probe", "tracking")
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--out", type=Path, required=True, help="output .json")
+    ap.add_argument("--frames", type=Path, help="frames .npz (tools/collect_frames.py): probe, tracking")
+    ap.add_argument("--saev", type=Path, help="SAEV checkpoint (tools/train_ae.py)")
+    ap.add_argument("--conv", type=Path, help="conv AE checkpoint")
+    ap.add_argument("--only", help=f"comma-separated parts: {', '.join(PARTS)} (default all)")
+    ap.add_argument("--threads", type=int, default=2, help="torch threads (default 2)")
+    args = ap.parse_args(argv)
+
+    from ssbl_pb.errors import UserError
+    from ssbl_pb.files import check_output_path, write_json
+    from ssbl_pb.perception.ae_train import read_checkpoint
+
+    parts = args.only.split(",") if args.only else list(PARTS)
+    if bad := sorted(set(parts) - set(PARTS)):
+        raise UserError(f"--only {args.only!r}: unknown part(s) {bad}; expected {list(PARTS)}")
+    needs = {"throughput": ["saev"], "autoencoders": ["saev", "conv"], "probe": ["frames", "saev", "conv"],
+             "tracking": ["frames", "saev"]}
+    for part in parts:
+        for what in needs.get(part, []):
+            if getattr(args, what) is None:
+                raise UserError(f"--only {part} needs --{what}")
+    for arch in ("saev", "conv"):
+        if getattr(args, arch) is not None and read_checkpoint(getattr(args, arch))["arch"] != arch:
+            raise UserError(f"--{arch} {getattr(args, arch)}: not a {arch} checkpoint")
+    check_output_path(args.out, "--out", is_dir=False)
+    frames = None
+    if args.frames is not None and {"probe", "tracking"} & set(parts):
+        from ssbl_pb.perception.frames import load_frames
+
+        frames = load_frames(args.frames, 64)
+
+    import os
+
+    import torch
+
+    from ssbl_pb.perception import camera_bench as cb
+
+    torch.set_num_threads(args.threads)
+    res: dict = {"threads": args.threads, "load_average_at_start": [round(v, 2) for v in os.getloadavg()]}
+    if "encoders" in parts:
+        res["encoder_fps_batch64"] = {f"{a}/{s}": round(cb.encoder_fps(a, s)) for a in ("saev", "conv")
+                                      for s in ("cpu", "paper")}
+    if "throughput" in parts:
+        res["render_fps_64"] = round(cb.render_fps(64))
+        res["train_steps_per_s"] = {p: round(cb.training_throughput(str(args.saev), policy=p)) for p in ("ff",)}
+        res["train_vs_render"] = round(res["train_steps_per_s"]["ff"] / res["render_fps_64"], 3)
+    if "autoencoders" in parts:
+        res["autoencoders"] = {a: read_checkpoint(getattr(args, a))["extra"].get("summary", {})
+                               for a in ("saev", "conv")}
+    if "probe" in parts:
+        res["probe"] = cb.probe_encoders(frames, {"saev": str(args.saev), "conv": str(args.conv)})
+    if "tracking" in parts:
+        res["tracking_saev"] = cb.keypoint_tracking(frames, str(args.saev))
+    write_json(args.out, res)
+    print(json.dumps(res, indent=1, default=float))
+    return 0
+
+
+if __name__ == "__main__":
+    run(main)
