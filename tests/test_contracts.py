@@ -48,6 +48,8 @@ CASES = [
     C("table1.py", "--budget", "smoke", "--rows", "nosuch", "--out", "{out}", expect="row 'nosuch'"),
     C("table1.py", "--budget", "smoke", "--saev", "{file}", "--out", "{out}", expect="unreadable"),
     C("table1.py", "--budget", "smoke", "--out", "{file}", expect="not a directory"),
+    C("bench_camera.py", "--only", "nosuch", "--out", "{out}.json", expect="unknown part(s) ['nosuch']"),
+    C("bench_camera.py", "--only", "probe", "--out", "{out}.json", expect="--only probe needs --frames"),
     C("train_pb.py", "--obs-mode", "camera", "--encoder", "conv", "--set", "encoder_checkpoint={file}",
       "--out", "{out}", expect="encoder checkpoint"),
 ]
