@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from ssbl_pb.params import RobotParams
-from ssbl_pb.perception.keypoints import calibrate, merge_points, nearest_member_distance
+from ssbl_pb.perception.keypoints import calibrate, merge_points, nearest_member_distance, plane_projection
 from ssbl_pb.perception.probe import fit_linear, member_probe, predict_linear
 from ssbl_pb.perception.sim_eval import sim_camera
 
@@ -21,7 +21,7 @@ def test_calibration_finds_the_keypoint_on_the_feet_and_its_height() -> None:
     feet = cam.ground_to_pixel(members[:, 0])
     uv = np.stack([feet, rng.uniform(0, 63, (n, 2))], axis=1)
     rho = np.column_stack([np.full(n, 0.9), rng.uniform(0, 1, n)])
-    cal = calibrate(uv, rho, members, cam)
+    cal = calibrate(uv, rho, members, plane_projection(cam))
     assert cal.keypoints == (0,) and cal.heights == (0.0,)
     assert cal.train_median_m[0] < 1e-6
 

@@ -19,7 +19,7 @@ from pathlib import Path
 
 from ssbl_pb.cli import run
 
-PARTS = ("encoders", "throughput", "autoencoders", "probe", "tracking")
+PARTS = ("encoders", "throughput", "autoencoders", "probe", "tracking", "pets")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -28,6 +28,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--frames", type=Path, help="frames .npz (tools/collect_frames.py): probe, tracking")
     ap.add_argument("--saev", type=Path, help="SAEV checkpoint (tools/train_ae.py)")
     ap.add_argument("--conv", type=Path, help="conv AE checkpoint")
+    ap.add_argument("--pets", type=Path, help="PETS 2009 S2L1 folder (vtest.avi, PETS2009-S2L1.xml, "
+                    "View_001_tsai_calibration.xml): SAEV trained on frames 0-399, tracked on 400-794")
+    ap.add_argument("--pets-steps", type=int, default=800, help="SAEV training steps on PETS (default 800)")
     ap.add_argument("--only", help=f"comma-separated parts: {', '.join(PARTS)} (default all)")
     ap.add_argument("--threads", type=int, default=2, help="torch threads (default 2)")
     args = ap.parse_args(argv)
@@ -40,7 +43,7 @@ def main(argv: list[str] | None = None) -> int:
     if bad := sorted(set(parts) - set(PARTS)):
         raise UserError(f"--only {args.only!r}: unknown part(s) {bad}; expected {list(PARTS)}")
     needs = {"throughput": ["saev"], "autoencoders": ["saev", "conv"], "probe": ["frames", "saev", "conv"],
-             "tracking": ["frames", "saev"]}
+             "tracking": ["frames", "saev"], "pets": ["pets"]}
     for part in parts:
         for what in needs.get(part, []):
             if getattr(args, what) is None:
@@ -48,6 +51,9 @@ def main(argv: list[str] | None = None) -> int:
     for arch in ("saev", "conv"):
         if getattr(args, arch) is not None and read_checkpoint(getattr(args, arch))["arch"] != arch:
             raise UserError(f"--{arch} {getattr(args, arch)}: not a {arch} checkpoint")
+    pets_files = ("vtest.avi", "PETS2009-S2L1.xml", "View_001_tsai_calibration.xml")
+    if "pets" in parts and not all((args.pets / f).is_file() for f in pets_files):
+        raise UserError(f"--pets {args.pets}: expected a folder holding {list(pets_files)}")
     check_output_path(args.out, "--out", is_dir=False)
     frames = None
     if args.frames is not None and {"probe", "tracking"} & set(parts):
@@ -77,6 +83,13 @@ def main(argv: list[str] | None = None) -> int:
         res["probe"] = cb.probe_encoders(frames, {"saev": str(args.saev), "conv": str(args.conv)})
     if "tracking" in parts:
         res["tracking_saev"] = cb.keypoint_tracking(frames, str(args.saev))
+    if "pets" in parts:
+        from ssbl_pb.cli import make_bar
+        from ssbl_pb.perception.pets_saev import pets_saev
+
+        bar = make_bar(args.pets_steps, "SAEV on PETS", "step")
+        res["pets_saev"] = pets_saev(*(args.pets / f for f in pets_files), steps=args.pets_steps, progress=bar)
+        bar.close()
     write_json(args.out, res)
     print(json.dumps(res, indent=1, default=float))
     return 0

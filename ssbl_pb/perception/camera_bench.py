@@ -93,17 +93,17 @@ def keypoint_tracking(frames: dict[str, np.ndarray], saev: str, episodes: int = 
     """SAEV keypoint detector calibrated on the training episodes' frames, then the tracker in simulation
     (``sim_eval.evaluate_sim``, the same drive and scoring as the segmentation and colour detectors)."""
     from ..params import RobotParams
-    from .keypoints import KeypointDetector, calibrate, encode_keypoints
+    from .keypoints import KeypointDetector, calibrate, encode_keypoints, plane_projection
     from .probe import visible_members
     from .sim_eval import SimEvalParams, evaluate_sim, sim_camera
 
     model = load_autoencoder(saev, arch="saev")
     s = model.size.input_size
-    cam = sim_camera(RobotParams(), s, s)
+    project = plane_projection(sim_camera(RobotParams(), s, s))
     train_c, _ = split_centres(frames["episode"], 10)
     uv, rho = encode_keypoints(model, frames["frames"][train_c])
-    calib = calibrate(uv, rho, visible_members(frames)[train_c], cam)
-    det = KeypointDetector(model, calib, cam)
+    calib = calibrate(uv, rho, visible_members(frames)[train_c], project)
+    det = KeypointDetector(model, calib, project)
     res = evaluate_sim(SimEvalParams(episodes=episodes, steps=steps, width=s, height=s, detector="saev"),
                        custom=lambda w: det(w.render_first_person(s, s)[0]))
     return res | {"calibration": {"keypoints": list(calib.keypoints), "heights_m": list(calib.heights),

@@ -13,6 +13,7 @@ ground points. Heights near the camera's own are skipped: a ray at the optical c
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 
 import numpy as np
 import torch
@@ -55,19 +56,27 @@ def nearest_member_distance(points: np.ndarray, members: np.ndarray) -> np.ndarr
     return out
 
 
-def calibrate(uv: np.ndarray, rho: np.ndarray, visible: np.ndarray, cam: PinholeCamera,
+Projection = Callable[[np.ndarray, float], np.ndarray]  # pixels (n, 2), plane height (m) -> points (n, 2), m
+
+
+def plane_projection(cam: PinholeCamera) -> Projection:
+    """The robot camera's ``pixel_to_plane`` as a ``Projection`` (robot frame)."""
+    return lambda uv, h: pixel_to_plane(cam, uv, h)
+
+
+def calibrate(uv: np.ndarray, rho: np.ndarray, visible: np.ndarray, project: Projection,
               heights: tuple[float, ...] = HEIGHTS, max_error: float = 0.5, good: float = 0.4
               ) -> KeypointCalibration:
     """Choose keypoints, heights and thresholds from training frames.
 
-    ``uv`` (N, K, 2) and ``rho`` (N, K) from ``encode_keypoints``; ``visible`` (N, M, 2) the members in the
-    camera's view (robot frame, NaN otherwise). Only frames with a member in view count."""
+    ``uv`` (N, K, 2) and ``rho`` (N, K) from ``encode_keypoints``; ``visible`` (N, M, 2) the people in the
+    camera's view (NaN otherwise) in the frame ``project`` maps to. Only frames with someone in view count."""
     seen = np.isfinite(visible[..., 0]).any(axis=1)
     kept: list[tuple[int, float, float, float]] = []
     for k in range(uv.shape[1]):
         best = (np.inf, 0.0, np.zeros(0))
         for h in heights:
-            xy = pixel_to_plane(cam, uv[seen, k], h)
+            xy = project(uv[seen, k], h)
             err = nearest_member_distance(xy, visible[seen])
             if np.isfinite(err).sum() >= 10 and np.nanmedian(err) < best[0]:
                 best = (float(np.nanmedian(err)), h, err)
@@ -97,16 +106,19 @@ def merge_points(xy: np.ndarray, radius: float) -> np.ndarray:
 
 
 class KeypointDetector:
-    """Frame (S, S, 3) uint8 -> robot-frame ground points (n, 2) of people, from calibrated SAEV keypoints."""
+    """Frame (S, S, 3) uint8 -> ground points (n, 2) of people, from calibrated SAEV keypoints."""
 
-    def __init__(self, model: SAEV, calib: KeypointCalibration, cam: PinholeCamera, merge: float = 0.5) -> None:
-        self.model, self.calib, self.cam, self.merge = model.eval(), calib, cam, merge
+    def __init__(self, model: SAEV, calib: KeypointCalibration, project: Projection, merge: float = 0.5) -> None:
+        self.model, self.calib, self.project, self.merge = model.eval(), calib, project, merge
+
+    def points(self, uv: np.ndarray, rho: np.ndarray) -> np.ndarray:
+        """One frame's keypoints (K, 2 pixels as ``project`` takes them) and presences (K,) -> ground points."""
+        pts = [self.project(uv[k][None], h)[0]
+               for k, h, t in zip(self.calib.keypoints, self.calib.heights, self.calib.thresholds, strict=True)
+               if rho[k] >= t]
+        xy = np.asarray(pts, dtype=float).reshape(-1, 2)
+        return merge_points(xy[np.isfinite(xy[:, 0])], self.merge)
 
     def __call__(self, frame: np.ndarray) -> np.ndarray:
         uv, rho = encode_keypoints(self.model, frame[None])
-        pts = []
-        for k, h, t in zip(self.calib.keypoints, self.calib.heights, self.calib.thresholds, strict=True):
-            if rho[0, k] >= t:
-                pts.append(pixel_to_plane(self.cam, uv[0, k][None], h)[0])
-        xy = np.asarray(pts, dtype=float).reshape(-1, 2)
-        return merge_points(xy[np.isfinite(xy[:, 0])], self.merge)
+        return self.points(uv[0], rho[0])
