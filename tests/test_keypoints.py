@@ -45,3 +45,20 @@ def test_linear_probe_recovers_a_linear_map() -> None:
     members[::3, 1] = np.nan  # member out of view in a third of the frames
     res = member_probe(x[:200], members[:200], x[200:], members[200:], ridge=1e-8)
     assert res["median_m"] < 1e-6 and res["scored"] == 67
+
+
+def test_pets_person_boxes_stand_on_their_ground_points(shared_data) -> None:
+    from ssbl_pb.perception.pets import foot_points, load_ground_truth
+    from ssbl_pb.perception.pets_saev import ground_truth_positions, person_boxes
+    from ssbl_pb.perception.tsai import TsaiCamera
+
+    pets = shared_data / "video" / "pets2009_s2l1"
+    cam = TsaiCamera.from_xml(pets / "View_001_tsai_calibration.xml")
+    xy = np.array([[5.0, 10.0], [15.0, 3.0]])
+    boxes = person_boxes(cam, xy)
+    assert np.allclose(cam.image_to_ground(foot_points(boxes[:, :4])), xy, atol=1e-6)
+    assert np.all(boxes[:, 3] > 0) and np.allclose(boxes[:, 2], 0.42 * boxes[:, 3])
+    gt = load_ground_truth(pets / "PETS2009-S2L1.xml")
+    truth = ground_truth_positions(gt, cam, 3, 768, 576)
+    first = gt[gt[:, 0] == 0]
+    assert np.isfinite(truth[0, :, 0]).sum() <= len(first) and np.isfinite(truth[0, 0]).all()
