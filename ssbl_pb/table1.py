@@ -81,6 +81,8 @@ class Budget:
 
 BUDGETS = {
     "smoke": Budget("smoke", 2, 2, 1024, 1024, 2, 64, 10 ** 9, 1, 1),  # the final models, no evaluations
+    # what fitted in the session that built this, on 2 cores shared with other jobs (docs/benchmarks.md)
+    "medium": Budget("medium", 120, 2000, 150_000, 60_000, 8, 256, 10_000, 10, 50),
     "full": Budget("full", 120, 2000, 300_000, 200_000, 8, 256, 20_000, 20, 100),
 }
 

@@ -10,6 +10,7 @@ running the same command again after an interruption resumes at the first unfini
 Examples:
     python tools/table1.py --budget smoke --seeds 1 --out results/table1_smoke      # a few minutes
     python tools/table1.py --budget full --seeds 1 --out results/table1             # hours; resumable
+    python tools/table1.py --budget medium --seeds 1 --out results/table1_medium     # about 2 h
     python tools/table1.py --budget full --seeds 1 --out results/table1 --saev results/ae/saev/encoder.pt \\
         --conv results/ae/conv/encoder.pt --rows vector_lstm,random_policy,cameraspeed_saev_lstm
 """
