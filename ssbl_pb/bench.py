@@ -82,3 +82,21 @@ def simulator_rates(n_steps: int = 20_000, n_frames: int = 500, seed: int = 0) -
     batched_step()  # compiles the kernels (or loads them from the cache) outside the timing
     out["batched_env_step_per_s"] = 8 * rate(batched_step, n_steps // 8)
     return out
+
+
+def evaluation_seconds(episodes: int = 200, policy: str = "vector", seed: int = 500_000) -> dict[str, float]:
+    """CPU and wall seconds to evaluate ``policy`` on ``episodes`` default-scenario episodes in one process (what
+    ``tools/evaluate.py --workers 1`` spends after start-up), and its success rate (a check that it played)."""
+    import torch
+
+    from .env.rollout import run_episodes
+    from .evaluation import Setup
+
+    torch.set_num_threads(1)
+    run_episodes(Setup(policy), range(seed, seed + 2), 1)  # imports, model load, compiled kernels: not timed
+    t0, c0 = time.perf_counter(), time.process_time()
+    res = run_episodes(Setup(policy), range(seed, seed + episodes), 1)
+    return {"evaluate_episodes": episodes, "evaluate_cpu_s": time.process_time() - c0,
+            "evaluate_wall_s": time.perf_counter() - t0,
+            "evaluate_success": float(np.mean([r.metrics["success"] for r in res]))}
+

@@ -152,6 +152,15 @@ CASES = [
     C("bench_deploy.py", "--faults", "meteor", "--out", "{out}", expect="--faults meteor"),
     C("bench_deploy.py", "--runs", "-1", "--out", "{out}", expect="argument --runs"),
     C("bench_deploy.py", "--policy", "nosuch", "--out", "{out}", expect="--policy 'nosuch'"),
+    C("table1.py", "--budget", "huge", "--out", "{out}", expect="--budget 'huge'"),
+    C("table1.py", "--budget", "smoke", "--seeds", "0", "--out", "{out}", expect="--seeds 0"),
+    C("table1.py", "--budget", "smoke", "--rows", "nosuch", "--out", "{out}", expect="row 'nosuch'"),
+    C("table1.py", "--budget", "smoke", "--saev", "{file}", "--out", "{out}", expect="unreadable"),
+    C("table1.py", "--budget", "smoke", "--out", "{file}", expect="not a directory"),
+    C("bench_camera.py", "--only", "nosuch", "--out", "{out}.json", expect="unknown part(s) ['nosuch']"),
+    C("bench_camera.py", "--only", "probe", "--out", "{out}.json", expect="--only probe needs --frames"),
+    C("train_pb.py", "--obs-mode", "camera", "--encoder", "conv", "--set", "encoder_checkpoint={file}",
+      "--out", "{out}", expect="encoder checkpoint"),
 ]
 
 

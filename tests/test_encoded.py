@@ -123,3 +123,18 @@ def test_train_and_evaluate_a_camera_policy(checkpoints: dict[str, Path], tmp_pa
                                 tmp_path / "eval")
     assert len(results) == 2 and summary["policy"] == str(tmp_path / "run")
     assert (tmp_path / "eval" / "summary.json").is_file()
+
+
+def test_shipped_camera_speed_saev_policy_runs_with_its_encoder() -> None:
+    from ssbl_pb.evaluation import Setup
+
+    env, policy = Setup("camera_speed_saev")()  # no --obs-mode: the policy brings its camera mode and encoder
+    obs, _ = env.reset(seed=500_000)
+    assert obs.shape == (3 * 16 + 2,) and env.unwrapped is not env
+    state, start = None, np.ones(1, bool)
+    for _ in range(3):
+        action, state = policy.predict(obs, state=state, episode_start=start)
+        start = np.zeros(1, bool)
+        assert action.shape == (2,) and np.all(np.abs(action) <= 1)
+        obs, *_ = env.step(action)
+    env.close()

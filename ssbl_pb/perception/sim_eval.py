@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Callable
 
 import numpy as np
 
@@ -133,10 +134,14 @@ def _drive(world: World, t: float) -> np.ndarray:
 
 
 def evaluate_sim(params: SimEvalParams | None = None, tracker: TrackerParams | None = None,
-                 world_params: WorldParams | None = None) -> dict[str, float]:
-    """Run episodes; returns position-error statistics (m) of tracks against members within ``max_range``."""
+                 world_params: WorldParams | None = None,
+                 custom: Callable[[World], np.ndarray] | None = None) -> dict[str, float]:
+    """Run episodes; returns position-error statistics (m) of tracks against members within ``max_range``.
+
+    ``custom(world) -> (n, 2)`` robot-frame detections replaces the named detector (``detector`` is then only
+    its label; members are scored within the camera's field of view, as for ``colour``)."""
     p = params or SimEvalParams()
-    if p.detector not in ("seg", "colour"):
+    if custom is None and p.detector not in ("seg", "colour"):
         raise UserError(f"detector = {p.detector!r}: expected 'seg' or 'colour'")
     rng = np.random.default_rng(p.seed)
     world = World(world_params, groups=GroupModel("paper"))  # the groups its benchmarks were measured on
@@ -150,11 +155,14 @@ def evaluate_sim(params: SimEvalParams | None = None, tracker: TrackerParams | N
             geom = proxy_geometry(world)
             trk = Tracker(tracker or TrackerParams(dt=world.params.dt, meas_std=0.1, birth_hits=2))
             for k in range(p.steps):
-                rgb, seg = world.render_first_person(p.width, p.height, segmentation=True)
-                if p.detector == "seg":
+                if custom is not None:
+                    xy = custom(world)
+                elif p.detector == "seg":
+                    _, seg = world.render_first_person(p.width, p.height, segmentation=True)
                     boxes, members = seg_det.with_index(seg)
                     xy = boxes_to_ground(cam, boxes, geom)
                 else:
+                    rgb, _ = world.render_first_person(p.width, p.height)
                     boxes = col_det(rgb)
                     xy = boxes_to_ground(cam, boxes, geom, torso=True)
                 xy = xy[~np.isnan(xy[:, 0])]
@@ -165,11 +173,12 @@ def evaluate_sim(params: SimEvalParams | None = None, tracker: TrackerParams | N
                 d = world.group.pos - pose[None, :2]
                 local = np.column_stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]])
                 in_view = np.zeros(len(local), dtype=bool)
-                if p.detector == "seg":
+                by_mask = custom is None and p.detector == "seg"  # in view = seen in the segmentation mask
+                if by_mask:
                     in_view[members] = True
                 rngs = np.hypot(local[:, 0], local[:, 1])
-                for i in np.flatnonzero((rngs <= p.max_range) & (in_view | (p.detector != "seg"))):
-                    if p.detector != "seg" and abs(math.atan2(local[i, 1], local[i, 0])) > math.radians(
+                for i in np.flatnonzero((rngs <= p.max_range) & (in_view | (not by_mask))):
+                    if not by_mask and abs(math.atan2(local[i, 1], local[i, 0])) > math.radians(
                             world.robot_params.camera_hfov_deg / 2):
                         continue
                     visible += 1

@@ -1,0 +1,110 @@
+"""Measurements for the camera state representations (``tools/bench_camera.py``, docs/benchmarks.md)."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from .ae_train import load_autoencoder, read_checkpoint, split_centres
+from .autoencoders import build
+
+
+def encoder_fps(arch: str, size: str, batch: int = 64, seconds: float = 3.0) -> float:
+    """Frames per second of ``encode`` (eval mode, inference) on random images, best of three timings."""
+    model = build(arch, size).eval()
+    s = model.size.input_size
+    x = torch.rand(batch, 3, s, s)
+    best = 0.0
+    with torch.inference_mode():
+        model.encode(x)
+        for _ in range(3):
+            n, t0 = 0, time.perf_counter()
+            while time.perf_counter() - t0 < seconds / 3:
+                model.encode(x)
+                n += batch
+            best = max(best, n / (time.perf_counter() - t0))
+    return best
+
+
+def render_fps(size: int, frames: int = 600) -> float:
+    """Raw TinyRenderer first-person frames per second at ``size`` x ``size`` (robot moving, one scene)."""
+    from ..env.approach import make_env
+
+    env = make_env(obs_mode="vector")
+    env.reset(seed=0)
+    world = env.unwrapped.world
+    t0 = time.perf_counter()
+    for i in range(frames):
+        world.render_first_person(size, size)
+        _, _, term, trunc, _ = env.step(np.array([0.5, 0.2 * np.sin(i / 10)], np.float32))
+        if term or trunc:
+            env.reset(seed=i)
+    fps = frames / (time.perf_counter() - t0)
+    env.close()
+    return fps
+
+
+def training_throughput(encoder: str, obs_mode: str = "camera_speed", policy: str = "ff", steps: int = 4096,
+                        n_envs: int = 8) -> float:
+    """Env steps per second of PPO training (render + encode + PPO updates) with a frozen encoder."""
+    import tempfile
+
+    from ..training.config import load_config
+    from ..training.run import build_model, make_vec_env
+
+    arch = read_checkpoint(encoder)["arch"]
+    res = read_checkpoint(encoder)["resolution"]
+    cfg = load_config(None, {"obs_mode": obs_mode, "encoder": arch, "encoder_checkpoint": str(encoder),
+                             "camera_size": res, "policy": policy, "n_envs": n_envs})
+    venv = make_vec_env(cfg, 0)
+    with tempfile.TemporaryDirectory() as tmp:
+        model = build_model(cfg, venv, Path(tmp))
+        model.learn(cfg.steps_per_update)  # warm-up: one update
+        t0 = time.perf_counter()
+        model.learn(steps, reset_num_timesteps=False)
+        rate = steps / (time.perf_counter() - t0)
+    venv.close()
+    return rate
+
+
+def probe_encoders(frames: dict[str, np.ndarray], checkpoints: dict[str, str]) -> dict[str, dict[str, float]]:
+    """Linear probe of each encoder's features -> visible members' positions; held-out = validation episodes."""
+    from ..env.encoded import FrozenEncoder
+    from .probe import member_probe, visible_members
+
+    train_c, val_c = split_centres(frames["episode"], 10)
+    members = visible_members(frames)
+    out = {}
+    for name, path in checkpoints.items():
+        enc = FrozenEncoder(load_autoencoder(path))
+        feats = np.concatenate([enc.encode(frames["frames"][i:i + 512]) for i in range(0, len(frames["frames"]),
+                                                                                         512)])
+        out[name] = member_probe(feats[train_c], members[train_c], feats[val_c], members[val_c])
+        out[name]["feature_dim"] = enc.feature_dim
+    return out
+
+
+def keypoint_tracking(frames: dict[str, np.ndarray], saev: str, episodes: int = 4, steps: int = 150
+                      ) -> dict[str, Any]:
+    """SAEV keypoint detector calibrated on the training episodes' frames, then the tracker in simulation
+    (``sim_eval.evaluate_sim``, the same drive and scoring as the segmentation and colour detectors)."""
+    from ..params import RobotParams
+    from .keypoints import KeypointDetector, calibrate, encode_keypoints, plane_projection
+    from .probe import visible_members
+    from .sim_eval import SimEvalParams, evaluate_sim, sim_camera
+
+    model = load_autoencoder(saev, arch="saev")
+    s = model.size.input_size
+    project = plane_projection(sim_camera(RobotParams(), s, s))
+    train_c, _ = split_centres(frames["episode"], 10)
+    uv, rho = encode_keypoints(model, frames["frames"][train_c])
+    calib = calibrate(uv, rho, visible_members(frames)[train_c], project)
+    det = KeypointDetector(model, calib, project)
+    res = evaluate_sim(SimEvalParams(episodes=episodes, steps=steps, width=s, height=s, detector="saev"),
+                       custom=lambda w: det(w.render_first_person(s, s)[0]))
+    return res | {"calibration": {"keypoints": list(calib.keypoints), "heights_m": list(calib.heights),
+                                  "train_median_m": [round(v, 3) for v in calib.train_median_m]}}

@@ -1,0 +1,224 @@
+"""The paper's Table I regenerated: every state representation x network trained and evaluated alike.
+
+Stage 1 (once per table): first-person frames from a mix of policies, then the SAEV and conv autoencoders
+(``perception``), unless checkpoints are given. Stage 2 (``run_row``, one row and seed at a time, resumable):
+PPO / RecurrentPPO on the row's observation with the frozen encoder, then the best model evaluated on held-out
+seeds. Every row uses the same task (scenario ``default``, the paper's two-person group), reward, action
+smoothing and no safety shield (the paper had none; camera modes could not use it).
+
+Every row trains with the default config's reward and its jerk-cost ramp (configs/vector_ff.yaml: without the
+ramp PPO learns nothing, docs/decisions.md "Smoothness"). Because the ramp changes the reward during training,
+a row's reward is the best of its periodic evaluations (deterministic, fixed seeds, final weights) instead of
+the paper's best smoothed training reward, which a ramp inflates early on; the latter is kept as
+``train_smoothed_best`` (weight ``Budget.smoothing`` on the past). The random policy's reward is its mean return
+on the same evaluation seeds. Percentage (``performance_calculator.py`` in the original): 100 (value - random) /
+(Vector+LSTM - random), per seed, then mean and spread over seeds.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import json
+import re
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .errors import UserError
+from .files import write_json
+
+BENCH_SEED = 500_000  # held-out evaluation seeds (docs/decisions.md, "Training")
+
+
+@dataclasses.dataclass(frozen=True)
+class Row:
+    label: str  # as the paper labels it
+    obs_mode: str  # vector | camera | camera_speed | random
+    encoder: str  # none | conv | saev
+    policy: str  # ff | lstm
+    paper_reward: float | None = None  # Table I (None: a row the paper did not report)
+    paper_percent: float | None = None
+
+    @property
+    def slug(self) -> str:
+        return re.sub(r"[^a-z0-9]+", "_", self.label.lower()).strip("_")
+
+
+ROWS = (
+    Row("Vector + LSTM", "vector", "none", "lstm", -0.256, 100.0),
+    Row("CameraOnly + SAEV + FF", "camera", "saev", "ff", -0.869, 57.06),
+    Row("CameraOnly + SAEV + LSTM", "camera", "saev", "lstm", -0.804, 61.63),
+    Row("CameraOnly + conv + FF", "camera", "conv", "ff", -0.810, 61.18),
+    Row("CameraOnly + conv + LSTM", "camera", "conv", "lstm", -1.091, 41.51),
+    Row("CameraSpeed + SAEV + LSTM", "camera_speed", "saev", "lstm", -0.544, 79.80),
+    Row("CameraSpeed + conv + LSTM", "camera_speed", "conv", "lstm", -0.709, 68.22),
+    Row("Random policy", "random", "none", "ff", -1.684, 0.0),
+    Row("Vector + FF", "vector", "none", "ff"),
+    Row("CameraSpeed + SAEV + FF", "camera_speed", "saev", "ff"),
+)
+BASELINE, RANDOM = ROWS[0], ROWS[7]
+
+
+@dataclasses.dataclass(frozen=True)
+class Budget:
+    """How much each stage gets. ``full`` targets 3 h for one seed on 2 cores (docs/benchmarks.md)."""
+
+    name: str
+    frames_episodes: int
+    ae_steps: int
+    vector_steps: int
+    camera_steps: int
+    n_envs: int
+    n_steps: int  # PPO rollout per env
+    eval_every: int
+    eval_episodes: int  # during training (choosing the best model)
+    test_episodes: int  # held-out evaluation of the best model
+    smoothing: float = 0.9  # EMA weight on the past for the smoothed training reward
+
+
+BUDGETS = {
+    "smoke": Budget("smoke", 2, 2, 1024, 1024, 2, 64, 10 ** 9, 1, 1),  # the final models, no evaluations
+    # what fitted in the session that built this, on 2 cores shared with other jobs (docs/benchmarks.md)
+    "medium": Budget("medium", 120, 2000, 150_000, 60_000, 8, 256, 10_000, 10, 50),
+    "full": Budget("full", 120, 2000, 300_000, 200_000, 8, 256, 20_000, 20, 100),
+}
+
+
+def get_budget(name: str) -> Budget:
+    if name not in BUDGETS:
+        raise UserError(f"--budget {name!r}: expected one of {sorted(BUDGETS)}")
+    return BUDGETS[name]
+
+
+def find_row(label_or_slug: str) -> Row:
+    for r in ROWS:
+        if label_or_slug in (r.label, r.slug):
+            return r
+    raise UserError(f"row {label_or_slug!r}: expected one of {[r.slug for r in ROWS]}")
+
+
+def smoothed_best(returns: list[float] | np.ndarray, weight: float) -> float:
+    """Best value of the running average ``s = weight * s + (1 - weight) * r`` (started at the first return)."""
+    r = np.asarray(returns, dtype=float)
+    if not len(r):
+        return float("nan")
+    s, best = r[0], r[0]
+    for x in r[1:]:
+        s = weight * s + (1.0 - weight) * x
+        best = max(best, s)
+    return float(best)
+
+
+def percent(value: float, random: float, baseline: float) -> float:
+    """Table I's percentage: 0 % is the random policy, 100 % the Vector+LSTM baseline."""
+    return 100.0 * (value - random) / (baseline - random)
+
+
+# -- stage 1: encoders ---------------------------------------------------------------------------------------
+def prepare_encoders(budget: Budget, out: Path, archs: set[str], given: dict[str, str | None], seed: int = 0,
+                     progress: Any = None) -> dict[str, str]:
+    """Checkpoint path per architecture in ``archs``: given ones as they are, else trained into
+    ``out/ae/ARCH`` (frames in ``out/frames.npz``), reusing what an earlier run of the table left there."""
+    from .perception.ae_report import write_report
+    from .perception.ae_train import AETrainParams, train_autoencoder
+    from .perception.autoencoders import SIZES
+    from .perception.frames import collect, load_frames, save_frames
+
+    paths: dict[str, str] = {}
+    frames_file = out / "frames.npz"
+    for arch in sorted(archs):
+        if given.get(arch):
+            paths[arch] = str(given[arch])
+            continue
+        ckpt = out / "ae" / arch / "encoder.pt"
+        if not ckpt.is_file():
+            if not frames_file.is_file():
+                save_frames(frames_file, collect(budget.frames_episodes, SIZES["cpu"].input_size, seed))
+            data = load_frames(frames_file)
+            params = AETrainParams(steps=budget.ae_steps, seed=seed, eval_every=max(1, min(250, budget.ae_steps)))
+            model, history = train_autoencoder(data, arch, "cpu", params, progress)
+            (out / "ae" / arch).mkdir(parents=True, exist_ok=True)
+            write_report(out / "ae" / arch, model, history, data, {"frames_file": str(frames_file)})
+        paths[arch] = str(ckpt.resolve())
+    return paths
+
+
+# -- stage 2: one row ----------------------------------------------------------------------------------------
+def _default_reward() -> dict[str, Any]:
+    """The default training config's reward keys (configs/vector_ff.yaml): weights and ramp."""
+    from .params import load_yaml
+
+    cfg = load_yaml(Path(__file__).resolve().parents[1] / "configs" / "vector_ff.yaml")
+    return {k: cfg[k] for k in ("reward", "reward_ramp", "reward_ramp_fraction") if k in cfg}
+
+
+def row_config(row: Row, seed: int, budget: Budget, encoders: dict[str, str]) -> dict[str, Any]:
+    """The training config (``training.config`` keys) of a row."""
+    cfg: dict[str, Any] = {**_default_reward(),
+        "name": f"{row.slug}_s{seed}", "obs_mode": row.obs_mode, "encoder": row.encoder, "policy": row.policy,
+        "scenario": "default", "seed": seed, "n_envs": budget.n_envs, "safety_shield": False,
+        "total_steps": budget.vector_steps if row.obs_mode == "vector" else budget.camera_steps,
+        "eval_every": budget.eval_every, "eval_episodes": budget.eval_episodes,
+        "checkpoint_every": budget.eval_every, "baseline_episodes": 2,
+        "ppo": {"n_steps": budget.n_steps, "batch_size": min(256, budget.n_steps * budget.n_envs)}}
+    if row.encoder in ("conv", "saev"):
+        from .perception.ae_train import checkpoint_info
+
+        cfg["encoder_checkpoint"] = encoders[row.encoder]
+        cfg["camera_size"] = int(checkpoint_info(encoders[row.encoder])["resolution"])
+    return cfg
+
+
+def _test_episodes(spec: str, episodes: int, seed: int = BENCH_SEED, reward: dict | None = None
+                   ) -> dict[str, float]:
+    from .env.rollout import run_episodes
+    from .evaluation import Setup
+
+    res = run_episodes(Setup(spec, env_kwargs=(("reward", reward or {}),)), range(seed, seed + episodes))
+    return {"success_rate": float(np.mean([r.metrics["success"] for r in res])),
+            "mean_return": float(np.mean([r.metrics["return"] for r in res]))}
+
+
+def _column(path: Path, name: str) -> list[float]:
+    if not path.is_file():
+        return []
+    with open(path, newline="") as fh:
+        return [float(r[name]) for r in csv.DictReader(fh)]
+
+
+def run_row(row: Row, seed: int, budget: Budget, out: Path, encoders: dict[str, str] | None = None
+            ) -> dict[str, Any]:
+    """Train and evaluate one row for one seed; the result is also written to ``out/rows/SLUG_sSEED.json``
+    and, when that file exists already, read from it instead (so a killed table resumes row by row)."""
+    result_file = out / "rows" / f"{row.slug}_s{seed}.json"
+    if result_file.is_file():
+        return json.loads(result_file.read_text())
+    t0 = time.perf_counter()
+    if row.obs_mode == "random":
+        from .training.config import TrainConfig, load_config
+
+        cfg = load_config(None, row_config(BASELINE, seed, budget, {}))
+        final = {**cfg.reward, **{k: v[1] for k, v in cfg.reward_ramp.items()}}  # as the evaluations
+        evals = _test_episodes("random", budget.eval_episodes, TrainConfig.eval_seed, final)
+        test = _test_episodes("random", budget.test_episodes)
+        result = {"reward": evals["mean_return"], "steps": 0, **test}
+    else:
+        from .training.config import load_config
+        from .training.run import train
+
+        run_dir = out / "runs" / f"{row.slug}_s{seed}"
+        cfg = load_config(None, row_config(row, seed, budget, encoders or {}))
+        summary = train(cfg, run_dir, overwrite=True)
+        returns = _column(run_dir / "learning_curve.csv", "return")
+        evals = _column(run_dir / "eval.csv", "mean_return")
+        best = run_dir / "best"
+        test = _test_episodes(str(best if (best / "model.zip").is_file() else run_dir), budget.test_episodes)
+        result = {"reward": max(evals) if evals else test["mean_return"], "steps": summary["steps"],
+                  "train_smoothed_best": smoothed_best(returns, budget.smoothing), "evaluations": len(evals),
+                  "run": str(run_dir), "train_steps_per_s": summary["steps_per_s"], **test}
+    result |= {"row": row.label, "seed": seed, "budget": budget.name, "seconds": round(time.perf_counter() - t0, 1)}
+    write_json(result_file, result)
+    return result

@@ -1,0 +1,64 @@
+"""SAEV keypoints as a detector (perception/keypoints.py) and the linear probe (perception/probe.py)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ssbl_pb.params import RobotParams
+from ssbl_pb.perception.keypoints import calibrate, merge_points, nearest_member_distance, plane_projection
+from ssbl_pb.perception.probe import fit_linear, member_probe, predict_linear
+from ssbl_pb.perception.sim_eval import sim_camera
+
+
+def test_calibration_finds_the_keypoint_on_the_feet_and_its_height() -> None:
+    cam = sim_camera(RobotParams(), 64, 64)
+    rng = np.random.default_rng(0)
+    n = 200
+    members = np.full((n, 5, 2), np.nan)
+    members[:, 0] = np.column_stack([rng.uniform(1.5, 5, n), rng.uniform(-1, 1, n)])
+    # keypoint 0 sits on member 0's feet; keypoint 1 wanders over the image
+    feet = cam.ground_to_pixel(members[:, 0])
+    uv = np.stack([feet, rng.uniform(0, 63, (n, 2))], axis=1)
+    rho = np.column_stack([np.full(n, 0.9), rng.uniform(0, 1, n)])
+    cal = calibrate(uv, rho, members, plane_projection(cam))
+    assert cal.keypoints == (0,) and cal.heights == (0.0,)
+    assert cal.train_median_m[0] < 1e-6
+
+
+def test_nearest_member_and_merging() -> None:
+    members = np.array([[[1.0, 0.0], [np.nan, np.nan]], [[np.nan, np.nan], [np.nan, np.nan]]])
+    d = nearest_member_distance(np.array([[1.0, 1.0], [0.0, 0.0]]), members)
+    assert d[0] == pytest.approx(1.0) and np.isnan(d[1])
+    merged = merge_points(np.array([[0.0, 0.0], [0.2, 0.0], [3.0, 0.0]]), 0.5)
+    assert merged.tolist() == [[0.1, 0.0], [3.0, 0.0]]
+
+
+def test_linear_probe_recovers_a_linear_map() -> None:
+    rng = np.random.default_rng(1)
+    x = rng.normal(size=(300, 4))
+    y = x @ np.array([[1.0, 0.0], [0.5, -2.0], [0.0, 0.0], [0.0, 1.0]]) + [3.0, -1.0]
+    fit = fit_linear(x, y, ridge=1e-8)
+    assert np.allclose(predict_linear(fit, x), y, atol=1e-6)
+    members = np.full((300, 5, 2), np.nan)
+    members[:, 1] = y
+    members[::3, 1] = np.nan  # member out of view in a third of the frames
+    res = member_probe(x[:200], members[:200], x[200:], members[200:], ridge=1e-8)
+    assert res["median_m"] < 1e-6 and res["scored"] == 67
+
+
+def test_pets_person_boxes_stand_on_their_ground_points(shared_data) -> None:
+    from ssbl_pb.perception.pets import foot_points, load_ground_truth
+    from ssbl_pb.perception.pets_saev import ground_truth_positions, person_boxes
+    from ssbl_pb.perception.tsai import TsaiCamera
+
+    pets = shared_data / "video" / "pets2009_s2l1"
+    cam = TsaiCamera.from_xml(pets / "View_001_tsai_calibration.xml")
+    xy = np.array([[5.0, 10.0], [15.0, 3.0]])
+    boxes = person_boxes(cam, xy)
+    assert np.allclose(cam.image_to_ground(foot_points(boxes[:, :4])), xy, atol=1e-6)
+    assert np.all(boxes[:, 3] > 0) and np.allclose(boxes[:, 2], 0.42 * boxes[:, 3])
+    gt = load_ground_truth(pets / "PETS2009-S2L1.xml")
+    truth = ground_truth_positions(gt, cam, 3, 768, 576)
+    first = gt[gt[:, 0] == 0]
+    assert np.isfinite(truth[0, :, 0]).sum() <= len(first) and np.isfinite(truth[0, 0]).all()

@@ -1,0 +1,74 @@
+"""Table I (ssbl_pb/table1.py, table1_report.py, tools/table1.py): the paper's formulas by hand, aggregation
+over seeds, resuming row by row, and a smoke run of the tool."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from ssbl_pb.table1 import BUDGETS, ROWS, find_row, percent, run_row, smoothed_best
+from ssbl_pb.table1_report import aggregate, ordering_checks
+
+
+def test_smoothed_best_and_percentage_by_hand() -> None:
+    # s: 0, 0.5 * 0 + 0.5 * 4 = 2, 0.5 * 2 + 0.5 * (-2) = 0, 0.5 * 0 + 0.5 * 3 = 1.5 -> best 2
+    assert smoothed_best([0.0, 4.0, -2.0, 3.0], 0.5) == pytest.approx(2.0)
+    assert smoothed_best([-3.0], 0.9) == -3.0
+    # the paper's numbers: CameraSpeed + SAEV + LSTM -0.544 between random -1.684 and Vector -0.256 -> 79.8 %
+    assert percent(-0.544, -1.684, -0.256) == pytest.approx(79.83, abs=0.01)
+    assert find_row("cameraspeed_saev_lstm").label == "CameraSpeed + SAEV + LSTM"
+    assert len({r.slug for r in ROWS}) == len(ROWS) == 10
+
+
+def _res(row: str, seed: int, reward: float, success: float = 0.5) -> dict:
+    return {"row": row, "seed": seed, "reward": reward, "success_rate": success, "steps": 1, "seconds": 1.0}
+
+
+def test_aggregate_takes_percentages_per_seed() -> None:
+    results = [_res("Vector + LSTM", 0, 10.0, 1.0), _res("Random policy", 0, 0.0, 0.0),
+               _res("CameraSpeed + SAEV + LSTM", 0, 8.0), _res("Vector + LSTM", 1, 20.0, 1.0),
+               _res("Random policy", 1, 10.0, 0.0), _res("CameraSpeed + SAEV + LSTM", 1, 19.0)]
+    rows = {r["row"]: r for r in aggregate(results)}
+    cs = rows["CameraSpeed + SAEV + LSTM"]
+    assert cs["percent"] == pytest.approx(85.0)  # seed 0: 80 %, seed 1: 90 %
+    assert cs["percent_sd"] == pytest.approx(7.0711, abs=1e-3)
+    assert cs["reward"] == pytest.approx(13.5) and cs["seeds"] == [0, 1] and cs["paper_percent"] == 79.80
+    assert list(rows) == ["Vector + LSTM", "CameraSpeed + SAEV + LSTM", "Random policy"]  # the paper's order
+    checks = dict(ordering_checks(list(rows.values())))
+    assert checks["Vector + LSTM > CameraSpeed + SAEV + LSTM"] is True
+    assert checks["CameraSpeed + SAEV + LSTM >= 80 %"] is True
+    assert checks["CameraOnly + SAEV + FF > Random policy"] is None  # row missing
+
+
+def test_a_finished_row_is_read_back_not_retrained(tmp_path: Path) -> None:
+    done = _res("Vector + FF", 3, -5.0) | {"budget": "full"}
+    (tmp_path / "rows").mkdir()
+    (tmp_path / "rows" / "vector_ff_s3.json").write_text(json.dumps(done))
+    assert run_row(find_row("Vector + FF"), 3, BUDGETS["full"], tmp_path) == done
+    assert not (tmp_path / "runs").exists()
+
+
+@pytest.mark.slow
+def test_smoke_table_and_resume(tmp_path: Path) -> None:
+    from tests.test_contracts import run_tool
+
+    out = tmp_path / "t1"
+    argv = ["--budget", "smoke", "--seeds", "1", "--out", str(out),
+            "--rows", "vector_lstm,random_policy,cameraspeed_saev_lstm,cameraonly_conv_ff"]
+    res = run_tool("table1.py", argv, timeout=600)
+    assert res.returncode == 0, res.stderr[-2000:]
+    rows = json.loads((out / "table1.json").read_text())
+    assert [r["row"] for r in rows] == ["Vector + LSTM", "CameraOnly + conv + FF", "CameraSpeed + SAEV + LSTM",
+                                        "Random policy"]
+    for r in rows:
+        assert set(r) >= {"row", "reward", "percent", "success_rate", "seeds"} and r["seeds"] == [0]
+    assert rows[0]["percent"] == pytest.approx(100.0) and rows[-1]["percent"] == pytest.approx(0.0)
+    md = (out / "table1.md").read_text()
+    assert "| CameraSpeed + SAEV + LSTM |" in md and "79.80 %" in md
+    assert (out / "ae" / "saev" / "keypoints.png").is_file() and (out / "ae" / "conv" / "encoder.pt").is_file()
+    stamps = {p.name: p.stat().st_mtime_ns for p in (out / "rows").iterdir()}
+    again = run_tool("table1.py", argv, timeout=120)  # every row finished: read back, nothing retrained
+    assert again.returncode == 0, again.stderr[-2000:]
+    assert {p.name: p.stat().st_mtime_ns for p in (out / "rows").iterdir()} == stamps
