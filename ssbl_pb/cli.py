@@ -13,6 +13,7 @@ import contextlib
 import os
 import signal
 import sys
+import threading
 import time
 from collections.abc import Callable, Iterable, Iterator
 from typing import Any, NoReturn, TypeVar
@@ -89,7 +90,8 @@ def run(main: Callable[..., int], argv: list[str] | None = None) -> NoReturn:
 
 class DeferredSignals:
     """Within ``with``: SIGINT/SIGTERM only set ``signum`` (code polls it and stops at a safe point); a second
-    signal raises at once. On exit the previous handlers return. Main thread only."""
+    signal raises at once. On exit the previous handlers return. Outside the main thread (a Ray Tune trial runs
+    in one) it does nothing: signals reach only the main thread."""
 
     def __init__(self) -> None:
         self.signum: int | None = None
@@ -102,6 +104,8 @@ class DeferredSignals:
         print("\nstopping at the next safe point (signal again to stop at once)", file=sys.stderr, flush=True)
 
     def __enter__(self) -> DeferredSignals:
+        if threading.current_thread() is not threading.main_thread():
+            return self
         for sig in (signal.SIGINT, signal.SIGTERM):
             self._saved[sig] = signal.signal(sig, self._handler)
         return self

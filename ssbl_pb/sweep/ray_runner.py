@@ -1,0 +1,142 @@
+"""Trials as Ray Tune trials on an existing cluster; imported only when an address is given (ray[tune] 2.60,
+the ``sweep`` extra).
+
+Each trial is a function trainable of one CPU that runs the same ``runner.run_task`` as the local pool, into
+``ROOT/trials/NAME/`` (ROOT: a path every node sees), and reports its metrics with ``tune.report``. Tune's own
+experiment state goes to ``ROOT/tune/sweep-KEY/`` (KEY: a hash of the trial names); running the same trials again
+restores it (``Tuner.restore(..., resume_errored=True)``) and Tune reruns what had not finished, while a trial
+whose ``result.json`` exists returns at once.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+import socket
+import threading
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+from ..errors import UserError
+from .runner import RESULT, Trial, _normal, run_task, trial_dir
+
+POLL_S = 2.0  # how often the driver looks for finished trials (progress only)
+
+
+def connect(address: str) -> None:
+    """Join the Ray cluster at ``address`` (HOST:PORT of the head, or ``auto``); a UserError within about 10 s
+    when none answers. Never starts a cluster: ``ray.init()`` without an address would quietly start one."""
+    try:
+        import ray
+    except ImportError as exc:
+        raise UserError(f"--address {address}: Ray is not installed; install the sweep extra "
+                        f"(pip install -e '.[sweep]', ray[tune]==2.60.0)") from exc
+    if ray.is_initialized():
+        return
+    if address != "auto":
+        host, port = parse_address(address)
+        try:
+            socket.create_connection((host, port), timeout=10.0).close()
+        except OSError as exc:
+            raise UserError(f"--address {address}: no Ray cluster answers there ({exc.strerror or exc}); start one "
+                            f"with `ray start --head --port {port}` (docs/scale-out.md)") from exc
+    from ray.exceptions import AuthenticationError
+
+    try:
+        ray.init(address=address, log_to_driver=False, logging_level=logging.ERROR)
+    except AuthenticationError as exc:
+        raise UserError(f"--address {address}: the cluster refused this client's token; set RAY_AUTH_MODE=token "
+                        f"and RAY_AUTH_TOKEN (or ~/.ray/auth_token) to the cluster's token") from exc
+    except ConnectionError as exc:
+        text = " ".join(str(exc).split())
+        raise UserError(f"--address {address}: no Ray cluster to join ({text[:200]})") from exc
+
+
+def parse_address(address: str) -> tuple[str, int]:
+    host, sep, port = address.rpartition(":")
+    if not sep or not host or not port.isdigit() or not 0 < int(port) < 65536:
+        raise UserError(f"--address {address!r}: expected HOST:PORT of the Ray head (port 6379 by default) or auto")
+    return host, int(port)
+
+
+def run_on_ray(pending: Sequence[Trial], trials: Sequence[Trial], root: Path, address: str, workers: int | None,
+               done: Callable[[str, dict[str, Any] | None], None]) -> dict[str, str]:
+    """Run ``pending`` (of all ``trials``) as Tune trials; returns name -> error text of those that failed."""
+    connect(address)
+    from ray import tune
+
+    by_name = {t.name: t for t in trials}
+    key = hashlib.sha1("\n".join(sorted(by_name)).encode()).hexdigest()[:10]
+    storage, exp = root / "tune", root / "tune" / f"sweep-{key}"
+    trainable = tune.with_resources(tune.with_parameters(_ray_trial, trials=by_name, root=str(root)), {"cpu": 1})
+    if tune.Tuner.can_restore(str(exp)):
+        tuner = tune.Tuner.restore(str(exp), trainable, resume_errored=True)
+    else:
+        tuner = tune.Tuner(
+            trainable, param_space={"trial": tune.grid_search([t.name for t in pending])},
+            tune_config=tune.TuneConfig(max_concurrent_trials=workers, reuse_actors=True,
+                                        trial_dirname_creator=_dirname),
+            run_config=tune.RunConfig(name=exp.name, storage_path=str(storage), verbose=0,
+                                      failure_config=tune.FailureConfig(max_failures=0)))
+    stop = threading.Event()
+    watcher = threading.Thread(target=_watch, args=(pending, root, done, stop), daemon=True)
+    watcher.start()
+    try:
+        results = tuner.fit()
+    finally:
+        stop.set()
+        watcher.join()
+    failed: dict[str, str] = {}
+    for res in results:
+        name = res.config["trial"]
+        if res.error is not None and not (trial_dir(root, name) / RESULT).is_file():
+            failed[name] = str(res.error)
+            done(name, None)
+    return failed
+
+
+def _watch(pending: Sequence[Trial], root: Path, done: Callable[[str, dict[str, Any] | None], None],
+           stop: threading.Event) -> None:
+    """Report trials as their result files appear (the driver's progress bar)."""
+    left = {t.name for t in pending}
+    while left:
+        last = stop.wait(POLL_S)
+        for name in sorted(left):
+            path = trial_dir(root, name) / RESULT
+            if path.is_file():
+                try:
+                    record = json.loads(path.read_text())
+                except ValueError:
+                    continue
+                left.discard(name)
+                done(name, record)
+        if last:
+            return
+
+
+def _dirname(trial: Any) -> str:
+    return f"{trial.config['trial']}-{trial.trial_id}"[:150]
+
+
+def _ray_trial(config: dict[str, Any], trials: dict[str, Trial], root: str) -> None:
+    """One Tune trial: the stored result if this trial already finished, else ``run_task`` on this node."""
+    import ray
+    from ray import tune
+
+    import ssbl_pb  # noqa: F401  (registers the env in this worker process)
+
+    task = trials[config["trial"]]
+    path = trial_dir(Path(root), task.name) / RESULT
+    record = None
+    if path.is_file():
+        try:
+            record = json.loads(path.read_text())
+        except ValueError:
+            record = None
+        if record is not None and record.get("task") != _normal(task.definition()):
+            record = None
+    if record is None:
+        record = run_task(task, Path(root), ray.get_runtime_context().get_node_id())
+    tune.report({k: v for k, v in record["result"].items() if isinstance(v, int | float) and not isinstance(v, bool)})
