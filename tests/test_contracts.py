@@ -119,6 +119,19 @@ CASES = [
     C("train_ae.py", "--frames", "{file}", "--arch", "saev", "--out", "{out}", expect="not a readable .npz"),
     C("train_ae.py", "--frames", "{tmp}/none.npz", "--arch", "conv", "--out", "{out}", expect="file not found"),
     C("train_ae.py", "--frames", "{file}", "--arch", "saev", "--steps", "0", "--out", "{out}", expect="--steps 0"),
+    # sweeps (issue 16): bad specs, no cluster at the address, storage that cannot be written
+    C("sweep.py", "{tmp}/none.yaml", "--out", "{out}", expect="none.yaml: file not found"),
+    C("sweep.py", "tests/sweep_specs/unknown_key.yaml", "--out", "{out}", expect="unknown key(s) ['grids']"),
+    C("sweep.py", "tests/sweep_specs/bad_override.yaml", "--out", "{out}", expect="grid key 'reward.w_bogus'"),
+    C("sweep.py", "tests/sweep_specs/no_seeds.yaml", "--out", "{out}", expect="seeds: missing"),
+    C("sweep.py", "tests/sweep_specs/tiny.yaml", "--out", "{out}", "--address", "127.0.0.1:1",
+      expect="--address 127.0.0.1:1"),
+    C("sweep.py", "tests/sweep_specs/tiny.yaml", "--out", "{out}", "--address", "127.0.0.1:1", "--storage",
+      "{file}/store", expect="--storage"),
+    C("sweep.py", "tests/sweep_specs/tiny.yaml", "--out", "{out}", "--storage", "{tmp}/store",
+      expect="only with --address"),
+    C("sweep.py", "tests/sweep_specs/tiny.yaml", "--out", "{out}", "--workers", "0", expect="argument --workers"),
+    C("sweep.py", "tests/sweep_specs/tiny.yaml", "--out", "{file}/sweep", expect="is a file"),
 ]
 
 

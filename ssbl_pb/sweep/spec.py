@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import UserError
-from ..params import ConfigError, _check, from_dict, load_yaml
+from ..params import ConfigError, from_dict, load_yaml
 from .trial import EvalSpec, TrainEvalTrial
 
 SPEC_KEYS = ("base", "grid", "seeds", "set", "eval")
@@ -179,9 +179,9 @@ def _check_env(path: Path, name: str, cfg: Any, evaluation: EvalSpec) -> None:
             make_env(**{**_env_kwargs(cfg), "scenario": evaluation.scenario}).close()
     except UserError as exc:  # scenario names, room/robot/social values, calibration files
         raise SpecError(f"{path}: configuration {name}: {exc}") from exc
-    _check(evaluation.model == "final" or cfg.eval_every <= cfg.total_steps, "eval", "model", evaluation.model,
-           f"'final' for configuration {name}: it evaluates only every {cfg.eval_every} of {cfg.total_steps} steps, "
-           "so it has no best model")
+    if evaluation.model == "best" and cfg.eval_every > cfg.total_steps:
+        raise SpecError(f"{path}: eval.model = 'best': configuration {name} evaluates only every {cfg.eval_every} of "
+                        f"{cfg.total_steps} steps, so it has no best model; use model: final or a smaller eval_every")
 
 
 def _short_keys(keys: list[str]) -> dict[str, str]:
