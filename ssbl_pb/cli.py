@@ -23,7 +23,7 @@ from .errors import EXIT_SIGINT, EXIT_SIGTERM, EXIT_USAGE, Terminated, UserError
 T = TypeVar("T")
 
 __all__ = ["EXIT_USAGE", "ArgumentParser", "UserError", "fail", "run", "progress", "progress_bar", "make_bar",
-           "int_at_least", "int_in"]
+           "int_at_least", "int_in", "command_line"]
 
 
 def fail(exc: BaseException | str) -> int:
@@ -65,6 +65,14 @@ def int_in(low: int, high: int | None) -> Callable[[str], int]:
 
     parse.__name__ = want  # argparse names the type in some messages
     return parse
+
+
+def command_line(tool: str, argv: list[str] | None = None) -> str:
+    """``python TOOL ARGS`` as typed (``argv``, else this process's arguments), for reports that say how they
+    were made."""
+    import shlex
+
+    return " ".join(["python", tool, *(shlex.quote(a) for a in (sys.argv[1:] if argv is None else argv))])
 
 
 def _raise_terminated(signum: int, frame: Any) -> None:

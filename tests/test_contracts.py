@@ -132,6 +132,11 @@ CASES = [
       expect="only with --address"),
     C("sweep.py", "tests/sweep_specs/tiny.yaml", "--out", "{out}", "--workers", "0", expect="argument --workers"),
     C("sweep.py", "tests/sweep_specs/tiny.yaml", "--out", "{file}/sweep", expect="is a file"),
+    C("bench_sweep.py", "--workers", "1", "--out", "{out}.json", expect="argument --workers"),
+    C("bench_sweep.py", "--repeats", "0", "--out", "{out}.json", expect="argument --repeats"),
+    C("bench_sweep.py", "--out", "{out}.txt", expect="expected a .json"),
+    C("bench_sweep.py", "--spec", "tests/sweep_specs/no_seeds.yaml", "--out", "{out}.json", expect="seeds: missing"),
+    C("bench_sweep.py", "--out", "{file}/bench.json", expect="is a file"),
 ]
 
 

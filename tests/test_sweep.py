@@ -254,3 +254,22 @@ def test_two_node_ray_cluster_sweep_killed_resumed_same_summary(local_sweep, tmp
     assert len(records) == 4 and len({r["node_id"] for r in records}) == 2  # trials ran on both nodes
     assert (storage / "sweep" / "tune").is_dir()  # Tune's experiment state, restored on the second start
     assert (out / "summary.csv").read_text() == (local_sweep[0] / "summary.csv").read_text()
+
+
+@pytest.mark.slow
+def test_an_address_where_no_ray_head_answers_fails_within_30_s(tmp_path):
+    pytest.importorskip("ray", reason="Ray is not installed (the sweep extra: pip install -e '.[sweep]')")
+    import socket
+
+    with socket.socket() as listener:  # accepts connections (the kernel does) but never speaks Ray's protocol
+        listener.bind(("127.0.0.1", 0))
+        listener.listen(8)
+        address = f"127.0.0.1:{listener.getsockname()[1]}"
+        t0 = time.time()
+        res = subprocess.run([*TOOL, str(SPECS / "tiny.yaml"), "--out", str(tmp_path / "out"), "--address", address],
+                             capture_output=True, text=True, timeout=120)
+        took = time.time() - t0
+    assert res.returncode == 2 and took < 30, (took, res.stderr)
+    assert res.stderr.strip() == (f"error: --address {address}: no Ray cluster answered within 20 s (is it the "
+                                  f"head's GCS port, 6379 by default?)")
+    assert not (tmp_path / "out").exists()

@@ -16,12 +16,11 @@ scratch (so results do not depend on the interruption). Ray clusters: docs/scale
 
 from __future__ import annotations
 
-import shlex
 import sys
 import time
 from pathlib import Path
 
-from ssbl_pb.cli import ArgumentParser, int_at_least, make_bar, run
+from ssbl_pb.cli import ArgumentParser, command_line, int_at_least, make_bar, run
 from ssbl_pb.errors import UserError
 
 
@@ -46,17 +45,20 @@ def main(argv: list[str] | None = None) -> int:
 
     if args.storage is not None and args.address is None:
         raise UserError(f"--storage {args.storage}: only with --address (a local sweep writes into --out)")
-    spec = load_spec(args.spec)
-    trials = spec.trials()
     check_output_path(args.out, "--out")
     root = args.out
+    probe = None
     if args.address is not None:
         if args.storage is not None:
             check_output_path(args.storage, "--storage")
             root = args.storage / args.out.resolve().name
-        from ssbl_pb.sweep.ray_runner import connect
+        from ssbl_pb.sweep.ray_runner import Probe, connect
 
-        connect(args.address)
+        probe = Probe(args.address)  # a child process tries the cluster while the spec is checked
+    spec = load_spec(args.spec)
+    trials = spec.trials()
+    if probe is not None:
+        connect(args.address, probe)
     root = root.resolve()
     done = finished(root, trials)
     if args.dry_run:
@@ -68,7 +70,7 @@ def main(argv: list[str] | None = None) -> int:
     with output_dir(args.out, "--out") as out:
         write_json(out / "sweep.json", {**spec.describe(), "trials_root": str(root)})
     root.mkdir(parents=True, exist_ok=True)
-    command = "python tools/sweep.py " + " ".join(shlex.quote(a) for a in (sys.argv[1:] if argv is None else argv))
+    command = command_line("tools/sweep.py", argv)
     bar = make_bar(len(trials), "sweep", "trial", initial=len(done))
     t0 = time.perf_counter()
 

@@ -10,7 +10,7 @@ pool or (given an address) as Ray Tune trials on a cluster; resumable; summarise
 
 from .runner import Outcome, Trial, TrialsFailed, finished, run_trials
 from .spec import SpecError, SweepSpec, load_spec
-from .trial import METRICS, EvalSpec, TrainEvalTrial
+from .trial import METRICS, EvalSpec, TrainEvalTrial, trials_for
 
 __all__ = ["METRICS", "EvalSpec", "Outcome", "SpecError", "SweepSpec", "TrainEvalTrial", "Trial", "TrialsFailed",
-           "finished", "load_spec", "run_trials"]
+           "finished", "load_spec", "run_trials", "trials_for"]

@@ -1,9 +1,10 @@
 """The local process pool (no Ray): ``workers`` spawned processes, each running one trial at a time and kept for
-the next one (the imports of torch and SB3 cost seconds, paid once per worker).
+the next one (the imports of torch and SB3 cost seconds, paid once per worker), each in a session of its own.
 
 The pool, not ``concurrent.futures``, so that an interrupted sweep stops its trials at once: on Ctrl-C, SIGTERM
-or an error the parent terminates every worker, and a worker whose parent dies (``kill -9``) exits within a
-second by itself, so no orphan keeps writing into a trial folder that the next run starts again.
+or an error the parent terminates every worker, and a worker whose parent dies (``kill -9``) is killed by the
+kernel (Linux; elsewhere it exits within a second by itself), so no orphan keeps writing into a trial folder that
+the next run starts again.
 """
 
 from __future__ import annotations
@@ -100,6 +101,10 @@ def _serve(conn: Connection, parent: int) -> None:
     for var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS"):  # one CPU per trial (torch reads these on import)
         os.environ[var] = "1"
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent handles Ctrl-C and stops its workers
+    # a session of its own: where the kernel groups CPU time by session (autogroup, on by default in many
+    # distributions), N workers then get the share of N separate runs on a busy machine, not that of one
+    os.setsid()
+    _die_with_parent()
     threading.Thread(target=_exit_with_parent, args=(parent,), daemon=True).start()
     while True:
         try:
@@ -113,6 +118,16 @@ def _serve(conn: Connection, parent: int) -> None:
             conn.send(("ok", run_task(task, Path(root))))
         except Exception:  # the trial's bug: its traceback goes to the parent and into the trial's log
             conn.send(("error", traceback.format_exc()))
+
+
+def _die_with_parent() -> None:
+    """Linux: SIGKILL this process when its parent dies (prctl PR_SET_PDEATHSIG); elsewhere the polling thread."""
+    try:
+        import ctypes
+
+        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)
+    except (OSError, AttributeError):
+        pass
 
 
 def _exit_with_parent(parent: int) -> None:

@@ -11,9 +11,12 @@ whose ``result.json`` exists returns at once.
 from __future__ import annotations
 
 import hashlib
+import importlib.util
 import json
 import logging
 import socket
+import subprocess
+import sys
 import threading
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -23,35 +26,64 @@ from ..errors import UserError
 from .runner import RESULT, Trial, _normal, run_task, trial_dir
 
 POLL_S = 2.0  # how often the driver looks for finished trials (progress only)
+CONNECT_S = 3.0  # TCP connect to the head: a refused or unreachable address fails here, without Ray
+PROBE_S = 20.0  # a child process joining the cluster (importing Ray takes a few seconds of it)
+PROBE = """import logging, os, sys, threading
+stop = threading.Timer(float(sys.argv[2]), os._exit, (124,))
+stop.daemon = True
+stop.start()
+import ray
+ray.init(address=sys.argv[1], logging_level=logging.ERROR)
+ray.shutdown()
+"""  # the child ends itself after PROBE_S, even when its parent is gone
 
 
-def connect(address: str) -> None:
-    """Join the Ray cluster at ``address`` (HOST:PORT of the head, or ``auto``); a UserError within about 10 s
-    when none answers. Never starts a cluster: ``ray.init()`` without an address would quietly start one."""
-    try:
-        import ray
-    except ImportError as exc:
-        raise UserError(f"--address {address}: Ray is not installed; install the sweep extra "
-                        f"(pip install -e '.[sweep]', ray[tune]==2.60.0)") from exc
-    if ray.is_initialized():
-        return
-    if address != "auto":
-        host, port = parse_address(address)
+class Probe:
+    """Whether a Ray cluster answers at ``address``, found out in a child process started at once (``ray.init``
+    waits minutes on a port that answers but is no Ray head); ``wait()`` raises a UserError within ``PROBE_S`` of
+    the start. Start it early: the child works while the caller checks its other inputs."""
+
+    def __init__(self, address: str) -> None:
+        self.address = address
+        if importlib.util.find_spec("ray") is None:
+            raise UserError(f"--address {address}: Ray is not installed; install the sweep extra "
+                            f"(pip install -e '.[sweep]', ray[tune]==2.60.0)")
+        if address != "auto":
+            host, port = parse_address(address)
+            try:
+                socket.create_connection((host, port), timeout=CONNECT_S).close()
+            except OSError as exc:
+                raise UserError(f"--address {address}: no Ray cluster answers there ({exc.strerror or exc}); start "
+                                f"one with `ray start --head --port {port}` (docs/scale-out.md)") from exc
+        self.proc = subprocess.Popen([sys.executable, "-c", PROBE, address, str(PROBE_S)], stdout=subprocess.DEVNULL,
+                                     stderr=subprocess.PIPE, text=True)
+
+    def wait(self) -> None:
         try:
-            socket.create_connection((host, port), timeout=10.0).close()
-        except OSError as exc:
-            raise UserError(f"--address {address}: no Ray cluster answers there ({exc.strerror or exc}); start one "
-                            f"with `ray start --head --port {port}` (docs/scale-out.md)") from exc
-    from ray.exceptions import AuthenticationError
+            _, err = self.proc.communicate(timeout=PROBE_S + 5.0)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            _, err = self.proc.communicate()
+        if self.proc.returncode in (0, None):
+            return
+        if self.proc.returncode == 124 or self.proc.returncode < 0:
+            raise UserError(f"--address {self.address}: no Ray cluster answered within {PROBE_S:.0f} s (is it the "
+                            f"head's GCS port, 6379 by default?)")
+        lines = [ln for ln in err.splitlines() if ln.strip()]
+        why = " ".join(lines[-1].split())[:300] if lines else f"exit code {self.proc.returncode}"
+        hint = (" (token authentication: set RAY_AUTH_MODE=token and RAY_AUTH_TOKEN to the cluster's token)"
+                if "uthenticat" in why or "token" in why else "")
+        raise UserError(f"--address {self.address}: cannot join the Ray cluster: {why}{hint}")
 
-    try:
+
+def connect(address: str, probe: Probe | None = None) -> None:
+    """Join the Ray cluster at ``address`` (HOST:PORT of the head, or ``auto``) after ``probe`` (started here if
+    not given) found it. Never starts a cluster: ``ray.init()`` without an address would quietly start one."""
+    (probe or Probe(address)).wait()
+    import ray
+
+    if not ray.is_initialized():
         ray.init(address=address, log_to_driver=False, logging_level=logging.ERROR)
-    except AuthenticationError as exc:
-        raise UserError(f"--address {address}: the cluster refused this client's token; set RAY_AUTH_MODE=token "
-                        f"and RAY_AUTH_TOKEN (or ~/.ray/auth_token) to the cluster's token") from exc
-    except ConnectionError as exc:
-        text = " ".join(str(exc).split())
-        raise UserError(f"--address {address}: no Ray cluster to join ({text[:200]})") from exc
 
 
 def parse_address(address: str) -> tuple[str, int]:

@@ -23,7 +23,7 @@ from typing import Any
 
 from ..errors import UserError
 from ..params import ConfigError, from_dict, load_yaml
-from .trial import EvalSpec, TrainEvalTrial
+from .trial import EvalSpec, TrainEvalTrial, trial_name
 
 SPEC_KEYS = ("base", "grid", "seeds", "set", "eval")
 MAX_NAME = 100  # characters of a trial folder's name before it is shortened with a hash
@@ -212,11 +212,6 @@ def config_name(values: dict[str, Any], short: dict[str, str] | None = None) -> 
         digest = hashlib.sha1(json.dumps(values, sort_keys=True, default=str).encode()).hexdigest()[:8]
         name = f"{name[:MAX_NAME - 9]}-{digest}"
     return name
-
-
-def trial_name(config: str, seed: int) -> str:
-    """``CONFIG,seed=S`` (``seed=S`` alone for the base configuration)."""
-    return f"seed={seed}" if config == "base" else f"{config},seed={seed}"
 
 
 __all__ = ["SpecError", "SweepSpec", "load_spec", "config_name", "trial_name"]

@@ -6,13 +6,14 @@ from __future__ import annotations
 import csv
 import io
 import math
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 from ..files import atomic_write, write_text
 from ..report import mean_ci
 from .spec import SweepSpec
-from .trial import METRICS
+from .trial import METRICS, TrainEvalTrial
 
 # columns of summary.md: (metric, heading, scale, decimals)
 SHOWN = (("success_rate", "success %", 100, 1), ("mean_return", "return", 1, 2),
@@ -25,12 +26,19 @@ PLOTTED = ("success_rate", "mean_return", "personal_zone_time_s", "mean_jerk")
 
 def rows(spec: SweepSpec, records: dict[str, dict[str, Any]]) -> list[dict[str, Any]]:
     """One dict per configuration (grid order): its grid values, seeds finished, and per metric mean / CI."""
+    return group_rows(spec.configs, spec.trials(), records)
+
+
+def group_rows(groups: dict[str, dict[str, Any]], trials: Sequence[TrainEvalTrial],
+               records: dict[str, dict[str, Any]]) -> list[dict[str, Any]]:
+    """One dict per group (``groups``: name -> the columns that describe it) over the finished ``trials`` of each
+    (their ``group``): seeds finished and, per metric, the mean and 95 % CI over them."""
     out = []
     by_group: dict[str, list[dict[str, Any]]] = {}
-    for t in spec.trials():
+    for t in trials:
         if t.name in records:
             by_group.setdefault(t.group, []).append(records[t.name]["result"])
-    for name, values in spec.configs.items():
+    for name, values in groups.items():
         results = by_group.get(name, [])
         row: dict[str, Any] = {"config": name, **values, "seeds": len(results)}
         for m in METRICS:

@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -92,3 +93,19 @@ def finite(value: Any) -> float | None:
         return None
     v = float(value)
     return v if math.isfinite(v) else None
+
+
+def trial_name(config: str, seed: int) -> str:
+    """``CONFIG,seed=S`` (``seed=S`` alone for a sweep's ``base`` configuration)."""
+    return f"seed={seed}" if config == "base" else f"{config},seed={seed}"
+
+
+def trials_for(configs: dict[str, Any], seeds: Sequence[int], evaluation: EvalSpec | None = None
+               ) -> list[TrainEvalTrial]:
+    """One trial per named training config (``TrainConfig``) and seed, named as a sweep names them: a list for
+    ``runner.run_trials`` (e.g. Table I's rows x seeds)."""
+    from ..training.config import config_to_dict
+
+    return [TrainEvalTrial(trial_name(name, seed), name, {**config_to_dict(cfg), "seed": seed},
+                           evaluation or EvalSpec())
+            for name, cfg in configs.items() for seed in seeds]
