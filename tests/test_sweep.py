@@ -79,6 +79,17 @@ eval: {{episodes: 20, scenario: mixed}}
     assert trials[0].evaluation.seed == 500_000  # held-out seeds by default
 
 
+def test_trials_for_named_configs():
+    from ssbl_pb.sweep import EvalSpec, trials_for
+    from ssbl_pb.training.config import load_config
+
+    rows = {"ff": load_config(BASE), "lstm": load_config(BASE, {"policy": "lstm"})}
+    trials = trials_for(rows, [0, 1], EvalSpec(episodes=10))
+    assert [t.name for t in trials] == ["ff,seed=0", "ff,seed=1", "lstm,seed=0", "lstm,seed=1"]
+    assert trials[3].group == "lstm" and trials[3].config["policy"] == "lstm" and trials[3].config["seed"] == 1
+    assert load_config(None, trials[3].config) == load_config(BASE, {"policy": "lstm", "seed": 1})
+
+
 def test_names_short_unique_and_safe():
     assert config_name({}) == "base"
     assert config_name({"ppo.net_arch": [64, 64], "env.x": "a/b c"}) == "ppo.net_arch=64-64,env.x=a-b-c"
