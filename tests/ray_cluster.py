@@ -3,10 +3,10 @@
     unshare --net --pid --fork --mount-proc python tests/ray_cluster.py SPEC OUT STORAGE REPORT.json
 
 Inside: loopback up (the only interface, so all traffic stays on it); a head and a worker node of one CPU each
-(token authentication on, with a token made here); the sweep started against the head, killed (SIGKILL) once its
-first trial has finished, then started again with the same command and run to the end; the cluster stopped.
-REPORT.json gets what happened. When this process (the namespace's first) exits, the kernel ends every process
-left in the namespace.
+(token authentication on, with a token made here); a client with another token refused; the sweep started against
+the head, killed (SIGKILL) once its first trial has finished, then started again with the same command and run to
+the end; the cluster stopped. REPORT.json gets what happened. When this process (the namespace's first) exits,
+the kernel ends every process left in the namespace.
 """
 
 from __future__ import annotations
@@ -45,6 +45,11 @@ def main() -> int:
         info["cluster_start_s"] = round(time.time() - t0, 1)
         cmd = [sys.executable, str(ROOT / "tools" / "sweep.py"), spec, "--out", out, "--address", f"127.0.0.1:{PORT}",
                "--storage", storage]
+        t1 = time.time()  # a client with another token is told so, at once
+        wrong = subprocess.run([*cmd, "--dry-run"], env={**env, "RAY_AUTH_TOKEN": secrets.token_hex(16)},
+                               capture_output=True, text=True, timeout=120)
+        info.update(wrong_token_exit=wrong.returncode, wrong_token_stderr=wrong.stderr[-2000:],
+                    wrong_token_s=round(time.time() - t1, 1))
         trials = Path(storage) / Path(out).name / "trials"
         first = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
         deadline = time.time() + 300

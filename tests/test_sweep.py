@@ -256,6 +256,8 @@ def test_two_node_ray_cluster_sweep_killed_resumed_same_summary(local_sweep, tmp
                     str(report)], check=True, timeout=900)
     info = json.loads(report.read_text())
     assert info["interfaces"].count("inet ") == 1 and "127.0.0.1" in info["interfaces"]  # loopback only
+    assert info["wrong_token_exit"] == 2 and info["wrong_token_s"] < 30, info
+    assert "refused this client's token" in info["wrong_token_stderr"].splitlines()[-1]
     assert info["first_exit"] is None and 1 <= len(info["finished_at_kill"]) < 4, info  # killed mid-way
     assert info["second_exit"] == 0, info["second_stderr"]
     trials = storage / "sweep" / "trials"

@@ -18,6 +18,7 @@ import socket
 import subprocess
 import sys
 import threading
+import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -55,25 +56,38 @@ class Probe:
             except OSError as exc:
                 raise UserError(f"--address {address}: no Ray cluster answers there ({exc.strerror or exc}); start "
                                 f"one with `ray start --head --port {port}` (docs/scale-out.md)") from exc
+        self.lines: list[str] = []
+        self.refused = threading.Event()  # the head answered and refused our token: no point waiting longer
+        self.deadline = time.monotonic() + PROBE_S + 5.0
         self.proc = subprocess.Popen([sys.executable, "-c", PROBE, address, str(PROBE_S)], stdout=subprocess.DEVNULL,
                                      stderr=subprocess.PIPE, text=True)
+        threading.Thread(target=self._read, daemon=True).start()
+
+    def _read(self) -> None:
+        for line in self.proc.stderr or ():
+            self.lines.append(line)
+            if "InvalidAuthToken" in line or "Unauthenticated" in line:
+                self.refused.set()
 
     def wait(self) -> None:
-        try:
-            _, err = self.proc.communicate(timeout=PROBE_S + 5.0)
-        except subprocess.TimeoutExpired:
+        while self.proc.poll() is None and time.monotonic() < self.deadline:
+            if self.refused.wait(0.1):
+                break
+        if self.proc.poll() is None:
             self.proc.kill()
-            _, err = self.proc.communicate()
-        if self.proc.returncode in (0, None):
+            self.proc.wait()
+        if self.refused.is_set():
+            raise UserError(f"--address {self.address}: the Ray cluster refused this client's token; set "
+                            f"RAY_AUTH_MODE=token and RAY_AUTH_TOKEN to the cluster's token (`ray get-auth-token` on "
+                            f"the head; docs/scale-out.md)")
+        if self.proc.returncode == 0:
             return
         if self.proc.returncode == 124 or self.proc.returncode < 0:
             raise UserError(f"--address {self.address}: no Ray cluster answered within {PROBE_S:.0f} s (is it the "
                             f"head's GCS port, 6379 by default?)")
-        lines = [ln for ln in err.splitlines() if ln.strip()]
+        lines = [ln for ln in self.lines if ln.strip()]
         why = " ".join(lines[-1].split())[:300] if lines else f"exit code {self.proc.returncode}"
-        hint = (" (token authentication: set RAY_AUTH_MODE=token and RAY_AUTH_TOKEN to the cluster's token)"
-                if "uthenticat" in why or "token" in why else "")
-        raise UserError(f"--address {self.address}: cannot join the Ray cluster: {why}{hint}")
+        raise UserError(f"--address {self.address}: cannot join the Ray cluster: {why}")
 
 
 def connect(address: str, probe: Probe | None = None) -> None:
