@@ -133,6 +133,7 @@ def plot(path: Path, table: list[dict[str, Any]]) -> None:
         ax.set_xticklabels(labels, rotation=30, ha="right", fontsize=8)
         ax.set_title(metric.replace("_", " ") + (" (%)" if scale == 100 else ""), fontsize=10)
         ax.set_xlim(-0.5, len(table) - 0.5)
+    fig.suptitle("mean over seeds with 95 % CI (blue), one dot per seed", fontsize=10)
     fig.tight_layout()
     atomic_write(path, lambda p: fig.savefig(p, dpi=100))
     plt.close(fig)
