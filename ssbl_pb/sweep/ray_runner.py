@@ -93,6 +93,8 @@ class Probe:
 def connect(address: str, probe: Probe | None = None) -> None:
     """Join the Ray cluster at ``address`` (HOST:PORT of the head, or ``auto``) after ``probe`` (started here if
     not given) found it. Never starts a cluster: ``ray.init()`` without an address would quietly start one."""
+    if probe is None and "ray" in sys.modules and sys.modules["ray"].is_initialized():
+        return  # joined already (the tool probes and joins before it runs the trials)
     (probe or Probe(address)).wait()
     import ray
 
