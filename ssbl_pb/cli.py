@@ -13,6 +13,7 @@ import contextlib
 import os
 import signal
 import sys
+import threading
 import time
 from collections.abc import Callable, Iterable, Iterator
 from typing import Any, NoReturn, TypeVar
@@ -22,7 +23,7 @@ from .errors import EXIT_SIGINT, EXIT_SIGTERM, EXIT_USAGE, Terminated, UserError
 T = TypeVar("T")
 
 __all__ = ["EXIT_USAGE", "ArgumentParser", "UserError", "fail", "run", "progress", "progress_bar", "make_bar",
-           "int_at_least", "int_in"]
+           "int_at_least", "int_in", "command_line"]
 
 
 def fail(exc: BaseException | str) -> int:
@@ -66,6 +67,14 @@ def int_in(low: int, high: int | None) -> Callable[[str], int]:
     return parse
 
 
+def command_line(tool: str, argv: list[str] | None = None) -> str:
+    """``python TOOL ARGS`` as typed (``argv``, else this process's arguments), for reports that say how they
+    were made."""
+    import shlex
+
+    return " ".join(["python", tool, *(shlex.quote(a) for a in (sys.argv[1:] if argv is None else argv))])
+
+
 def _raise_terminated(signum: int, frame: Any) -> None:
     raise Terminated()
 
@@ -89,7 +98,8 @@ def run(main: Callable[..., int], argv: list[str] | None = None) -> NoReturn:
 
 class DeferredSignals:
     """Within ``with``: SIGINT/SIGTERM only set ``signum`` (code polls it and stops at a safe point); a second
-    signal raises at once. On exit the previous handlers return. Main thread only."""
+    signal raises at once. On exit the previous handlers return. Outside the main thread (a Ray Tune trial runs
+    in one) it does nothing: signals reach only the main thread."""
 
     def __init__(self) -> None:
         self.signum: int | None = None
@@ -102,6 +112,8 @@ class DeferredSignals:
         print("\nstopping at the next safe point (signal again to stop at once)", file=sys.stderr, flush=True)
 
     def __enter__(self) -> DeferredSignals:
+        if threading.current_thread() is not threading.main_thread():
+            return self
         for sig in (signal.SIGINT, signal.SIGTERM):
             self._saved[sig] = signal.signal(sig, self._handler)
         return self

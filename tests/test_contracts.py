@@ -161,6 +161,24 @@ CASES = [
     C("bench_camera.py", "--only", "probe", "--out", "{out}.json", expect="--only probe needs --frames"),
     C("train_pb.py", "--obs-mode", "camera", "--encoder", "conv", "--set", "encoder_checkpoint={file}",
       "--out", "{out}", expect="encoder checkpoint"),
+    # sweeps (issue 16): bad specs, no cluster at the address, storage that cannot be written
+    C("sweep.py", "{tmp}/none.yaml", "--out", "{out}", expect="none.yaml: file not found"),
+    C("sweep.py", "tests/sweep_specs/unknown_key.yaml", "--out", "{out}", expect="unknown key(s) ['grids']"),
+    C("sweep.py", "tests/sweep_specs/bad_override.yaml", "--out", "{out}", expect="grid key 'reward.w_bogus'"),
+    C("sweep.py", "tests/sweep_specs/no_seeds.yaml", "--out", "{out}", expect="seeds: missing"),
+    C("sweep.py", "tests/sweep_specs/tiny.yaml", "--out", "{out}", "--address", "127.0.0.1:1",
+      expect="--address 127.0.0.1:1"),
+    C("sweep.py", "tests/sweep_specs/tiny.yaml", "--out", "{out}", "--address", "127.0.0.1:1", "--storage",
+      "{file}/store", expect="--storage"),
+    C("sweep.py", "tests/sweep_specs/tiny.yaml", "--out", "{out}", "--storage", "{tmp}/store",
+      expect="only with --address"),
+    C("sweep.py", "tests/sweep_specs/tiny.yaml", "--out", "{out}", "--workers", "0", expect="argument --workers"),
+    C("sweep.py", "tests/sweep_specs/tiny.yaml", "--out", "{file}/sweep", expect="is a file"),
+    C("bench_sweep.py", "--workers", "1", "--out", "{out}.json", expect="argument --workers"),
+    C("bench_sweep.py", "--repeats", "0", "--out", "{out}.json", expect="argument --repeats"),
+    C("bench_sweep.py", "--out", "{out}.txt", expect="expected a .json"),
+    C("bench_sweep.py", "--spec", "tests/sweep_specs/no_seeds.yaml", "--out", "{out}.json", expect="seeds: missing"),
+    C("bench_sweep.py", "--out", "{file}/bench.json", expect="is a file"),
 ]
 
 

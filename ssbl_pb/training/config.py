@@ -195,16 +195,24 @@ def env_keys() -> list[str]:
 
 def parse_overrides(items: list[str]) -> dict[str, Any]:
     """Command-line ``a.b=value`` pairs (values parsed as YAML) as a nested dict of config overrides."""
-    out: dict[str, Any] = {}
+    pairs: dict[str, Any] = {}
     for item in items:
         key, sep, raw = item.partition("=")
         if not sep or not key:
             raise ConfigError(f"--set {item!r}: expected KEY=VALUE, e.g. reward.w1=0.1")
+        pairs[key] = yaml.safe_load(raw)
+    return nest_overrides(pairs)
+
+
+def nest_overrides(pairs: dict[str, Any]) -> dict[str, Any]:
+    """Dotted ``{"a.b": value}`` keys (``--set`` syntax, sweep grids) as the nested dict ``load_config`` takes."""
+    out: dict[str, Any] = {}
+    for key, value in pairs.items():
         node = out
         parts = key.split(".")
         for part in parts[:-1]:
             node = node.setdefault(part, {})
-        node[parts[-1]] = yaml.safe_load(raw)
+        node[parts[-1]] = value
     return out
 
 
