@@ -21,7 +21,7 @@ from ssbl_pb.params import RobotParams, SocialParams
 
 @pytest.fixture
 def robot():
-    r = SimRobot("default", seed=12)  # the group is in view from the start
+    r = SimRobot("default", seed=12)  # a short search finds the group
     yield r
     r.close()
 
