@@ -196,7 +196,7 @@ class DeployLoop:
         if self._approaching or self._search_side == 0.0:  # a new search
             d = pos.mean(axis=0) - pose[:2] if len(pos) else np.array([1.0, 1.0])
             self._search_side = 1.0 if math.remainder(math.atan2(d[1], d[0]) - pose[2], 2 * math.pi) >= 0 else -1.0
-            self._turned, self._sidestep_left = 0.0, 0
+            self._turned, self._last_yaw, self._sidestep_left = 0.0, None, 0
         self._approaching = False
         if self._last_yaw is not None:
             self._turned += abs(math.remainder(pose[2] - self._last_yaw, 2 * math.pi))
