@@ -57,6 +57,7 @@ CASES = [
     C("-m ssbl_pb.deploy.watchdog", "--robot", "tcp://127.0.0.1:1", expect="cannot reach ALMotion"),
     C("-m ssbl_pb.deploy.watchdog", "--limit", "0", expect="--limit 0"),
     C("-m ssbl_pb.deploy.plot", "{tmp}", expect="no log.jsonl"),
+    C("bench_deploy.py", "--faults", "nosuch", "--out", "{out}", expect="--faults ['nosuch']"),
 ]
 
 
