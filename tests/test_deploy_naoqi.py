@@ -56,13 +56,15 @@ EXPECTED = {"robot_killed": 7, "camera_frozen": 5, "robot_frozen": 8, "sigint": 
 @pytest.mark.slow
 @pytest.mark.parametrize("fault", FAULTS)
 def test_each_fault_stops_the_base_and_names_itself(fault, tmp_path):
-    res = run_fault(fault, tmp_path)
+    res = run_fault(fault, tmp_path, stale=2.0)  # a loaded CI machine may deliver a frame 1 s late
     assert res["exit_code"] == EXPECTED[fault], res
     assert not res.get("hung"), res
     if fault != "robot_killed":  # the virtual Pepper lived on: its own log shows the base stopped for good
         assert res["stop_commanded_s"] is not None and res["standstill_s"] is not None, res
-    if fault in ("camera_frozen", "deploy_killed"):
-        assert res["stop_commanded_s"] > 0.4  # by the staleness limit / the watchdog, not before
+    if fault == "camera_frozen":
+        assert res["stop_commanded_s"] > 0.9  # by the staleness limit, not before
+    if fault == "deploy_killed":
+        assert res["stop_commanded_s"] > 0.4  # by the watchdog's limit, not before
     summary = tmp_path / "deploy" / "summary.json"
     if fault in ("robot_killed", "camera_frozen", "robot_frozen", "sigint", "sigterm"):
         outcome = {"robot_killed": "connection_lost", "camera_frozen": "stale_frame",
@@ -70,9 +72,25 @@ def test_each_fault_stops_the_base_and_names_itself(fault, tmp_path):
         assert json.loads(summary.read_text())["outcome"] == outcome
 
 
+@pytest.mark.slow
+def test_collision_protection_events_are_logged(tmp_path):
+    """NAOqi's collision protection (imitated by the virtual Pepper) refuses moves toward a person: deploy
+    logs each ALMotion/MoveFailed event in the tick that received it."""
+    with virtual_pepper(tmp_path / "vp.jsonl", 35, "default", "--security-distance", "4.5") as (_, url):  # in view
+        res = _deploy("--url", url, "--policy", "straight", "--duration", "5", "--quiet", "--log-dir",
+                      str(tmp_path / "run"))
+    assert res.returncode == 3, res.stderr  # the duration ended it
+    rows = [json.loads(line) for line in (tmp_path / "run" / "log.jsonl").read_text().splitlines()]
+    events = [e for r in rows for e in r["events"]]
+    assert events and all(e["value"][0] == "Safety" and len(e["value"][2]) == 2 for e in events)
+    _, _, calls = load_log(tmp_path / "vp.jsonl")
+    assert sum(c["call"] == "MoveFailed" for c in calls) >= len(events)
+
+
 def _deploy(*argv: str, timeout: float = 30) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "ssbl_pb.deploy", "--policy", "sffm", "--detector", "colour",
-                           *argv], capture_output=True, text=True, timeout=timeout)
+    policy = () if "--policy" in argv else ("--policy", "sffm")
+    return subprocess.run([sys.executable, "-m", "ssbl_pb.deploy", *policy, "--detector", "colour", *argv],
+                          capture_output=True, text=True, timeout=timeout)
 
 
 def test_a_port_where_nothing_speaks_qi_is_one_line_within_5_s(tmp_path):

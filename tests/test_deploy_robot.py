@@ -71,3 +71,25 @@ def test_frames_without_a_map_are_odometry_with_no_walls_near():
     pose = np.array([0.5, -0.5, 1.0])
     assert fr.room_pose(pose) == pytest.approx(pose) and fr.map_pose(pose) is None
     assert fr.walls(pose).tolist() == [5.0, 5.0, 5.0, 5.0]  # the middle of the 10 m training room
+
+
+def test_watchdog_stops_an_armed_base_once_heartbeats_stop():
+    from ssbl_pb.deploy.watchdog import Watchdog
+
+    class Motion:
+        stops = 0
+
+        def stopMove(self, _async=False):  # noqa: N802 - NAOqi's name
+            Motion.stops += 1
+            return type("Done", (), {"value": lambda self, timeout: None})()
+
+    dog = Watchdog(Motion(), limit_s=0.5)
+    assert not dog._expire(100.0)  # never armed: a robot driven by something else is left alone
+    dog.heartbeat()
+    t = dog.last
+    assert not dog._expire(t + 0.4)
+    assert dog._expire(t + 0.6) and Motion.stops == 1
+    assert not dog._expire(t + 5.0) and Motion.stops == 1  # once, then disarmed until the next heartbeat
+    dog.heartbeat()
+    dog.disarm()  # a run that ended normally
+    assert not dog._expire(dog.last + 5.0) and Motion.stops == 1

@@ -18,7 +18,9 @@ import argparse
 import dataclasses
 import math
 import os
+import signal
 import sys
+import threading
 import time
 from pathlib import Path
 from typing import Any
@@ -136,6 +138,10 @@ def _warm_up(policy: Any) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
+    if threading.current_thread() is threading.main_thread():
+        # Ctrl-C must stop the robot even when this process inherited SIGINT ignored (started in the background
+        # by a shell or a supervisor: measured, a background-started deploy kept driving through a SIGINT)
+        signal.signal(signal.SIGINT, signal.default_int_handler)
     from .naoqi import NaoqiRobot, robot_url
 
     url = robot_url(args.robot_ip, args.port, args.url)

@@ -43,10 +43,11 @@ def _first_line(proc: subprocess.Popen, timeout: float) -> str:
 
 
 @contextlib.contextmanager
-def virtual_pepper(log: Path, seed: int = 0, scenario: str = "default") -> Iterator[tuple[subprocess.Popen, str]]:
+def virtual_pepper(log: Path, seed: int = 0, scenario: str = "default", *extra: str
+                   ) -> Iterator[tuple[subprocess.Popen, str]]:
     """A virtual Pepper on a free loopback port: (process, url); terminated (and continued, if stopped) on exit."""
     proc = subprocess.Popen(_module("ssbl_pb.deploy.virtual_robot", "--listen", "tcp://127.0.0.1:0", "--seed",
-                                    str(seed), "--scenario", scenario, "--log", str(log)),
+                                    str(seed), "--scenario", scenario, "--log", str(log), *extra),
                             stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
     try:
         url = _first_line(proc, 60.0).split()[-1]
@@ -140,11 +141,13 @@ def _rss_mb(pid: int) -> float | None:
     return None
 
 
-def run_fault(fault: str, folder: Path, seed: int = 11, policy: str = "straight") -> dict[str, Any]:
+def run_fault(fault: str, folder: Path, seed: int = 11, policy: str = "straight", stale: float = 0.5
+              ) -> dict[str, Any]:
     """Inject ``fault`` (one of ``FAULTS``) once the base moves; exit code, exit and stop times.
 
     ``policy_exception`` runs the loop in this process (a policy that raises) over qi; ``deploy_killed`` runs
-    the watchdog beside the virtual Pepper and kills deploy with SIGKILL."""
+    the watchdog beside the virtual Pepper and kills deploy with SIGKILL. ``stale``: deploy's staleness limit
+    (tests on a loaded machine raise it, so that late frames do not end a run before its fault)."""
     if fault not in FAULTS:
         raise ValueError(f"fault {fault!r}: expected one of {FAULTS}")
     folder.mkdir(parents=True, exist_ok=True)
@@ -152,14 +155,14 @@ def run_fault(fault: str, folder: Path, seed: int = 11, policy: str = "straight"
     out: dict[str, Any] = {"fault": fault}
     with virtual_pepper(vp_log, seed) as (vp, url):
         if fault == "policy_exception":
-            return {**out, **_policy_exception(url, folder, vp_log)}
+            return {**out, **_policy_exception(url, vp_log, stale)}
         dog = None
         if fault == "deploy_killed":
             dog = subprocess.Popen(_module("ssbl_pb.deploy.watchdog", "--robot", url), stdout=subprocess.PIPE,
                                    stderr=subprocess.DEVNULL, text=True)
             _first_line(dog, 30.0)
         try:
-            proc = start_deploy(url, folder / "deploy", policy, "--duration", "60")
+            proc = start_deploy(url, folder / "deploy", policy, "--duration", "60", "--stale", str(stale))
             wait_moving(vp_log)
             t_event = time.time()
             target = {"robot_killed": (vp, signal.SIGKILL), "camera_frozen": (vp, signal.SIGUSR1),
@@ -185,7 +188,7 @@ def run_fault(fault: str, folder: Path, seed: int = 11, policy: str = "straight"
     return out
 
 
-def _policy_exception(url: str, folder: Path, vp_log: Path) -> dict[str, Any]:
+def _policy_exception(url: str, vp_log: Path, stale: float) -> dict[str, Any]:
     """The loop in this process over qi, with a policy that raises after a second of driving."""
     import numpy as np
 
@@ -209,7 +212,7 @@ def _policy_exception(url: str, folder: Path, vp_log: Path) -> dict[str, Any]:
     robot = NaoqiRobot(url, RobotParams())
     policy = Raising()
     loop = DeployLoop(Setup(robot, policy, Perception(robot, time.monotonic, "colour"), Frames()),
-                      DeployParams(status_s=0))
+                      DeployParams(status_s=0, stale_s=stale))
     with contextlib.suppress(RuntimeError):
         loop.run()
     time.sleep(1.5)

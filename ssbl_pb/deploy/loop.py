@@ -95,7 +95,7 @@ class DeployLoop:
                                                         setup.task.intimate_zone, setup.task.route_margin),
                                 paper=setup.groups == "paper")
         setup.perception.group_model = self.group  # people out of view move by the same model
-        self._last_status = -math.inf
+        self._last_status, self._ticks_since = -math.inf, 0
 
     # -- one tick --------------------------------------------------------------------------------------------
     def _members(self, now: float) -> tuple[np.ndarray, np.ndarray, list[Any], float | None, int]:
@@ -141,12 +141,14 @@ class DeployLoop:
     def tick(self, t0: float, elapsed: float, late: bool) -> bool:
         """One control period; True when the run has succeeded."""
         s, p = self.s, self.p
+        cpu0 = time.thread_time()
         s.perception.check()
         s.perception.step()
         odo = s.robot.odometry()
         s.frames.anchor(odo.pose)
         s.perception.odometry.append((odo.stamp, odo.pose))
         now = self.now()
+        odom_ms = 1000.0 * (now - t0)
         if now - odo.stamp > p.stale_s:
             raise StaleOdometry(f"odometry is {now - odo.stamp:.2f} s old (limit {p.stale_s:g} s)")
         _, capture = s.perception.snapshot()
@@ -168,8 +170,11 @@ class DeployLoop:
         else:
             cmd, info = self._act(odo.pose, odo.velocity, pos, mvel)
             state = "joined" if info["success"] else "approach"
+        t_send = self.now()
         sent = s.robot.send(cmd)
-        tick_ms = 1000.0 * (self.now() - t0)
+        t_sent = self.now()
+        tick_ms = 1000.0 * (t_sent - t0)
+        cpu_ms = 1000.0 * (time.thread_time() - cpu0)  # this thread's CPU: the rest of tick_ms was waiting
         events = s.robot.events() if hasattr(s.robot, "events") else []
         if self.log is not None:
             fr = s.frames
@@ -182,7 +187,8 @@ class DeployLoop:
                 **{k: v for k, v in info.items() if k != "success"}, "detections": detections,
                 "min_clearance_m": float(clearance.min()) if len(clearance) else None,
                 "estimate_age_ms": None if age is None else 1000.0 * age, "frame_age_ms": 1000.0 * (now - capture),
-                "tick_ms": tick_ms, "late": late, "events": events})
+                "tick_ms": tick_ms, "tick_cpu_ms": cpu_ms, "odom_ms": odom_ms, "send_ms": 1000.0 * (t_sent - t_send),
+                "late": late, "events": events})
         self._report(now, elapsed, state, len(members), sum(m.seen for m in members), info)
         return state == "joined"
 
@@ -194,7 +200,7 @@ class DeployLoop:
         if self._approaching or self._search_side == 0.0:  # a new search
             d = pos.mean(axis=0) - pose[:2] if len(pos) else np.array([1.0, 1.0])
             self._search_side = 1.0 if math.remainder(math.atan2(d[1], d[0]) - pose[2], 2 * math.pi) >= 0 else -1.0
-            self._turned, self._sidestep_left = 0.0, 0
+            self._turned, self._last_yaw, self._sidestep_left = 0.0, None, 0
         self._approaching = False
         if self._last_yaw is not None:
             self._turned += abs(math.remainder(pose[2] - self._last_yaw, 2 * math.pi))
@@ -210,11 +216,13 @@ class DeployLoop:
         return "search", np.array([0.0, 0.0, self._search_side * p.search_turn])
 
     def _report(self, now: float, elapsed: float, state: str, known: int, seen: int, info: dict[str, Any]) -> None:
+        self._ticks_since += 1
         if self.status is None or not self.p.status_s or now - self._last_status < self.p.status_s:
             return
-        self._last_status = now
+        rate = self._ticks_since / (now - self._last_status) if math.isfinite(self._last_status) else self.p.rate_hz
+        self._last_status, self._ticks_since = now, 0
         slot = f"slot {info['slot_distance_m']:.2f} m" if "slot_distance_m" in info else "slot -"
-        self.status(f"t {elapsed:5.1f} s  {self.p.rate_hz:g} Hz  humans {known} ({seen} in view)  {slot}  {state}")
+        self.status(f"t {elapsed:5.1f} s  {rate:4.1f} Hz  humans {known} ({seen} in view)  {slot}  {state}")
 
     # -- the run ---------------------------------------------------------------------------------------------
     def _wait_first_frame(self) -> None:

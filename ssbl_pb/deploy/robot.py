@@ -133,6 +133,17 @@ class SimRobot:
             self._frame = Frame(img, self.t)
             return self._frame
 
+    def scene(self) -> tuple[float, np.ndarray, np.ndarray, np.ndarray]:
+        """What a camera needs to render the world now: time, robot pose, members' positions and headings."""
+        with self._lock:
+            g = self.world.group
+            return self.t, self.world.robot_pose.copy(), g.pos.copy(), g.yaw.copy()
+
+    def set_frame(self, frame: Frame) -> None:
+        """Make a frame rendered elsewhere (``virtual_robot``'s camera process) the newest one."""
+        with self._lock:
+            self._frame = frame
+
     def truth(self) -> dict[str, Any]:
         """Ground truth for logs and tests: room-frame poses, members, free slot, clearances."""
         with self._lock:

@@ -7,9 +7,11 @@ The group moves by the social force model; frames are TinyRenderer renders from 
 it keeps executing the last ``move`` until told otherwise and clamps commands to its limits. It binds loopback
 addresses only unless ``--allow-remote``. Port 0 picks a free port; the first stdout line is
 ``listening on URL``. ``--write-map DIR`` writes the room as a map with the flags deploy needs to use it.
-``--log`` (JSONL, flushed per line) records every simulation step: time, commanded and
-actual velocity, room-frame pose, odometry pose, the members, the free slot and the clearance, so tests can see
-when the base really stopped. SIGUSR1 freezes the camera (frames keep their last time stamp; again to thaw).
+``--log`` (JSONL, flushed per line) records every simulation step: time, commanded and actual velocity,
+room-frame pose, odometry pose, the members, the free slot and the clearance, so tests can see when the base
+really stopped. ``--security-distance`` imitates NAOqi's collision protection (a move toward a person closer
+than that is stopped and ``ALMotion/MoveFailed`` raised through ALMemory). SIGUSR1 freezes the camera (frames
+keep their last time stamp; again to thaw).
 qi 3.1.5 facts this relies on: a service is hosted with ``Session().listenStandalone(url)`` and
 ``registerService``; every public method is exported (helpers carry ``@qi.nobind``); image bytes must be
 declared (``@qi.bind("(iiiiiiriffff)", ...)``) or they arrive as their text repr.
@@ -32,7 +34,7 @@ from ..cli import ArgumentParser, run
 from ..errors import UserError
 from ..files import check_output_path
 from .naoqi import BGR, RESOLUTIONS, RGB, import_qi
-from .robot import SimRobot, compose, relative
+from .robot import Frame, SimRobot, compose, relative
 
 LOOPBACK = ("127.0.0.1", "localhost", "[::1]")
 MAX_SUBSCRIPTIONS = 6  # NAOqi's limit per subscriber name
@@ -49,11 +51,81 @@ def check_listen(url: str, allow_remote: bool) -> str:
     return url
 
 
+def _render_worker(conn: Any, world: Any, robot: Any, social: Any) -> None:
+    """The camera process: renders scenes sent over ``conn`` until it receives None."""
+    from ..env.world import World
+
+    w = World(world, robot, social)
+    w.reset(np.random.default_rng(0), n_humans=2)  # warm up (group data, compiled code, the renderer) before
+    w.render_first_person(64, 48)  # the first request: a subscriber's first frame must not come late
+    try:
+        while (msg := conn.recv()) is not None:  # EOFError: the virtual Pepper died
+            t, pose, pos, yaw, size = msg
+            if w.group is None or w.group.n != len(pos):
+                w.reset(np.random.default_rng(0), n_humans=len(pos))
+            w.base.pose = pose
+            w.group.pos[:], w.group.yaw[:] = pos, yaw
+            w.invalidate()
+            conn.send((t, w.render_first_person(*size)[0]))
+    except (EOFError, BrokenPipeError, KeyboardInterrupt):
+        pass
+    finally:
+        w.close()
+
+
+class Camera:
+    """CameraTop rendered in its own process: PyBullet holds the interpreter lock while it renders (25-40 ms a
+    QVGA frame on a loaded machine, measured), which would stall the qi services that answer deploy's calls."""
+
+    def __init__(self, robot: SimRobot) -> None:
+        import multiprocessing as mp
+
+        self.robot = robot
+        ctx = mp.get_context("spawn")
+        self.conn, child = ctx.Pipe()
+        w = robot.world
+        self.proc = ctx.Process(target=_render_worker, args=(child, w.params, w.robot_params, w.social), daemon=True)
+        self.proc.start()
+        self.busy = threading.Event()
+        self._rx = threading.Thread(target=self._receive, name="camera", daemon=True)
+        self._rx.start()
+
+    def request(self) -> None:
+        """Render the scene as it is now (skipped while the previous frame is still being rendered)."""
+        if self.busy.is_set():
+            return
+        self.busy.set()
+        t, pose, pos, yaw = self.robot.scene()
+        self.conn.send((t, pose, pos, yaw, self.robot.image_size))
+
+    def _receive(self) -> None:
+        try:
+            while True:
+                t, img = self.conn.recv()
+                self.robot.set_frame(Frame(img, t))
+                self.busy.clear()
+        except (EOFError, OSError):
+            pass
+
+    def close(self) -> None:
+        try:
+            self.conn.send(None)
+        except (BrokenPipeError, OSError):
+            pass
+        self.proc.join(2.0)
+        if self.proc.is_alive():
+            self.proc.kill()
+
+
 class VirtualPepper:
     """The simulation thread's state shared with the qi services (one lock: the ``SimRobot``'s)."""
 
-    def __init__(self, robot: SimRobot, log: Path | None = None, fps_max: int = 30) -> None:
+    def __init__(self, robot: SimRobot, log: Path | None = None, fps_max: int = 30,
+                 security_distance: float = 0.0) -> None:
         self.robot = robot
+        self.security_distance = security_distance  # m; > 0: NAOqi-like collision protection (see ``protect``)
+        self.memory: Any = None  # the ALMemory service, for ALMotion/MoveFailed
+        self._refused = False
         self.epoch = time.time()  # the robot clock of frame stamps: wall time at start + sim time
         self.frozen = False
         self.fps = 0
@@ -61,6 +133,7 @@ class VirtualPepper:
         self.fps_max = fps_max
         self._log = open(log, "a", buffering=1) if log is not None else None  # closed in close()
         self._log_lock = threading.Lock()
+        self.camera: Camera | None = None  # started by ``run``
         self.write({"kind": "start", "wall": time.time(), "start_pose": robot.start_pose.tolist(), **robot.info})
 
     def write(self, row: dict[str, Any]) -> None:
@@ -77,6 +150,7 @@ class VirtualPepper:
     def run(self, stop: threading.Event) -> None:
         """Advance the world in real time (and render the camera at the subscribed rate) until ``stop``."""
         dt = self.robot.world.params.dt
+        self.camera = Camera(self.robot)
         t0 = time.monotonic()
         next_frame = 0.0
         while not stop.is_set():
@@ -88,12 +162,32 @@ class VirtualPepper:
                 time.sleep(dt - behind)
                 continue
             self.robot.advance(dt)
+            self.protect()
             self.step_row()
             if self.fps and not self.frozen and self.robot.t >= next_frame:
-                self.robot.render()
+                self.camera.request()
                 next_frame = self.robot.t + 1.0 / self.fps - 1e-6
 
+    def protect(self) -> None:
+        """NAOqi's external collision protection, simplified: a move heading toward a person whose clearance is
+        below ``security_distance`` is stopped and ``ALMotion/MoveFailed`` raised (once per move)."""
+        r = self.robot
+        if self.security_distance <= 0 or not any(r._cmd[:2]) or self._refused:
+            return
+        w = r.world
+        clear = w.human_clearance()
+        k = int(np.argmin(clear))
+        rel = relative(w.robot_pose, np.array([*w.group.pos[k], 0.0]))[:2]  # the person in the robot frame
+        if clear[k] < self.security_distance and float(r._cmd[:2] @ rel) > 0:
+            r.stop()
+            self._refused = True
+            self.write({"kind": "call", "wall": time.time(), "t": r.t, "call": "MoveFailed", "obstacle": rel.tolist()})
+            if self.memory is not None:
+                self.memory.raise_event("ALMotion/MoveFailed", ["Safety", 1, [float(rel[0]), float(rel[1])]])
+
     def close(self) -> None:
+        if self.camera is not None:
+            self.camera.close()
         self.robot.close()
         if self._log is not None:
             with self._log_lock:
@@ -130,13 +224,15 @@ def write_room_map(folder: Path, robot: SimRobot, resolution: float = 0.05,
     return folder / "room.yaml", start
 
 
-def make_services(vp: VirtualPepper) -> tuple[Any, Any]:
-    """ALMotion and ALVideoDevice objects with NAOqi's method names and return layouts."""
+def make_services(vp: VirtualPepper) -> tuple[Any, Any, Any]:
+    """ALMotion, ALVideoDevice and ALMemory (``subscriber``, for ALMotion/MoveFailed) objects with NAOqi's
+    method names and return layouts."""
     qi = import_qi()
     robot = vp.robot
 
     class ALMotion:
         def move(self, x: float, y: float, theta: float) -> None:
+            vp._refused = False
             robot.send(np.array([x, y, theta], dtype=float))
 
         def stopMove(self) -> None:
@@ -187,7 +283,24 @@ def make_services(vp: VirtualPepper) -> tuple[Any, Any]:
             vp.write({"kind": "call", "wall": time.time(), "t": robot.t, "call": "unsubscribe", "handle": handle})
             return vp.subs.pop(handle, None) is not None
 
-    return ALMotion(), ALVideoDevice()
+    class Subscriber:
+        def __init__(self) -> None:
+            self.signal = qi.Signal("m")
+
+    class ALMemory:
+        def __init__(self) -> None:
+            self.subscribers: dict[str, Subscriber] = {}
+
+        def subscriber(self, key: str) -> Subscriber:
+            return self.subscribers.setdefault(key, Subscriber())
+
+        @qi.nobind
+        def raise_event(self, key: str, value: Any) -> None:
+            if key in self.subscribers:
+                self.subscribers[key].signal(value)
+
+    vp.memory = ALMemory()
+    return ALMotion(), ALVideoDevice(), vp.memory
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -198,6 +311,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--log", type=Path, help="JSONL log of every simulation step")
     ap.add_argument("--allow-remote", action="store_true", help="allow a non-loopback --listen address")
     ap.add_argument("--duration", type=float, default=0.0, help="exit after this many seconds (0: run until killed)")
+    ap.add_argument("--security-distance", type=float, default=0.0,
+                    help="m; > 0 stops moves toward a person closer than this and raises ALMotion/MoveFailed, like "
+                    "NAOqi's collision protection (default 0: off)")
     ap.add_argument("--write-map", type=Path, metavar="DIR", help="write the room as a map (DIR/room.yaml for "
                     "deploy's --map) and print the robot's --start-pose on it")
     args = ap.parse_args(argv)
@@ -214,10 +330,9 @@ def main(argv: list[str] | None = None) -> int:
     except RuntimeError as exc:
         robot.close()
         raise UserError(f"--listen {url}: cannot listen there ({exc})") from None
-    vp = VirtualPepper(robot, args.log)
-    motion, video = make_services(vp)
-    session.registerService("ALMotion", motion)
-    session.registerService("ALVideoDevice", video)
+    vp = VirtualPepper(robot, args.log, security_distance=args.security_distance)
+    for name, service in zip(("ALMotion", "ALVideoDevice", "ALMemory"), make_services(vp), strict=True):
+        session.registerService(name, service)
     signal.signal(signal.SIGUSR1, lambda *_: setattr(vp, "frozen", not vp.frozen))
     x, y, yaw = robot.start_pose
     print(f"listening on {session.endpoints()[0]}", flush=True)
