@@ -8,12 +8,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from ssbl_pb.analysis.evaluation import Setup, evaluate
 from ssbl_pb.env.approach import ApproachGroupEnv
 from ssbl_pb.env.observation import OBS_SIZE
 from ssbl_pb.env.policies import SFFMPolicy, StraightPolicy, make_policy
 from ssbl_pb.env.rollout import run_episode
 from ssbl_pb.errors import UserError
-from ssbl_pb.evaluation import Setup, evaluate
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -108,7 +108,7 @@ def test_shipped_vector_policy_joins_the_group():
 
 
 def test_compare_marks_the_better_side():
-    from ssbl_pb.compare import compare_rows
+    from ssbl_pb.analysis.compare import compare_rows
 
     learned = [{"success": 1.0, "mean_jerk": 0.1 + 0.01 * i, "n_humans": 2.0} for i in range(20)]
     baseline = [{"success": 1.0, "mean_jerk": 0.3 + 0.01 * i, "n_humans": 3.0} for i in range(20)]

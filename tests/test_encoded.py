@@ -110,7 +110,7 @@ def test_config_checks_the_encoder_checkpoint(checkpoints: dict[str, Path]) -> N
 @pytest.mark.parametrize("obs_mode,policy", [("camera_speed", "lstm"), ("camera", "ff")])
 def test_train_and_evaluate_a_camera_policy(checkpoints: dict[str, Path], tmp_path: Path, obs_mode: str,
                                             policy: str) -> None:
-    from ssbl_pb.evaluation import Setup, evaluate
+    from ssbl_pb.analysis.evaluation import Setup, evaluate
     from ssbl_pb.training.run import train
 
     cfg = load_config(None, {"obs_mode": obs_mode, "encoder": "saev", "policy": policy, "camera_size": 24,
@@ -126,7 +126,7 @@ def test_train_and_evaluate_a_camera_policy(checkpoints: dict[str, Path], tmp_pa
 
 
 def test_shipped_camera_speed_saev_policy_runs_with_its_encoder() -> None:
-    from ssbl_pb.evaluation import Setup
+    from ssbl_pb.analysis.evaluation import Setup
 
     env, policy = Setup("camera_speed_saev")()  # no --obs-mode: the policy brings its camera mode and encoder
     obs, _ = env.reset(seed=500_000)

@@ -142,7 +142,7 @@ def test_evaluate_shield_flag_is_checked():
 
 
 def test_evaluation_shield_follows_a_calibrated_robot(tmp_path):
-    from ssbl_pb.evaluation import Setup
+    from ssbl_pb.analysis.evaluation import Setup
 
     robot = tmp_path / "robot.yaml"
     robot.write_text("max_accel: 0.15\n")

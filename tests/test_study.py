@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from ssbl_pb.study import StudyError, analyze
+from ssbl_pb.analysis.study import StudyError, analyze
 
 ROOT = Path(__file__).resolve().parents[1]
 

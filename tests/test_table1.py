@@ -8,8 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from ssbl_pb.table1 import BUDGETS, ROWS, find_row, percent, run_row, smoothed_best
-from ssbl_pb.table1_report import aggregate, ordering_checks
+from ssbl_pb.analysis.table1 import BUDGETS, ROWS, find_row, percent, run_row, smoothed_best
+from ssbl_pb.analysis.table1_report import aggregate, ordering_checks
 
 
 def test_smoothed_best_and_percentage_by_hand() -> None:

@@ -20,8 +20,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, default=Path("results/study"))
     args = ap.parse_args(argv)
 
+    from ssbl_pb.analysis.study import analyze, markdown, plot
     from ssbl_pb.files import check_output_path, output_dir, write_json, write_text
-    from ssbl_pb.study import analyze, markdown, plot
 
     check_output_path(args.out)
     res = analyze(args.ratings, tuple(args.conditions) if args.conditions else None)

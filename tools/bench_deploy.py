@@ -36,7 +36,7 @@ def main(argv: list[str] | None = None) -> int:
         raise UserError(f"--faults {','.join(bad)}: expected a comma list of {', '.join(FAULTS)}, or none")
     if args.soak < 0:
         raise UserError(f"--soak {args.soak}: expected seconds >= 0")
-    from ssbl_pb.evaluation import check_policy_spec
+    from ssbl_pb.analysis.evaluation import check_policy_spec
     from ssbl_pb.files import check_output_path
 
     check_policy_spec(args.policy)

@@ -119,8 +119,8 @@ def main(argv: list[str] | None = None) -> int:
     if bad or not settings:
         raise UserError(f"--settings {args.settings!r}: expected a comma list of {SETTINGS}")
 
+    from ssbl_pb.analysis.report import write_json
     from ssbl_pb.files import check_output_path
-    from ssbl_pb.report import write_json
     from ssbl_pb.training.config import load_config, parse_overrides
 
     check_output_path(args.out, is_dir=False)

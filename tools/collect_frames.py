@@ -29,8 +29,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=0, help="seed of the first episode; episode i uses seed+i")
     args = ap.parse_args(argv)
 
+    from ssbl_pb.analysis.evaluation import check_policy_spec
     from ssbl_pb.errors import UserError
-    from ssbl_pb.evaluation import check_policy_spec
     from ssbl_pb.files import check_output_path
     from ssbl_pb.perception.frames import collect, save_frames
 

@@ -20,10 +20,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--width", type=int_in(64, 4096), default=480, help="video width in pixels (64-4096)")
     args = ap.parse_args(argv)
 
+    from ssbl_pb.analysis.evaluation import build_policy, check_policy_spec
+    from ssbl_pb.analysis.video import contact_sheet, record_episode, save_png, write_mp4
     from ssbl_pb.env.approach import make_env
-    from ssbl_pb.evaluation import build_policy, check_policy_spec
     from ssbl_pb.files import check_output_path, output_dir
-    from ssbl_pb.video import contact_sheet, record_episode, save_png, write_mp4
 
     check_policy_spec(args.policy)
     check_output_path(args.out)

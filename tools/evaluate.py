@@ -36,7 +36,7 @@ def main(argv: list[str] | None = None) -> int:
         ap.add_argument(f"--{name}-yaml", help=f"calibrated {name} parameters ({what}'s output)")
     args = ap.parse_args(argv)
 
-    from ssbl_pb.evaluation import Setup, evaluate
+    from ssbl_pb.analysis.evaluation import Setup, evaluate
 
     workers = args.workers or ((os.cpu_count() or 1) if args.episodes >= 40 else 1)
     calib = tuple((f"{k}_yaml", v) for k in ("camera", "robot", "social", "room", "groups")

@@ -28,12 +28,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=0)
     args = ap.parse_args(argv)
 
-    from ssbl_pb.compare_plot import plot_summaries
+    from ssbl_pb.analysis.compare_plot import plot_summaries
+    from ssbl_pb.analysis.evaluation import Setup, build_policy, evaluate
+    from ssbl_pb.analysis.video import record_episode, write_mp4
     from ssbl_pb.env.approach import make_env
-    from ssbl_pb.evaluation import Setup, build_policy, evaluate
     from ssbl_pb.files import check_output_path, write_text
     from ssbl_pb.training.run import load_config, train
-    from ssbl_pb.video import record_episode, write_mp4
 
     check_output_path(args.out)
     cfg = load_config(ROOT / "configs" / "vector_ff.yaml",

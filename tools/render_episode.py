@@ -23,10 +23,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--first-person", action="store_true", help="also write OUT.first_person.png (contact sheet)")
     args = ap.parse_args(argv)
 
+    from ssbl_pb.analysis.evaluation import build_policy, check_policy_spec, outcome
+    from ssbl_pb.analysis.video import contact_sheet, record_episode, save_png, write_mp4
     from ssbl_pb.env.approach import make_env
-    from ssbl_pb.evaluation import build_policy, check_policy_spec, outcome
     from ssbl_pb.files import check_output_path, output_dir
-    from ssbl_pb.video import contact_sheet, record_episode, save_png, write_mp4
 
     if args.out.suffix != ".mp4":
         return fail(f"--out {args.out}: expected a .mp4 file name")

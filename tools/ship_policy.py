@@ -37,9 +37,9 @@ def pick_model(run_dir: Path, which: str) -> Path:
 
 
 def evaluate(policy: str, seeds: range, label: str) -> dict[str, dict[str, float]]:
+    from ssbl_pb.analysis.evaluation import Setup
+    from ssbl_pb.analysis.report import summarize
     from ssbl_pb.env.rollout import run_episodes
-    from ssbl_pb.evaluation import Setup
-    from ssbl_pb.report import summarize
 
     results = {}
     for scenario in SCENARIOS:

@@ -25,7 +25,7 @@ from ssbl_pb.cli import ArgumentParser, run
 
 
 def main(argv: list[str] | None = None) -> int:
-    from ssbl_pb.table1 import BUDGETS, ROWS
+    from ssbl_pb.analysis.table1 import BUDGETS, ROWS
 
     ap = ArgumentParser(description=__doc__)
     ap.add_argument("--budget", required=True, help=f"one of {', '.join(BUDGETS)}")
@@ -37,10 +37,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--threads", type=int, default=1, help="torch threads (default 1)")
     args = ap.parse_args(argv)
 
+    from ssbl_pb.analysis.table1 import find_row, get_budget
     from ssbl_pb.errors import UserError
     from ssbl_pb.files import check_output_path
     from ssbl_pb.perception.ae_train import checkpoint_info
-    from ssbl_pb.table1 import find_row, get_budget
 
     budget = get_budget(args.budget)
     if args.seeds < 1:
@@ -54,9 +54,9 @@ def main(argv: list[str] | None = None) -> int:
 
     import torch
 
+    from ssbl_pb.analysis.table1 import prepare_encoders, run_row
+    from ssbl_pb.analysis.table1_report import write_table
     from ssbl_pb.cli import make_bar
-    from ssbl_pb.table1 import prepare_encoders, run_row
-    from ssbl_pb.table1_report import write_table
 
     torch.set_num_threads(max(1, args.threads))
     args.out.mkdir(parents=True, exist_ok=True)

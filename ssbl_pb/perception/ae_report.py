@@ -9,8 +9,8 @@ from typing import Any
 
 import numpy as np
 
+from ..analysis.video import save_png
 from ..files import write_json, write_text
-from ..video import save_png
 from .ae_plots import keypoint_overlay, plot_losses, reconstructions
 from .ae_train import save_checkpoint, split_centres
 from .autoencoders import SAEV, Autoencoder

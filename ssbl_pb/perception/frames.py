@@ -64,9 +64,9 @@ def _member_pixels(world, cam, seg: np.ndarray) -> tuple[np.ndarray, np.ndarray]
 def collect(episodes: int, size: int, seed: int = 0, policies: tuple[str, ...] = DEFAULT_POLICIES,
             scenario: str = "mixed", progress: Callable[[int], None] | None = None) -> dict[str, np.ndarray]:
     """Run ``episodes`` episodes (seeds ``seed``, ``seed + 1``, ...; episode i driven by ``policies[i % P]``)."""
+    from ..analysis.evaluation import build_policy
     from ..env.approach import make_env
     from ..env.rollout import run_episode
-    from ..evaluation import build_policy
     from .sim_eval import sim_camera
 
     if not isinstance(episodes, int) or episodes < 1:

@@ -10,8 +10,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from ..analysis.report import mean_ci
 from ..files import atomic_write, write_text
-from ..report import mean_ci
 from .spec import SweepSpec
 from .trial import METRICS, TrainEvalTrial
 

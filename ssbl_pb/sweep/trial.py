@@ -54,7 +54,7 @@ class TrainEvalTrial:
         return {"kind": "train_eval", "config": self.config, "eval": dataclasses.asdict(self.evaluation)}
 
     def __call__(self, trial_dir: Path) -> dict[str, Any]:
-        from ..evaluation import Setup, evaluate
+        from ..analysis.evaluation import Setup, evaluate
         from ..training.config import load_config
         from ..training.run import train
 

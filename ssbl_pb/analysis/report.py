@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 from scipy import stats
 
-from .files import write_json, write_text
+from ..files import write_json, write_text
 
 __all__ = ["mean_ci", "summarize", "write_csv", "write_json", "plot_paths"]
 

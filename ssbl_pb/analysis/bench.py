@@ -7,7 +7,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from .env.bullet import pybullet as p
+from ..env.bullet import pybullet as p
 
 
 def rate(fn: Callable[[], None], n: int, repeats: int = 5) -> float:
@@ -24,9 +24,9 @@ def rate(fn: Callable[[], None], n: int, repeats: int = 5) -> float:
 def simulator_rates(n_steps: int = 20_000, n_frames: int = 500, seed: int = 0) -> dict[str, float]:
     """raw_step_per_s, raw_render_fps_84, world_step_per_s, camera_fps_84, camera_fps_128, env_step_per_s,
     batched_env_step_per_s (env steps of the 8-copy training env, smoothing and shield included)."""
-    from .env.approach import ApproachGroupEnv
-    from .env.cameras import first_person_view, perspective
-    from .env.world import World
+    from ..env.approach import ApproachGroupEnv
+    from ..env.cameras import first_person_view, perspective
+    from ..env.world import World
 
     world = World()
     world.reset(np.random.default_rng(seed))
@@ -67,7 +67,7 @@ def simulator_rates(n_steps: int = 20_000, n_frames: int = 500, seed: int = 0) -
     out["env_step_per_s"] = rate(env_step, n_steps // 2)
     env.close()
 
-    from .training.vec_env import BatchedVecEnv
+    from ..training.vec_env import BatchedVecEnv
 
     venv = BatchedVecEnv(8, smoothing=0.4, shield=True)  # as training runs it (configs/vector_ff.yaml)
     venv.seed(seed)
@@ -89,7 +89,7 @@ def evaluation_seconds(episodes: int = 200, policy: str = "vector", seed: int = 
     ``tools/evaluate.py --workers 1`` spends after start-up), and its success rate (a check that it played)."""
     import torch
 
-    from .env.rollout import run_episodes
+    from ..env.rollout import run_episodes
     from .evaluation import Setup
 
     torch.set_num_threads(1)

@@ -10,12 +10,12 @@ from typing import Any
 
 import gymnasium as gym
 
-from .env.approach import make_env
-from .env.policies import BASELINES, Policy, make_policy
-from .env.rollout import EpisodeResult, run_episodes
-from .errors import UserError
-from .files import check_output_path, make_stage_dir, output_dir
-from .policies import SHIPPED
+from ..env.approach import make_env
+from ..env.policies import BASELINES, Policy, make_policy
+from ..env.rollout import EpisodeResult, run_episodes
+from ..errors import UserError
+from ..files import check_output_path, make_stage_dir, output_dir
+from ..policies import SHIPPED
 from .report import plot_paths, summarize, write_csv, write_json
 
 
@@ -30,7 +30,7 @@ class Setup:
     shield: bool | None = None  # a trained policy's safety shield: None = as trained, else forced on/off
 
     def __call__(self) -> tuple[gym.Env, Policy]:
-        from .env.trained import policy_env_kwargs
+        from ..env.trained import policy_env_kwargs
 
         # a policy on a frozen autoencoder brings its camera mode and encoder (env.encoded)
         kwargs = {"obs_mode": self.obs_mode, **dict(self.env_kwargs), **policy_env_kwargs(self.policy)}
@@ -46,8 +46,8 @@ def build_policy(spec: str, env: gym.Env, shield: bool | None = None) -> Policy:
         if spec != "random" and env.observation_space != core.observation_space:
             raise UserError(f"policy '{spec}' reads the vector observation; use --obs-mode vector")
         return make_policy(spec, core.robot_params, core.social, seed=0)
-    from .env.shield import ShieldParams
-    from .env.trained import load_trained
+    from ..env.shield import ShieldParams
+    from ..env.trained import load_trained
 
     # the shield brakes within this env's (possibly calibrated) robot limits
     return load_trained(spec, env.observation_space, shield, ShieldParams.from_env(core.robot_params, core.social,

@@ -27,8 +27,8 @@ from typing import Any
 
 import numpy as np
 
-from .errors import UserError
-from .files import write_json
+from ..errors import UserError
+from ..files import write_json
 
 BENCH_SEED = 500_000  # held-out evaluation seeds (docs/decisions.md, "Training")
 
@@ -122,10 +122,10 @@ def prepare_encoders(budget: Budget, out: Path, archs: set[str], given: dict[str
                      progress: Any = None) -> dict[str, str]:
     """Checkpoint path per architecture in ``archs``: given ones as they are, else trained into
     ``out/ae/ARCH`` (frames in ``out/frames.npz``), reusing what an earlier run of the table left there."""
-    from .perception.ae_report import write_report
-    from .perception.ae_train import AETrainParams, train_autoencoder
-    from .perception.autoencoders import SIZES
-    from .perception.frames import collect, load_frames, save_frames
+    from ..perception.ae_report import write_report
+    from ..perception.ae_train import AETrainParams, train_autoencoder
+    from ..perception.autoencoders import SIZES
+    from ..perception.frames import collect, load_frames, save_frames
 
     paths: dict[str, str] = {}
     frames_file = out / "frames.npz"
@@ -149,9 +149,9 @@ def prepare_encoders(budget: Budget, out: Path, archs: set[str], given: dict[str
 # -- stage 2: one row ----------------------------------------------------------------------------------------
 def _default_reward() -> dict[str, Any]:
     """The default training config's reward keys (configs/vector_ff.yaml): weights and ramp."""
-    from .params import load_yaml
+    from ..params import load_yaml
 
-    cfg = load_yaml(Path(__file__).resolve().parents[1] / "configs" / "vector_ff.yaml")
+    cfg = load_yaml(Path(__file__).resolve().parents[2] / "configs" / "vector_ff.yaml")
     return {k: cfg[k] for k in ("reward", "reward_ramp", "reward_ramp_fraction") if k in cfg}
 
 
@@ -165,7 +165,7 @@ def row_config(row: Row, seed: int, budget: Budget, encoders: dict[str, str]) ->
         "checkpoint_every": budget.eval_every, "baseline_episodes": 2,
         "ppo": {"n_steps": budget.n_steps, "batch_size": min(256, budget.n_steps * budget.n_envs)}}
     if row.encoder in ("conv", "saev"):
-        from .perception.ae_train import checkpoint_info
+        from ..perception.ae_train import checkpoint_info
 
         cfg["encoder_checkpoint"] = encoders[row.encoder]
         cfg["camera_size"] = int(checkpoint_info(encoders[row.encoder])["resolution"])
@@ -174,7 +174,7 @@ def row_config(row: Row, seed: int, budget: Budget, encoders: dict[str, str]) ->
 
 def _test_episodes(spec: str, episodes: int, seed: int = BENCH_SEED, reward: dict | None = None
                    ) -> dict[str, float]:
-    from .env.rollout import run_episodes
+    from ..env.rollout import run_episodes
     from .evaluation import Setup
 
     res = run_episodes(Setup(spec, env_kwargs=(("reward", reward or {}),)), range(seed, seed + episodes))
@@ -198,7 +198,7 @@ def run_row(row: Row, seed: int, budget: Budget, out: Path, encoders: dict[str, 
         return json.loads(result_file.read_text())
     t0 = time.perf_counter()
     if row.obs_mode == "random":
-        from .training.config import TrainConfig, load_config
+        from ..training.config import TrainConfig, load_config
 
         cfg = load_config(None, row_config(BASELINE, seed, budget, {}))
         final = {**cfg.reward, **{k: v[1] for k, v in cfg.reward_ramp.items()}}  # as the evaluations
@@ -206,8 +206,8 @@ def run_row(row: Row, seed: int, budget: Budget, out: Path, encoders: dict[str, 
         test = _test_episodes("random", budget.test_episodes)
         result = {"reward": evals["mean_return"], "steps": 0, **test}
     else:
-        from .training.config import load_config
-        from .training.run import train
+        from ..training.config import load_config
+        from ..training.run import train
 
         run_dir = out / "runs" / f"{row.slug}_s{seed}"
         cfg = load_config(None, row_config(row, seed, budget, encoders or {}))

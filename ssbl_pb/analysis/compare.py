@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 from scipy import stats
 
-from .env import metrics
+from ..env import metrics
 from .report import mean_ci
 
 # the five social measures of the targets: lower is better for each

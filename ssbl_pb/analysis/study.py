@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 from scipy import stats
 
-from .errors import UserError
+from ..errors import UserError
 
 ITEMS = ("polite", "sociable", "rude", "human_like")
 REQUIRED = ("participant", "condition", "item", "rating")

@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from .files import write_json, write_text
+from ..files import write_json, write_text
 from .table1 import BASELINE, RANDOM, ROWS, Budget, percent
 
 
