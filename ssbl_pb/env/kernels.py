@@ -445,29 +445,24 @@ def shield(obs: np.ndarray, actions: np.ndarray, clearance_min: float, brake_acc
     tx = np.empty(MAX_MEMBERS)
     ty = np.empty(MAX_MEMBERS)
     order = np.empty(MAX_MEMBERS, dtype=np.int64)
+    reach = math.hypot(half_length, half_width)
     for i in range(obs.shape[0]):
         out[i, :] = actions[i, :]
         k = 0
-        heading = float(obs[i, 39]) * math.pi
-        c, s = math.cos(heading), math.sin(heading)
         for j in range(MAX_MEMBERS):
             b = 14 + MEMBER_FIELDS * j
             if not float(obs[i, b + 4]) > 0.5:
                 continue
             px, py = float(obs[i, b]) * POS_SCALE, float(obs[i, b + 1]) * POS_SCALE
-            lx, ly = px * c + py * s, px * -s + py * c
-            dx, dy = lx - min(max(lx, -half_length), half_length), ly - min(max(ly, -half_width), half_width)
-            dist = math.hypot(dx, dy)
-            if dist < 1e-9:
-                dx, dy = lx, ly
-            norm = max(math.hypot(dx, dy), 1e-9)
-            ux, uy = dx / norm, dy / norm
-            v = dist - human_radius
+            dist = math.hypot(px, py)  # from the footprint's circumscribed circle (``shield.footprint_clearance``)
+            norm = max(dist, 1e-9)
+            v = dist - reach - human_radius
+            tx_j, ty_j = px / norm, py / norm
             m = k
             while m > 0 and cl[m - 1] > v:
                 cl[m], tx[m], ty[m], order[m] = cl[m - 1], tx[m - 1], ty[m - 1], order[m - 1]
                 m -= 1
-            cl[m], tx[m], ty[m], order[m] = v, ux * c - uy * s, ux * s + uy * c, j
+            cl[m], tx[m], ty[m], order[m] = v, tx_j, ty_j, j
             k += 1
         if k == 0:
             continue
