@@ -100,7 +100,7 @@ def test_baseline_needs_vector_obs(tmp_path):
 def test_shipped_vector_policy_joins_the_group():
     from ssbl_pb.env.trained import load_trained
 
-    env = ApproachGroupEnv(record=True, groups="paper")  # the policy shipped before issue 14 learned these groups
+    env = ApproachGroupEnv(record=True)
     pol = load_trained("vector", env.observation_space)
     assert pol.filter is not None  # the agent's action smoothing travels with the model
     wins = [run_episode(env, pol, 500_000 + i).metrics["success"] for i in range(4)]

@@ -24,22 +24,27 @@ def obs_with(members, members_vel=None, heading=0.0):
     return obs
 
 
-def test_footprint_clearance_matches_the_worlds_box_geometry():
+REACH = math.hypot(0.24, 0.215)  # the footprint's circumscribed radius
+
+
+def test_footprint_clearance_is_the_circumscribed_circles_a_lower_bound_at_any_heading():
     rng = np.random.default_rng(0)
     pts = rng.uniform(-2, 2, (50, 2))
-    for heading in (0.0, 0.4, -2.0):
-        ours, toward = footprint_clearance(pts, heading, P)
-        ref = box_circle_distance(np.array([0.0, 0.0, heading]), (0.24, 0.215), pts) - 0.28
-        assert np.allclose(ours, ref)
-        assert np.allclose(np.hypot(toward[:, 0], toward[:, 1]), 1.0)
-    # straight ahead: the direction is +x and the clearance is the gap from the front face
+    ours, toward = footprint_clearance(pts, 0.0, P)
+    assert np.allclose(ours, np.hypot(pts[:, 0], pts[:, 1]) - REACH - 0.28)
+    assert np.allclose(np.hypot(toward[:, 0], toward[:, 1]), 1.0)
+    for heading in np.linspace(-math.pi, math.pi, 13):  # turning never brings the box closer than that
+        box = box_circle_distance(np.array([0.0, 0.0, heading]), (0.24, 0.215), pts) - 0.28
+        assert np.all(ours <= box + 1e-12)
+        assert np.allclose(footprint_clearance(pts, heading, P)[0], ours)
+    # a member straight ahead: direction +x, the gap from a corner's circle
     c, u = footprint_clearance(np.array([[1.0, 0.0]]), 0.0, P)
-    assert c[0] == pytest.approx(1.0 - 0.24 - 0.28) and np.allclose(u[0], [1.0, 0.0])
+    assert c[0] == pytest.approx(1.0 - REACH - 0.28) and np.allclose(u[0], [1.0, 0.0])
 
 
 def test_closing_speed_is_limited_to_what_the_base_can_still_brake():
-    # a member straight ahead with 0.6 m between the front face and its body
-    member = np.array([[0.24 + 0.28 + 0.6, 0.0]])
+    # a member straight ahead with 0.6 m between the footprint's circle and its body
+    member = np.array([[REACH + 0.28 + 0.6, 0.0]])
     out = shield_action(obs_with(member), np.array([1.0, 0.0]), P)
     allow = math.sqrt(2 * 0.2 * (0.6 - 0.5))  # 0.2 m/s
     assert out[0] * 0.35 == pytest.approx(allow) and out[1] == 0.0
@@ -47,7 +52,7 @@ def test_closing_speed_is_limited_to_what_the_base_can_still_brake():
     assert np.allclose(shield_action(obs_with(member), np.array([0.0, 1.0]), P), [0.0, 1.0])
     assert np.allclose(shield_action(obs_with(member), np.array([-0.9, 0.3]), P), [-0.9, 0.3])
     # at the limit: no closing at all, and a diagonal command keeps only its sideways part
-    at_limit = np.array([[0.24 + 0.28 + 0.5, 0.0]])
+    at_limit = np.array([[REACH + 0.28 + 0.5, 0.0]])
     assert np.allclose(shield_action(obs_with(at_limit), np.array([0.7, 0.7]), P), [0.0, 0.7], atol=1e-6)
     # a member walking toward the robot: the robot must back off
     out = shield_action(obs_with(at_limit, np.array([[-0.1, 0.0]])), np.zeros(2), P)

@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from ..env.humans import measured_group
+from ..env.humans import MAX_HUMANS, measured_group
 from ..params import SocialParams
 from ..perception.camera import PinholeCamera
 from ..perception.tracker import Tracker, TrackerParams
@@ -100,7 +100,11 @@ class GroupModel:
         self.centre0, self.n = None, 0
 
     def group(self, members: np.ndarray, centre: np.ndarray) -> Any:
-        """The env's group standing where ``members`` stand around ``centre`` (``humans.measured_group``)."""
+        """The env's group standing where ``members`` stand around ``centre`` (``humans.measured_group``; the
+        ``MAX_HUMANS`` nearest the centre when more people are tracked, as the observation holds no more)."""
+        members = np.asarray(members, dtype=float).reshape(-1, 2)
+        if len(members) > MAX_HUMANS:
+            members = members[np.argsort(np.hypot(*(members - centre).T), kind="stable")[:MAX_HUMANS]]
         return measured_group(self.social, members, centre, self.keep, self.paper)
 
     def update(self, members: np.ndarray, robot_xy: np.ndarray) -> tuple[np.ndarray, float, float, np.ndarray]:
@@ -177,7 +181,7 @@ class GroupTracker:
         velocity decaying over ``coast_tau_s``."""
         if not gone:
             return
-        if self.centre0 is None or len(seen) + len(gone) < 2:
+        if self.centre0 is None or not 2 <= len(seen) + len(gone) <= MAX_HUMANS:  # no group model: coast
             decay = math.exp(-dt / self.p.coast_tau_s)
             for m in gone:
                 m.pos = m.pos + m.vel * (self.p.coast_tau_s * (1.0 - decay))  # exact for v(t) = v0 exp(-t / tau)
