@@ -1,5 +1,5 @@
-"""Table I (ssbl_pb/table1.py, table1_report.py, tools/table1.py): the paper's formulas by hand, aggregation
-over seeds, resuming row by row, and a smoke run of the tool."""
+"""Table I (ssbl_pb/analysis/table1.py, table1_report.py, tools/table1.py): the paper's formulas by hand,
+aggregation over seeds, rows as sweep trials resumed one by one, and a smoke run of the tool."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from ssbl_pb.analysis.table1 import BUDGETS, ROWS, find_row, percent, run_row, smoothed_best
+from ssbl_pb.analysis.table1 import BUDGETS, ROWS, find_row, percent, row_trials, smoothed_best
 from ssbl_pb.analysis.table1_report import aggregate, ordering_checks
 
 
@@ -42,12 +42,22 @@ def test_aggregate_takes_percentages_per_seed() -> None:
     assert checks["CameraOnly + SAEV + FF > Random policy"] is None  # row missing
 
 
-def test_a_finished_row_is_read_back_not_retrained(tmp_path: Path) -> None:
-    done = _res("Vector + FF", 3, -5.0) | {"budget": "full"}
-    (tmp_path / "rows").mkdir()
-    (tmp_path / "rows" / "vector_ff_s3.json").write_text(json.dumps(done))
-    assert run_row(find_row("Vector + FF"), 3, BUDGETS["full"], tmp_path) == done
-    assert not (tmp_path / "runs").exists()
+def test_rows_are_sweep_trials_and_a_finished_one_is_read_back(tmp_path: Path) -> None:
+    from ssbl_pb.sweep import run_trials
+    from ssbl_pb.sweep.runner import RESULT, _normal, trial_dir
+
+    rows = [find_row("vector_ff"), find_row("cameraonly_saev_ff")]
+    trials = row_trials(rows, 2, BUDGETS["full"], {"saev": "/x/saev.pt", "conv": "/x/conv.pt"})
+    assert [t.name for t in trials] == ["vector_ff,seed=0", "cameraonly_saev_ff,seed=0", "vector_ff,seed=1",
+                                        "cameraonly_saev_ff,seed=1"]
+    assert trials[0].definition()["encoder"] is None and trials[1].definition()["encoder"] == "/x/saev.pt"
+    done = _res("Vector + FF", 1, -5.0)
+    path = trial_dir(tmp_path, trials[2].name) / RESULT
+    path.parent.mkdir(parents=True)
+    path.write_text(json.dumps({"task": _normal(trials[2].definition()), "result": done}))
+    outcome = run_trials(trials[2:3], tmp_path, workers=1)
+    assert outcome.records[trials[2].name]["result"] == done and not outcome.failed
+    assert sorted(p.name for p in path.parent.iterdir()) == [RESULT]  # read back: nothing trained
 
 
 @pytest.mark.slow
@@ -68,7 +78,10 @@ def test_smoke_table_and_resume(tmp_path: Path) -> None:
     md = (out / "table1.md").read_text()
     assert "| CameraSpeed + SAEV + LSTM |" in md and "79.80 %" in md
     assert (out / "ae" / "saev" / "keypoints.png").is_file() and (out / "ae" / "conv" / "encoder.pt").is_file()
-    stamps = {p.name: p.stat().st_mtime_ns for p in (out / "rows").iterdir()}
+    results = sorted((out / "trials").glob("*/result.json"))
+    assert [p.parent.name for p in results] == ["cameraonly_conv_ff,seed=0", "cameraspeed_saev_lstm,seed=0",
+                                                "random_policy,seed=0", "vector_lstm,seed=0"]
+    stamps = {p: p.stat().st_mtime_ns for p in results}
     again = run_tool("table1.py", argv, timeout=120)  # every row finished: read back, nothing retrained
     assert again.returncode == 0, again.stderr[-2000:]
-    assert {p.name: p.stat().st_mtime_ns for p in (out / "rows").iterdir()} == stamps
+    assert {p: p.stat().st_mtime_ns for p in results} == stamps

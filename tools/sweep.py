@@ -20,46 +20,28 @@ import sys
 import time
 from pathlib import Path
 
-from ssbl_pb.cli import ArgumentParser, command_line, int_at_least, make_bar, run
-from ssbl_pb.errors import UserError
+from ssbl_pb.cli import ArgumentParser, command_line, run
+from ssbl_pb.sweep.cli import add_run_options
 
 
 def main(argv: list[str] | None = None) -> int:
     ap = ArgumentParser(description=__doc__)
     ap.add_argument("spec", type=Path, help="sweep spec (YAML)")
     ap.add_argument("--out", type=Path, required=True, help="output directory (summary; trials/ unless --storage)")
-    ap.add_argument("--workers", type=int_at_least(1),
-                    help="trials at once: local processes (default: one per core); with --address, a cap (default "
-                         "none: one trial per CPU of the cluster)")
-    ap.add_argument("--address", help="run on the Ray cluster at HOST:PORT (its head) or 'auto' (the cluster this "
-                                      "machine belongs to); without it, a local process pool and no Ray")
-    ap.add_argument("--storage", type=Path, help="with --address: a folder every node sees; trials go to "
-                                                 "STORAGE/<--out's name>/ (default: --out itself, which then must be "
-                                                 "shared)")
+    add_run_options(ap)
     ap.add_argument("--dry-run", action="store_true", help="check the spec and list the trials; run nothing")
     args = ap.parse_args(argv)
 
-    from ssbl_pb.files import check_output_path, output_dir, write_json
-    from ssbl_pb.sweep import finished, load_spec, run_trials
+    from ssbl_pb.files import output_dir, write_json
+    from ssbl_pb.sweep import finished, load_spec
+    from ssbl_pb.sweep.cli import TrialsRoot
     from ssbl_pb.sweep.summary import write_summary
 
-    if args.storage is not None and args.address is None:
-        raise UserError(f"--storage {args.storage}: only with --address (a local sweep writes into --out)")
-    check_output_path(args.out, "--out")
-    root = args.out
-    probe = None
-    if args.address is not None:
-        if args.storage is not None:
-            check_output_path(args.storage, "--storage")
-            root = args.storage / args.out.resolve().name
-        from ssbl_pb.sweep.ray_runner import Probe, connect
-
-        probe = Probe(args.address)  # a child process tries the cluster while the spec is checked
+    where = TrialsRoot(args)
     spec = load_spec(args.spec)
     trials = spec.trials()
-    if probe is not None:
-        connect(args.address, probe)
-    root = root.resolve()
+    where.connect()
+    root = where.path
     done = finished(root, trials)
     if args.dry_run:
         for t in trials:
@@ -69,19 +51,11 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     with output_dir(args.out, "--out") as out:
         write_json(out / "sweep.json", {**spec.describe(), "trials_root": str(root)})
-    root.mkdir(parents=True, exist_ok=True)
     command = command_line("tools/sweep.py", argv)
-    bar = make_bar(len(trials), "sweep", "trial", initial=len(done))
     t0 = time.perf_counter()
-
-    def on_done(name: str, record: dict | None) -> None:
-        bar.set_postfix_str(f"{name}: {'done' if record else 'FAILED'}")
-        bar.update(1)
-
     try:
-        outcome = run_trials(trials, root, args.workers, args.address, on_done)
+        outcome = where.run(trials, "sweep")
     finally:
-        bar.close()
         records = finished(root, trials)
         if records:
             write_summary(args.out, spec, records, root, command)

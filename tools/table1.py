@@ -4,11 +4,14 @@
 Rows: Vector + LSTM (the 100 % reference), CameraOnly + SAEV/conv + FF/LSTM, CameraSpeed + SAEV/conv + LSTM,
 the random policy (0 %), plus Vector + FF and CameraSpeed + SAEV + FF. Stage 1 collects frames and trains the
 SAEV and conv autoencoders (skipped for checkpoints given with --saev / --conv); stage 2 trains and evaluates
-each row for each seed. Writes DIR/table1.md and DIR/table1.json; every finished row is kept in DIR/rows/, so
-running the same command again after an interruption resumes at the first unfinished row.
+each row for each seed as a trial of the sweeps' machinery (tools/sweep.py): on a local process pool (--workers,
+default one per core) or, with --address, as Ray Tune trials on a cluster (docs/scale-out.md). Writes
+DIR/table1.md and DIR/table1.json; every row's run is DIR/trials/ROW,seed=S/ (its result.json marks it
+finished), logs in DIR/logs/, so running the same command again after an interruption runs only unfinished rows.
 
 Examples:
     python tools/table1.py --budget smoke --seeds 1 --out results/table1_smoke      # a few minutes
+    python tools/table1.py --budget full --seeds 3 --out /nfs/table1 --address HEAD:6379   # rows on a cluster
     python tools/table1.py --budget full --seeds 1 --out results/table1             # hours; resumable
     python tools/table1.py --budget medium --seeds 1 --out results/table1_medium     # about 2 h
     python tools/table1.py --budget full --seeds 1 --out results/table1 --saev results/ae/saev/encoder.pt \\
@@ -17,11 +20,10 @@ Examples:
 
 from __future__ import annotations
 
-import shlex
-import sys
 from pathlib import Path
 
-from ssbl_pb.cli import ArgumentParser, run
+from ssbl_pb.cli import ArgumentParser, command_line, run
+from ssbl_pb.sweep.cli import add_run_options
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -34,13 +36,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--rows", help=f"comma-separated subset of: {', '.join(r.slug for r in ROWS)}")
     ap.add_argument("--saev", help="a trained SAEV checkpoint (tools/train_ae.py) instead of training one")
     ap.add_argument("--conv", help="a trained conv AE checkpoint instead of training one")
-    ap.add_argument("--threads", type=int, default=1, help="torch threads (default 1)")
+    ap.add_argument("--threads", type=int, default=1, help="torch threads per trial (default 1)")
+    add_run_options(ap)
     args = ap.parse_args(argv)
 
     from ssbl_pb.analysis.table1 import find_row, get_budget
     from ssbl_pb.errors import UserError
-    from ssbl_pb.files import check_output_path
     from ssbl_pb.perception.ae_train import checkpoint_info
+    from ssbl_pb.sweep.cli import TrialsRoot
 
     budget = get_budget(args.budget)
     if args.seeds < 1:
@@ -50,29 +53,27 @@ def main(argv: list[str] | None = None) -> int:
     for arch, path in given.items():
         if path and checkpoint_info(path)["arch"] != arch:
             raise UserError(f"--{arch} {path}: holds a {checkpoint_info(path)['arch']} autoencoder, not {arch}")
-    check_output_path(args.out)
+    where = TrialsRoot(args)
+    where.connect()
 
     import torch
 
-    from ssbl_pb.analysis.table1 import prepare_encoders, run_row
+    from ssbl_pb.analysis.table1 import prepare_encoders, row_trials
     from ssbl_pb.analysis.table1_report import write_table
-    from ssbl_pb.cli import make_bar
+    from ssbl_pb.sweep import finished
 
     torch.set_num_threads(max(1, args.threads))
     args.out.mkdir(parents=True, exist_ok=True)
-    encoders = prepare_encoders(budget, args.out, {r.encoder for r in rows} & {"saev", "conv"}, given)
-    bar = make_bar(len(rows) * args.seeds, "table I", "row")
-    results = []
+    # stage 1 beside the trials: on a cluster, every node reads the encoders from there
+    encoders = prepare_encoders(budget, where.path, {r.encoder for r in rows} & {"saev", "conv"}, given)
+    trials = row_trials(rows, args.seeds, budget, encoders, args.threads)
     try:
-        for seed in range(args.seeds):
-            for row in rows:
-                bar.set_postfix_str(f"{row.label}, seed {seed}")
-                results.append(run_row(row, seed, budget, args.out, encoders))
-                bar.update(1)
+        outcome = where.run(trials, "table I")
     finally:
-        bar.close()
-    command = "python tools/table1.py " + " ".join(shlex.quote(a) for a in (argv if argv is not None else sys.argv[1:]))
-    write_table(args.out, results, budget, command)
+        results = [r["result"] for r in finished(where.path, trials).values()]
+        if results:
+            write_table(args.out, results, budget, command_line("tools/table1.py", argv))
+    outcome.raise_failures(where.path)
     print(f"{len(results)} row runs -> {args.out}/table1.md")
     return 0
 

@@ -1,7 +1,8 @@
 """The paper's Table I regenerated: every state representation x network trained and evaluated alike.
 
 Stage 1 (once per table): first-person frames from a mix of policies, then the SAEV and conv autoencoders
-(``perception``), unless checkpoints are given. Stage 2 (``run_row``, one row and seed at a time, resumable):
+(``perception``), unless checkpoints are given. Stage 2 (``RowTrial``: one row and seed, a trial of the sweeps'
+machinery, so rows run on a local process pool or a Ray cluster and a killed table resumes where it stopped):
 PPO / RecurrentPPO on the row's observation with the frozen encoder, then the best model evaluated on held-out
 seeds. Every row uses the same task (scenario ``default``, the paper's two-person group), reward, action
 smoothing and no safety shield (the paper had none; camera modes could not use it).
@@ -19,7 +20,6 @@ from __future__ import annotations
 
 import csv
 import dataclasses
-import json
 import re
 import time
 from pathlib import Path
@@ -28,7 +28,6 @@ from typing import Any
 import numpy as np
 
 from ..errors import UserError
-from ..files import write_json
 
 BENCH_SEED = 500_000  # held-out evaluation seeds (docs/decisions.md, "Training")
 
@@ -189,13 +188,9 @@ def _column(path: Path, name: str) -> list[float]:
         return [float(r[name]) for r in csv.DictReader(fh)]
 
 
-def run_row(row: Row, seed: int, budget: Budget, out: Path, encoders: dict[str, str] | None = None
+def run_row(row: Row, seed: int, budget: Budget, run_dir: Path, encoders: dict[str, str] | None = None
             ) -> dict[str, Any]:
-    """Train and evaluate one row for one seed; the result is also written to ``out/rows/SLUG_sSEED.json``
-    and, when that file exists already, read from it instead (so a killed table resumes row by row)."""
-    result_file = out / "rows" / f"{row.slug}_s{seed}.json"
-    if result_file.is_file():
-        return json.loads(result_file.read_text())
+    """Train (into ``run_dir``, a normal run directory) and evaluate one row for one seed."""
     t0 = time.perf_counter()
     if row.obs_mode == "random":
         from ..training.config import TrainConfig, load_config
@@ -209,7 +204,6 @@ def run_row(row: Row, seed: int, budget: Budget, out: Path, encoders: dict[str, 
         from ..training.config import load_config
         from ..training.run import train
 
-        run_dir = out / "runs" / f"{row.slug}_s{seed}"
         cfg = load_config(None, row_config(row, seed, budget, encoders or {}))
         summary = train(cfg, run_dir, overwrite=True)
         returns = _column(run_dir / "learning_curve.csv", "return")
@@ -219,6 +213,40 @@ def run_row(row: Row, seed: int, budget: Budget, out: Path, encoders: dict[str, 
         result = {"reward": max(evals) if evals else test["mean_return"], "steps": summary["steps"],
                   "train_smoothed_best": smoothed_best(returns, budget.smoothing), "evaluations": len(evals),
                   "run": str(run_dir), "train_steps_per_s": summary["steps_per_s"], **test}
-    result |= {"row": row.label, "seed": seed, "budget": budget.name, "seconds": round(time.perf_counter() - t0, 1)}
-    write_json(result_file, result)
-    return result
+    return result | {"row": row.label, "seed": seed, "budget": budget.name,
+                     "seconds": round(time.perf_counter() - t0, 1)}
+
+
+@dataclasses.dataclass(frozen=True)
+class RowTrial:
+    """One row and seed as a trial of ``ssbl_pb.sweep.run_trials`` (the sweeps' machinery: a local process pool
+    or a Ray cluster, resumable; its run directory is ``ROOT/trials/SLUG,seed=S/``)."""
+
+    row: Row
+    seed: int
+    budget: Budget
+    encoders: tuple[tuple[str, str], ...] = ()  # (arch, checkpoint path) the camera rows use
+    threads: int = 1  # torch threads in the trial's process (does not change what it computes)
+
+    @property
+    def name(self) -> str:
+        return f"{self.row.slug},seed={self.seed}"
+
+    def definition(self) -> dict[str, Any]:
+        enc = dict(self.encoders)
+        return {"kind": "table1_row", "row": self.row.label, "seed": self.seed,
+                "budget": dataclasses.asdict(self.budget),
+                "encoder": enc.get(self.row.encoder) if self.row.encoder in enc else None}
+
+    def __call__(self, trial_dir: Path) -> dict[str, Any]:
+        import torch
+
+        torch.set_num_threads(max(1, self.threads))
+        return run_row(self.row, self.seed, self.budget, trial_dir, dict(self.encoders))
+
+
+def row_trials(rows: list[Row], seeds: int, budget: Budget, encoders: dict[str, str], threads: int = 1
+               ) -> list[RowTrial]:
+    """Every row x seed ``0 .. seeds-1`` (seed-major: a seed's rows finish together, its percentages first)."""
+    enc = tuple(sorted(encoders.items()))
+    return [RowTrial(row, seed, budget, enc, threads) for seed in range(seeds) for row in rows]
