@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ssbl_pb.cli import ArgumentParser, run
+from ssbl_pb.cli import ArgumentParser, command_line, run
 from ssbl_pb.files import write_json, write_text
 from ssbl_pb.perception.bench import time_pipeline, time_tracker_update
 from ssbl_pb.perception.detectors import HogParams
@@ -68,7 +68,7 @@ def main(argv: list[str] | None = None) -> int:
             return 2
     cam = TsaiCamera.from_xml(calib)
     gt = load_ground_truth(gt_path)
-    report: dict = {"command": "python tools/bench_tracking.py " + " ".join(argv or sys.argv[1:]),
+    report: dict = {"command": command_line("tools/bench_tracking.py", argv),
                     "machine": f"{platform.machine()} {platform.processor() or ''}".strip(),
                     "date": time.strftime("%Y-%m-%d %H:%M")}
     t_all = time.time()

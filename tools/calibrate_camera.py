@@ -8,13 +8,12 @@ Exit code 2 on bad input (unreadable files, no board found in enough images, wro
 
 from __future__ import annotations
 
-import shlex
 import sys
 from pathlib import Path
 
 from ssbl_pb.calib import reports
 from ssbl_pb.calib.intrinsics import calibrate, leave_k_out, parse_board
-from ssbl_pb.cli import ArgumentParser, run
+from ssbl_pb.cli import ArgumentParser, command_line, run
 from ssbl_pb.files import check_output_path
 
 
@@ -42,7 +41,7 @@ def main(argv: list[str] | None = None) -> int:
     for p, why in res.detections.rejected:
         print(f"rejected {p}: {why}", file=sys.stderr)
     stab = leave_k_out(res, board, args.square, args.stability, progress=True) if args.stability else None
-    command = "python tools/calibrate_camera.py " + " ".join(shlex.quote(a) for a in (argv or sys.argv[1:]))
+    command = command_line("tools/calibrate_camera.py", argv)
     res.camera.to_yaml(args.out, header=f"{command}\nRMS reprojection error {res.rms:.4f} px")
     reports.intrinsics_figure(res, board, args.out.with_suffix(".png"))
     md = reports.intrinsics_markdown(res, command, stab, args.stability)

@@ -19,14 +19,12 @@ a member id with no position in the file), with nothing written.
 
 from __future__ import annotations
 
-import shlex
-import sys
 from pathlib import Path
 
 from ssbl_pb.calib import groups
 from ssbl_pb.calib.fformations import load_datasets
 from ssbl_pb.calib.io import save_figure, write_yaml
-from ssbl_pb.cli import ArgumentParser, UserError, run
+from ssbl_pb.cli import ArgumentParser, UserError, command_line, run
 from ssbl_pb.env.layouts import GroupModel, parse_group_data
 from ssbl_pb.files import check_output_path, write_text
 from ssbl_pb.params import SocialParams
@@ -56,7 +54,7 @@ def main(argv: list[str] | None = None) -> int:
     sims = {name: groups.sim_stats(GroupModel(name, loaded=data), social, args.per_size, args.seed, sizes)
             for name in ("calibrated", "paper")}
     rows = groups.compare_table(real, sims)
-    command = "python tools/calibrate_groups.py " + " ".join(shlex.quote(a) for a in (argv or sys.argv[1:]))
+    command = command_line("tools/calibrate_groups.py", argv)
     header = (f"{command}\nReal conversational groups (F-formations), per size: quantiles (percent levels in "
               f"'quantiles') of member-to-centroid distance (m, per group mean), nearest-neighbour spacing (m, per "
               f"member), spacing irregularity (CV of member-to-centroid distances) and orientation offset (deg), "

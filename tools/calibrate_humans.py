@@ -9,14 +9,12 @@ Exit code 2 on bad input (missing folders or files, malformed obsmat).
 from __future__ import annotations
 
 import dataclasses
-import shlex
-import sys
 from pathlib import Path
 
 from ssbl_pb.calib import reports
 from ssbl_pb.calib.humans import SCENES, fit_social, real_stats, sim_stats
 from ssbl_pb.calib.io import write_yaml
-from ssbl_pb.cli import ArgumentParser, UserError, int_at_least, run
+from ssbl_pb.cli import ArgumentParser, UserError, command_line, int_at_least, run
 from ssbl_pb.files import check_output_path
 from ssbl_pb.params import SocialParams, from_dict
 
@@ -39,7 +37,7 @@ def main(argv: list[str] | None = None) -> int:
     fitted = from_dict(SocialParams, fields, f"fitted from {args.data}")
     sims = {"default": sim_stats(SocialParams(), args.episodes, seed=args.seed, progress=True),
             "fitted": sim_stats(dataclasses.replace(fitted), args.episodes, seed=args.seed, progress=True)}
-    command = "python tools/calibrate_humans.py " + " ".join(shlex.quote(a) for a in (argv or sys.argv[1:]))
+    command = command_line("tools/calibrate_humans.py", argv)
     write_yaml(args.out, fields, header=f"{command}\nSocialParams fields fitted to ETH/UCY ({', '.join(args.scenes)})")
     reports.humans_figure(real["all"], sims, args.out.with_suffix(".png"))
     reports.write_markdown(args.out.with_suffix(".md"), reports.humans_markdown(real, sims, fields, notes, command))

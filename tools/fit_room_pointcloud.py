@@ -9,13 +9,11 @@ body frame. Exit code 2 on bad input (missing or unreadable file, no floor found
 
 from __future__ import annotations
 
-import shlex
-import sys
 from pathlib import Path
 
 from ssbl_pb.calib.io import write_text, write_yaml
 from ssbl_pb.calib.pointcloud import analyse, load_points, parse_up, scan_figure, scan_yaml
-from ssbl_pb.cli import ArgumentParser, run
+from ssbl_pb.cli import ArgumentParser, command_line, run
 from ssbl_pb.files import check_output_path
 
 
@@ -36,7 +34,7 @@ def main(argv: list[str] | None = None) -> int:
     data = scan_yaml(scan, str(args.scan))
     write_yaml(args.out, data, header=f"RANSAC planes of {args.scan} (up axis {args.up})")
     scan_figure(pts, scan, up, args.out.with_suffix(".png"))
-    command = "python tools/fit_room_pointcloud.py " + " ".join(shlex.quote(a) for a in (argv or sys.argv[1:]))
+    command = command_line("tools/fit_room_pointcloud.py", argv)
     tilt = f"**{scan.tilt_deg:.2f} deg**"
     if scan.pitch_deg is not None:
         tilt += f" (pitch {scan.pitch_deg:.2f} deg down, roll {scan.roll_deg:.2f} deg)"

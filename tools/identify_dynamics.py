@@ -9,7 +9,6 @@ odom_vx, odom_vy, odom_wz). Exit code 2 on bad input (missing columns, non-monot
 
 from __future__ import annotations
 
-import shlex
 import sys
 from pathlib import Path
 
@@ -17,7 +16,7 @@ from ssbl_pb.calib import reports
 from ssbl_pb.calib.dynamics import identify
 from ssbl_pb.calib.dynamics_log import excitation_plan, read_log, simulate_log, write_log
 from ssbl_pb.calib.io import write_yaml
-from ssbl_pb.cli import ArgumentParser, run
+from ssbl_pb.cli import ArgumentParser, command_line, run
 from ssbl_pb.params import RobotParams, from_dict, load_yaml
 
 
@@ -36,7 +35,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--truth", type=Path, help="YAML of the true RobotParams fields (--simulate writes "
                     "LOG.truth.yaml); the report then lists the errors")
     args = ap.parse_args(argv)
-    command = "python tools/identify_dynamics.py " + " ".join(shlex.quote(a) for a in (argv or sys.argv[1:]))
+    command = command_line("tools/identify_dynamics.py", argv)
     if args.simulate:
         truth = RobotParams(latency_s=args.latency, time_constant_s=args.tau, max_accel=args.accel,
                             max_speed=args.speed, max_yaw_rate=0.8, max_yaw_accel=1.2)
