@@ -77,6 +77,7 @@ CASES = [
     C("train_pb.py", "--scenario", "bogus", "--out", "{out}", expect="scenario 'bogus'"),
     C("train_pb.py", "--set", "env.bogus=1", "--out", "{out}", expect="config.env"),
     C("train_pb.py", "--set", "ppo.bogus=1", "--out", "{out}", expect="bogus"),
+    C("train_pb.py", "--set", "reward.w_smooth=0.3", "--out", "{out}", expect="reward_ramp.w_smooth"),
     C("train_pb.py", "--set", "env.world.room_size=[1,1]", "--out", "{out}", expect="world.room_size"),
     C("train_pb.py", "--set", "env.world.n_humans=4", "--out", "{out}", expect="world.n_humans"),
     C("train_pb.py", "--set", "env.robot.max_speed=-1", "--out", "{out}", expect="max_speed"),

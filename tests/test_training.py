@@ -114,6 +114,15 @@ def test_bad_reward_weight_named():
         load_config(None, {"reward": {"w_slott": 1.0}})
 
 
+def test_a_ramped_weight_set_to_another_value_is_refused_not_ignored():
+    ff = Path(__file__).resolve().parents[1] / "configs" / "vector_ff.yaml"
+    with pytest.raises(ConfigError, match=r"reward.w_smooth = 0.3: expected 0.05, the start of reward_ramp.w_smooth"):
+        load_config(ff, {"reward": {"w_smooth": 0.3}})
+    cfg = load_config(ff, {"reward": {"w_smooth": 0.3}, "reward_ramp": {}})  # an empty mapping clears the ramp
+    assert cfg.reward["w_smooth"] == 0.3 and cfg.reward_ramp == {}
+    assert load_config(ff, {"reward_ramp": {"w_smooth": [0.05, 0.9]}}).reward_ramp["w_smooth"] == [0.05, 0.9]
+
+
 def test_corrupt_model_file(tmp_path):
     from ssbl_pb.env.trained import ModelError, load_trained
 

@@ -36,6 +36,8 @@ class ProgressCallback(BaseCallback):
         for info, done in zip(self.locals["infos"], self.locals["dones"], strict=False):
             if done and "is_success" in info:
                 self.success.append(float(info["is_success"]))
+        if self.num_timesteps > self.bar.total:  # PPO collects whole rollouts: the last one may pass the total
+            self.bar.total = self.num_timesteps
         self.bar.update(self.num_timesteps - self.bar.n)
         if self.n_calls % 50 == 0:
             rate = (self.num_timesteps - self.n0) / max(time.perf_counter() - self.t0, 1e-9)

@@ -158,6 +158,11 @@ class TrainConfig:
                    "[start, end]")
             from_dict(RewardWeights, {key: value[0]}, "config.reward_ramp")
             from_dict(RewardWeights, {key: value[1]}, "config.reward_ramp")
+            # the ramp sets this weight during training: a different fixed value would be silently ignored
+            _check(key not in self.reward or self.reward[key] == value[0], "config", f"reward.{key}",
+                   self.reward.get(key), f"{value[0]}, the start of reward_ramp.{key} {list(value)} that sets it "
+                   f"during training (to change it, set reward_ramp.{key}=[START,END], or reward_ramp={{}} to "
+                   "train with fixed weights)")
         _check(isinstance(self.reward_ramp_fraction, int | float) and 0 < self.reward_ramp_fraction <= 1, "config",
                "reward_ramp_fraction", self.reward_ramp_fraction, "a number in (0, 1]")
 
@@ -220,8 +225,8 @@ def load_config(path: str | Path | None, overrides: dict[str, Any] | None = None
     """Defaults, then the YAML file, then ``overrides`` (command-line flags); errors name the file and key."""
     data: dict[str, Any] = load_yaml(path) if path else {}
     for key, value in (overrides or {}).items():
-        if isinstance(value, dict):
-            data[key] = {**data.get(key, {}), **value}
+        if isinstance(value, dict):  # merged into the file's mapping; an empty one ({}) clears it
+            data[key] = {**data.get(key, {}), **value} if value else {}
         else:
             data[key] = value
     where = f"{path}" if path else "config"
