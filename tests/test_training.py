@@ -251,3 +251,24 @@ def test_policy_flag_picks_its_config_and_a_run_name_of_its_own():
 def test_env_keys_are_checked_before_any_output(tmp_path):
     with pytest.raises(ConfigError, match=r"config.env = \['bogus'\]"):
         load_config(None, {"env": {"bogus": 1}})
+
+
+def test_copy_policy_brings_the_encoder_along(tmp_path):
+    import yaml
+
+    from ssbl_pb.env.trained import copy_policy, policy_env_kwargs
+
+    run, enc, dest = tmp_path / "run", tmp_path / "elsewhere" / "saev.pt", tmp_path / "shipped"
+    for folder in (run, enc.parent, dest):
+        folder.mkdir()
+    enc.write_bytes(b"weights")
+    (run / "model.zip").write_bytes(b"zip")
+    (run / "vecnormalize.pkl").write_bytes(b"norm")
+    (run / "config.yaml").write_text(yaml.safe_dump({"obs_mode": "camera_speed", "encoder": "saev",
+                                                     "encoder_checkpoint": str(enc), "camera_size": 64}))
+    assert copy_policy(str(run), dest) == ["model.zip", "vecnormalize.pkl", "config.yaml", "encoder.pt"]
+    assert (dest / "encoder.pt").read_bytes() == b"weights"
+    assert yaml.safe_load((dest / "config.yaml").read_text())["encoder_checkpoint"] == "encoder.pt"
+    enc.unlink()  # the shipped folder stands alone
+    assert policy_env_kwargs(str(dest)) == {"obs_mode": "camera_speed", "camera_width": 64, "camera_height": 64,
+                                            "encoder": str(dest / "encoder.pt")}

@@ -1,12 +1,14 @@
 #!/usr/bin/env python
-"""Ship a trained run as one of the package's policies (ssbl_pb/policies/NAME/), with its config and the
-evaluation that qualifies it (held-out seeds, default and mixed scenarios).
+"""Ship a trained run as one of the package's policies (ssbl_pb/policies/NAME/), with its config, its frozen
+encoder (camera policies on a conv / SAEV autoencoder) and the evaluation that qualifies it (held-out seeds,
+default and mixed scenarios); `--policy NAME` then finds it in every tool.
 
 The model is loaded before anything else. The current shipped policy is evaluated on the same seeds, and a
 candidate that does worse on either scenario's success rate is refused unless --force.
 
     python tools/ship_policy.py runs/vector_shipped --episodes 200
     python tools/ship_policy.py runs/my_run --model final --episodes 50 --force
+    python tools/ship_policy.py runs/camera_speed_saev_lstm --name camera_speed_saev --episodes 50
 """
 
 from __future__ import annotations
@@ -65,8 +67,8 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
 
     from ssbl_pb.env.approach import make_env
-    from ssbl_pb.env.trained import load_trained, resolve_model
-    from ssbl_pb.files import copy_file, make_stage_dir, write_json
+    from ssbl_pb.env.trained import copy_policy, load_trained, policy_env_kwargs, resolve_model
+    from ssbl_pb.files import make_stage_dir, write_json
     from ssbl_pb.policies import SHIPPED_DIR
 
     if not args.name.isidentifier():
@@ -75,7 +77,8 @@ def main(argv: list[str] | None = None) -> int:
     model, norm, config = resolve_model(str(pick))
     if norm is None:
         raise UserError(f"{model.parent}: no vecnormalize.pkl beside the model")
-    env = make_env(obs_mode=config.get("obs_mode", "vector"))
+    # a policy on a frozen autoencoder brings its camera mode and encoder
+    env = make_env(**{"obs_mode": config.get("obs_mode", "vector"), **policy_env_kwargs(str(pick))})
     load_trained(str(pick), env.observation_space)  # a corrupt or foreign model fails here, before any work
     env.close()
 
@@ -83,10 +86,7 @@ def main(argv: list[str] | None = None) -> int:
     seeds = range(args.seed, args.seed + args.episodes)
     stage = make_stage_dir(SHIPPED_DIR, ".ship-")
     try:
-        config_file = model.parent / "config.yaml" if (model.parent / "config.yaml").is_file() else \
-            args.run / "config.yaml"
-        for f, name in ((model, "model.zip"), (norm, "vecnormalize.pkl"), (config_file, "config.yaml")):
-            copy_file(f, stage / name)
+        copy_policy(str(pick), stage)
         results = evaluate(str(stage), seeds, "candidate")
         current = evaluate(str(dest), seeds, "shipped") if (dest / "model.zip").is_file() else None
         worse = [sc for sc in SCENARIOS if current and results[sc]["success_rate"] < current[sc]["success_rate"]]

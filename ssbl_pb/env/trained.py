@@ -71,6 +71,25 @@ def policy_env_kwargs(spec: str) -> dict[str, Any]:
     return {"obs_mode": config["obs_mode"], "camera_width": size, "camera_height": size, "encoder": str(found[0])}
 
 
+def copy_policy(spec: str, dest: Path) -> list[str]:
+    """Copy what a trained policy needs into the folder ``dest`` (``model.zip``, ``vecnormalize.pkl``,
+    ``config.yaml`` and, for a policy on a frozen autoencoder, its checkpoint as ``encoder.pt`` with the config
+    pointing there), so that ``dest`` works as a policy by itself; returns the file names written."""
+    from ..files import copy_file, write_text
+
+    model, norm, config = resolve_model(spec)
+    if norm is None:
+        raise ModelError(f"{model.parent}: no vecnormalize.pkl beside the model")
+    kwargs = policy_env_kwargs(spec)
+    copy_file(model, dest / "model.zip")
+    copy_file(norm, dest / "vecnormalize.pkl")
+    if "encoder" in kwargs:
+        copy_file(Path(kwargs["encoder"]), dest / "encoder.pt")
+        config = {**config, "encoder_checkpoint": "encoder.pt"}
+    write_text(dest / "config.yaml", yaml.safe_dump(config, sort_keys=False))
+    return ["model.zip", "vecnormalize.pkl", "config.yaml"] + (["encoder.pt"] if "encoder" in kwargs else [])
+
+
 class TrainedPolicy(Policy):
     """An SB3 model behind the common ``predict`` signature; observations are normalised as in training."""
 
