@@ -2,13 +2,15 @@
 centre, the o-space radius and the free slot, all in the odometry frame.
 
 Pepper's camera sees 56 deg: at the free slot the members stand 60-90 deg to either side, so tracks of people
-who leave the view are kept as *remembered* members (standing still where last seen) until their place comes
-back into view, unoccluded and within detection range, and nobody is found there for ``forget_frames`` frames.
+who leave the view are kept as *remembered* members (moved by the group's model) until their place comes back
+into view, unoccluded and within detection range, and nobody is found there for ``forget_frames`` frames.
 The group's geometry is the simulator's (``env.humans.measured_group``: the centre, the o-space radius, the
-joining weight and the free slot come from the same functions the env steps). The centre is measured: three or
-more members give it by a least-squares circle fit; a pair gives its midpoint (the calibrated model: real pairs
-stand symmetric about their centre), or, in the paper's model, a point on the robot's side of the chord at the
-model's radius (``SocialParams.ospace_radius_for``).
+joining weight and the free slot come from the same functions the env steps), spawned where the members stood
+before the robot came to join (their *rest* positions) and then moved to where they stand now, as in the env.
+The centre is measured: a pair gives its midpoint (the calibrated model: real pairs stand symmetric about their
+centre), or, in the paper's model, a point on the robot's side of the chord at the model's radius
+(``SocialParams.ospace_radius_for``); three or more give their centroid (the calibrated model: the centre of
+real groups is their centroid) or, in the paper's model, a least-squares circle through them.
 """
 
 from __future__ import annotations
@@ -19,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from ..env.humans import MAX_HUMANS, measured_group
+from ..env.humans import MAX_HUMANS, measured_group, slot_distance, widest_gap
 from ..params import SocialParams
 from ..perception.camera import PinholeCamera
 from ..perception.tracker import Tracker, TrackerParams
@@ -38,6 +40,7 @@ class GroupParams:
     person_halfwidth_m: float = 0.3  # for occlusion: a person hides what lies behind this half-width
     coast_tau_s: float = 1.0  # before a group is known, a remembered member's last velocity decays with this
     #                           time constant (once it is known, the social force model moves them)
+    slot_hysteresis_deg: float = 20.0  # the slot stays in its gap unless another is wider by more than this
 
 
 @dataclasses.dataclass
@@ -51,6 +54,7 @@ class Member:
     cov: np.ndarray
     seen: bool = True
     unseen_in_view: int = 0
+    rest: np.ndarray | None = None  # where the member stood while the robot was not joining (odometry frame)
 
 
 def group_circle(members: np.ndarray, robot_xy: np.ndarray, social: SocialParams, paper: bool = False
@@ -69,60 +73,103 @@ def group_circle(members: np.ndarray, robot_xy: np.ndarray, social: SocialParams
         if normal @ (robot_xy - mid) < 0:
             normal = -normal
         return mid + math.sqrt(r * r - half * half) * normal, r
-    # algebraic (Kasa) circle fit: x^2 + y^2 + D x + E y + F = 0
+    mean = pts.mean(axis=0)
+    centroid = (mean, float(np.hypot(*(pts - mean).T).mean()))
+    if not paper:  # real groups: the centre is the centroid (``layouts.real_layout``)
+        return centroid
+    # the paper's members stand on a circle: algebraic (Kasa) circle fit x^2 + y^2 + D x + E y + F = 0
     a = np.column_stack([pts, np.ones(n)])
     b = -(pts ** 2).sum(axis=1)
     sol, *_ = np.linalg.lstsq(a, b, rcond=None)
     centre = -0.5 * sol[:2]
     r2 = float(centre @ centre - sol[2])
-    mean = pts.mean(axis=0)
     if not (r2 > 0 and math.sqrt(r2) <= 3.0 * social.ospace_radius_for(n + 1)):  # collinear: fall back
-        return mean, float(np.hypot(*(pts - mean).T).mean())
+        return centroid
     return centre, math.sqrt(r2)
+
+
+def pair_centre(centre: np.ndarray, pair: np.ndarray, paper: bool) -> np.ndarray:
+    """Where a pair's (2, 2) centre is, given a held ``centre``: its midpoint (the calibrated model: a pair
+    stands symmetric about its centre), or in the paper's model ``centre`` moved onto the pair's perpendicular
+    bisector. Either way the pair stands symmetric about it, as in the env: the centre's estimate must not make
+    one of the pair's gaps wider than the other (the env breaks their 10 deg tie toward the robot)."""
+    mid, d = 0.5 * (pair[0] + pair[1]), pair[1] - pair[0]
+    length = float(np.hypot(*d))
+    if not paper or length < 1e-6:
+        return mid
+    u = d / length
+    return centre - ((centre - mid) @ u) * u
 
 
 class GroupModel:
     """The group the policy sees: centre, o-space radius, joining weight and free slot, by the env's model.
 
-    Members re-form around a joining robot over seconds, while the model's centre and radius follow the robot
-    at once (``humans.update_centre``): the centre the policy was trained on is not the circle through the
-    members while they move. So the centre before joining (``centre0``) is measured from the members while the
-    robot is outside the joining zone (smoothed over frames), and held while it is inside. ``keep`` and
+    In the env a group is spawned at rest (its o-space radius, the rings its members keep, the distance at which a
+    robot joins) and then moves; a joining robot widens its ring, and in the paper's model moves its centre toward
+    the robot at once while the members follow over seconds. So the centre before joining (``centre0``) is
+    measured from the members while the robot is outside the joining zone (smoothed over frames) and held while
+    it is inside (a pair stays symmetric about its centre, ``pair_centre``); the group is spawned
+    at the members' rest positions (``Member.rest``) and its members put where they stand now. The slot stays in
+    the gap it was in unless another gap is wider by more than ``hysteresis_deg``: estimated members jitter, and
+    the env's 10 deg tie would otherwise send the robot from one side of the group to the other. ``keep`` and
     ``paper`` are the training env's (``layouts.slot_keep``; the groups model).
     """
 
-    def __init__(self, social: SocialParams, keep: float, paper: bool = False, smoothing: float = 0.3) -> None:
+    def __init__(self, social: SocialParams, keep: float, paper: bool = False, smoothing: float = 0.3,
+                 hysteresis_deg: float = GroupParams.slot_hysteresis_deg) -> None:
         self.social, self.keep, self.paper, self.smoothing = social, keep, paper, smoothing
+        self.hysteresis_deg = hysteresis_deg
         self.centre0: np.ndarray | None = None
         self.n = 0
+        self.weight = 0.0  # the joining weight of the last update (read by ``GroupTracker`` to record rests)
+        self.slot_angle: float | None = None  # direction of the last slot from the centre (rad)
+        self.centre: np.ndarray | None = None  # the centre the last group was spawned around (before joining)
 
     def reset(self) -> None:
-        self.centre0, self.n = None, 0
+        self.centre0, self.n, self.weight, self.slot_angle, self.centre = None, 0, 0.0, None, None
 
-    def group(self, members: np.ndarray, centre: np.ndarray) -> Any:
-        """The env's group standing where ``members`` stand around ``centre`` (``humans.measured_group``; the
-        ``MAX_HUMANS`` nearest the centre when more people are tracked, as the observation holds no more)."""
+    def group(self, members: np.ndarray, centre: np.ndarray, rest: np.ndarray | None = None) -> Any:
+        """The env's group spawned where ``rest`` (default ``members``) stand around ``centre``
+        (``humans.measured_group``), its members then put at ``members``; the ``MAX_HUMANS`` nearest the centre
+        when more people are tracked, as the observation holds no more."""
         members = np.asarray(members, dtype=float).reshape(-1, 2)
+        rest = members if rest is None else np.asarray(rest, dtype=float).reshape(-1, 2)
         if len(members) > MAX_HUMANS:
-            members = members[np.argsort(np.hypot(*(members - centre).T), kind="stable")[:MAX_HUMANS]]
-        return measured_group(self.social, members, centre, self.keep, self.paper)
+            keep = np.argsort(np.hypot(*(members - centre).T), kind="stable")[:MAX_HUMANS]
+            members, rest = members[keep], rest[keep]
+        g = measured_group(self.social, rest, centre, self.keep, self.paper)
+        g.pos[:] = members
+        return g
 
-    def update(self, members: np.ndarray, robot_xy: np.ndarray) -> tuple[np.ndarray, float, float, np.ndarray]:
+    def update(self, members: np.ndarray, robot_xy: np.ndarray, rest: np.ndarray | None = None
+               ) -> tuple[np.ndarray, float, float, np.ndarray]:
         """Centre (2,), o-space radius (m), joining weight and free slot (2,) for members (n >= 2, (n, 2)) and
-        the robot."""
+        the robot; ``rest``: where each member stood before the robot came to join (default: where it stands)."""
         members = np.asarray(members, dtype=float).reshape(-1, 2)
+        rest = members if rest is None else np.asarray(rest, dtype=float).reshape(-1, 2)
         n = len(members)
         measured, _ = group_circle(members, robot_xy, self.social, self.paper)
         if self.centre0 is None or n != self.n:
-            self.centre0, self.n = measured, n
+            self.centre0, self.n, self.slot_angle = measured, n, None
         else:
             probe = self.group(members, measured)
             probe.update_centre(robot_xy)
             if probe.join_weight == 0.0:  # not joining: measure centre0
                 self.centre0 = self.centre0 + self.smoothing * (measured - self.centre0)
-        g = self.group(members, self.centre0)
+        centre = pair_centre(self.centre0, members, self.paper) if n == 2 else self.centre0
+        self.centre = centre
+        g = self.group(members, centre, rest)
         g.update_centre(robot_xy)
-        return g.centre.copy(), g.radius, g.join_weight, g.free_slot(robot_xy)
+        self.weight = g.join_weight
+        slot = g.free_slot(robot_xy)
+        if self.slot_angle is not None:  # hysteresis: stay in the previous slot's gap unless another is much wider
+            rel = g.pos - g.centre
+            mid, _ = widest_gap(np.arctan2(rel[:, 1], rel[:, 0]), self.slot_angle, self.hysteresis_deg)
+            u = np.array([math.cos(mid), math.sin(mid)])
+            slot = g.centre + slot_distance(rel, float(u[0]), float(u[1]), g.radius, g.keep) * u
+        d = slot - g.centre
+        self.slot_angle = math.atan2(d[1], d[0])
+        return g.centre.copy(), g.radius, g.join_weight, slot
 
 
 def default_model(social: SocialParams) -> GroupModel:
@@ -177,8 +224,9 @@ class GroupTracker:
 
     def predict(self, seen: list[Member], gone: list[Member], robot_xy: np.ndarray, dt: float) -> None:
         """Move the members out of view by ``dt``: by the social force model around the group (as tracking with
-        social-force motion priors does, Luber et al., ICRA 2010), or, before a group is known, with their last
-        velocity decaying over ``coast_tau_s``."""
+        social-force motion priors does, Luber et al., ICRA 2010), the group spawned at the members' rest
+        positions as in the env (so the rings they keep do not follow them), or, before a group is known, with
+        their last velocity decaying over ``coast_tau_s``."""
         if not gone:
             return
         if self.centre0 is None or not 2 <= len(seen) + len(gone) <= MAX_HUMANS:  # no group model: coast
@@ -188,7 +236,8 @@ class GroupTracker:
                 m.vel = m.vel * decay
             return
         everyone = seen + gone
-        group = self.model.group(np.array([m.pos for m in everyone]), self.centre0)
+        group = self.model.group(np.array([m.pos for m in everyone]), self.centre0,
+                                 np.array([m.pos if m.rest is None else m.rest for m in everyone]))
         group.vel[:] = np.array([m.vel for m in everyone])
         group.step(np.asarray(robot_xy, dtype=float), dt)
         for m, q, v in zip(gone, group.pos[len(seen):], group.vel[len(seen):], strict=True):
@@ -199,9 +248,13 @@ class GroupTracker:
         states = self.tracker.update(np.asarray(detections, dtype=float).reshape(-1, 2), dt=dt, odom=pose)
         rot, t = _se2(pose)
         seen = {}
+        at_rest = self.model.weight == 0.0  # the robot is not joining: where people stand now is their rest
         for st in states:
-            seen[st.id] = Member(st.id, rot @ st.position + t, rot @ st.velocity, rot @ st.covariance[:2, :2] @ rot.T,
-                                 st.misses == 0)
+            m = Member(st.id, rot @ st.position + t, rot @ st.velocity, rot @ st.covariance[:2, :2] @ rot.T,
+                       st.misses == 0)
+            old = self.members.get(st.id)
+            m.rest = m.pos.copy() if at_rest or old is None or old.rest is None else old.rest
+            seen[st.id] = m
         seen_robot = np.array([st.position for st in states]).reshape(-1, 2)
         gone = [m for k, m in self.members.items() if k not in seen]
         for m in gone:

@@ -106,7 +106,7 @@ class DeployLoop:
         pos = np.array([m.pos + m.vel * age for m in est.members])
         return pos, np.array([m.vel for m in est.members]), est.members, age, est.detections
 
-    def _act(self, pose: np.ndarray, vel: np.ndarray, pos: np.ndarray, mvel: np.ndarray
+    def _act(self, pose: np.ndarray, vel: np.ndarray, pos: np.ndarray, mvel: np.ndarray, rest: np.ndarray
              ) -> tuple[np.ndarray, dict[str, Any]]:
         """The policy's body command for a known group (odometry-frame inputs), and what it saw."""
         s, fr = self.s, self.s.frames
@@ -115,8 +115,8 @@ class DeployLoop:
             if hasattr(s.policy, "reset"):
                 s.policy.reset()
             self._policy_state, self._approaching = None, True
-        centre, radius, joining, slot = self.group.update(pos, pose[:2])
-        s.perception.centre0 = self.group.centre0
+        centre, radius, joining, slot = self.group.update(pos, pose[:2], rest)
+        s.perception.centre0 = self.group.centre
         room = fr.room_pose(pose)
         rot = fr.room_from_odom[2]
         c, sn = math.cos(rot), math.sin(rot)
@@ -168,7 +168,8 @@ class DeployLoop:
             s.perception.centre0 = None
             state, cmd = self._search(odo.pose, pos)
         else:
-            cmd, info = self._act(odo.pose, odo.velocity, pos, mvel)
+            rest = np.array([q if m.rest is None else m.rest for m, q in zip(members, pos, strict=True)])
+            cmd, info = self._act(odo.pose, odo.velocity, pos, mvel, rest)
             state = "joined" if info["success"] else "approach"
         t_send = self.now()
         sent = s.robot.send(cmd)
