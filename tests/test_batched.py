@@ -1,6 +1,5 @@
 """The batched training env plays the same episodes as the single env (``env.batched``, ``training.vec_env``)."""
 
-import math
 
 import numpy as np
 import pytest
@@ -133,15 +132,3 @@ def test_action_filter_resets_single_rows():
     assert np.allclose(out[:, 0], [0.75, 1.0, 0.75])  # row 1 starts again from its first action
     f.reset()
     assert np.allclose(f(np.full((3, 2), 0.2)), 0.2)
-
-
-def test_heading_error_matches_single_env():
-    batch = BatchedApproach(2)
-    env = ApproachGroupEnv()
-    for i in range(2):
-        batch.seed(i, i)
-        batch.reset(i)
-    env.reset(seed=1)
-    assert batch.heading_error()[1] == pytest.approx(env.heading_error(), abs=1e-12)
-    assert abs(batch.heading_error()).max() <= math.pi
-    env.close()

@@ -68,9 +68,11 @@ def test_pair_turns_toward_newcomer():
 
 
 def test_widest_gap_tie_break_toward_robot():
-    mid, gap = widest_gap(np.array([0.0, math.pi]), toward=-math.pi / 2)
+    mid, gap = widest_gap(np.array([0.0, math.pi]), -math.pi / 2, True, 10.0)
     assert gap == pytest.approx(math.pi)
     assert math.sin(mid) == pytest.approx(-1.0)
+    mid, _ = widest_gap(np.array([0.0, math.pi]), math.pi / 2, True, 10.0)  # the robot on the other side
+    assert math.sin(mid) == pytest.approx(1.0)
 
 
 def test_bad_group_size_rejected():

@@ -23,7 +23,6 @@ from typing import Any
 import numpy as np
 
 from ..env import observation as ob
-from ..env.approach import approach_command
 from ..env.layouts import slot_keep
 from ..env.shield import ShieldParams, footprint_clearance
 from ..env.task import TaskParams
@@ -130,7 +129,10 @@ class DeployLoop:
         action, self._policy_state = s.policy.predict(obs, state=self._policy_state, episode_start=start,
                                                       deterministic=True)
         heading = math.remainder(math.atan2(centre[1] - pose[1], centre[0] - pose[0]) - pose[2], 2 * math.pi)
-        cmd = approach_command(action, heading, s.robot_params, s.task)
+        a = np.zeros(3)
+        a[:min(3, np.size(action))] = np.ravel(action)[:3]
+        cmd = np.array(ob.action_command(*a, heading, s.task.turn, s.task.heading_gain, s.robot_params.max_speed,
+                                         s.robot_params.max_yaw_rate))
         slot_dist = float(np.hypot(*(slot - pose[:2])))
         success = (slot_dist < s.task.slot_tolerance and math.hypot(vel[0], vel[1]) < s.task.stop_speed
                    and abs(heading) < math.radians(s.task.heading_tolerance_deg))

@@ -59,16 +59,6 @@ def parse_env_params(scenario: str, world: Any, robot: Any, social: Any, reward:
             _params(TaskParams, task, "task"), model)
 
 
-def approach_command(action: np.ndarray, heading_error: float, robot: RobotParams, task: TaskParams) -> np.ndarray:
-    """``observation.action_command`` for an action array and the env's parameters: the body-frame base command
-    (forward m/s, left m/s, turn rad/s). The env's step and the deploy loop both use it."""
-    a = np.zeros(3)
-    flat = np.asarray(action, dtype=float).ravel()
-    a[:min(3, flat.size)] = flat[:3]
-    return np.array(ob.action_command(a[0], a[1], a[2], float(heading_error), task.turn, task.heading_gain,
-                                      robot.max_speed, robot.max_yaw_rate))
-
-
 class ApproachGroupEnv(gym.Env):
     """Pepper approaches a conversation group and joins it at the free slot.
 
@@ -147,11 +137,8 @@ class ApproachGroupEnv(gym.Env):
         return kernels.heading_error(self.sim.pose[0], self.sim.centre[0])
 
     def keep_out(self, margin: float | None = None) -> float:
-        """Radius around the conversation centre the shaping's way to the slot keeps out of: the footprint's
-        corners, not its mean radius, must stay out of the intimate zone (plus ``margin``, default the task's)."""
-        margin = self.task.route_margin if margin is None else margin
-        return (self.world.group.radius + self.social.human_radius + self.robot_params.reach
-                + self.task.intimate_zone + margin)
+        """``BatchedApproach.keep_out`` of this env (``margin`` default: the task's route margin)."""
+        return self.sim.keep_out(0, self.task.route_margin if margin is None else margin)
 
     def refresh(self) -> None:
         """Recompute the slot, clearances and shaping potential after the state was moved by hand (tests, a

@@ -39,11 +39,6 @@ class BaseParams(NamedTuple):
         return cls(robot.max_speed, robot.max_yaw_rate, robot.max_accel, robot.max_yaw_accel, robot.time_constant_s,
                    int(delay), delay - int(delay), dt)
 
-    @property
-    def queue_length(self) -> int:
-        """Commands the latency queue keeps ([0] is now)."""
-        return self.delay_steps + 2
-
 
 @njit(cache=True)
 def wrap_angle(x: float) -> float:
@@ -127,18 +122,6 @@ def wall_clearance(x: float, y: float, yaw: float, half_length: float, half_widt
     return room_x / 2 - x - ex, x - ex + room_x / 2, room_y / 2 - y - ey, y - ey + room_y / 2
 
 
-def body_to_world(vec: np.ndarray, yaw: float) -> np.ndarray:
-    """Rotate a body-frame 2-vector into the world frame."""
-    c, s = math.cos(yaw), math.sin(yaw)
-    return np.array([c * vec[0] - s * vec[1], s * vec[0] + c * vec[1]])
-
-
-def world_to_body(vec: np.ndarray, yaw: float) -> np.ndarray:
-    """Rotate a world-frame 2-vector into the body frame."""
-    c, s = math.cos(yaw), math.sin(yaw)
-    return np.array([c * vec[0] + s * vec[1], -s * vec[0] + c * vec[1]])
-
-
 def limit_command(cmd: np.ndarray, p: RobotParams) -> np.ndarray:
     """Clip a body-frame command (forward, left, turn) to the speed limits (planar speed as a vector norm)."""
     fx, fy, w = float(cmd[0]), float(cmd[1]), float(cmd[2])
@@ -188,7 +171,8 @@ class HolonomicBase:
     @property
     def body_velocity(self) -> np.ndarray:
         """(forward, left, turn) velocity in the body frame."""
-        return np.concatenate([world_to_body(self.vel[:2], self.pose[2]), self.vel[2:3]])
+        (vx, vy, wz), c, s = self.vel, math.cos(self.pose[2]), math.sin(self.pose[2])
+        return np.array([c * vx + s * vy, -s * vx + c * vy, wz])
 
 
 class BaseArrays:
@@ -196,7 +180,7 @@ class BaseArrays:
 
     def __init__(self, num: int, bp: BaseParams) -> None:
         self.pose, self.vel = np.zeros((num, 3)), np.zeros((num, 3))
-        self.queue = np.zeros((num, bp.queue_length, 3))
+        self.queue = np.zeros((num, bp.delay_steps + 2, 3))  # the latency's commands, [0] is now
 
     def reset(self, i: int, pose: np.ndarray) -> None:
         self.pose[i] = np.asarray(pose, dtype=float)[:3]

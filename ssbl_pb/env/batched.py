@@ -95,10 +95,6 @@ class BatchedApproach:
         """Change reward weights of every copy (training schedules); unknown names raise."""
         self.weights = {**dataclasses.asdict(self.weights), **changes}
 
-    def heading_error(self) -> np.ndarray:
-        """Angle (rad) from each robot's heading to its conversation centre."""
-        return np.array([kernels.heading_error(self.pose[i], self.centre[i]) for i in range(self.num)])
-
     def observations(self, rows: np.ndarray | None = None) -> np.ndarray:
         """The Vector observations (N, OBS_SIZE) of the current states (recomputing ``rows`` only, if given)."""
         g = self.groups_state
@@ -142,6 +138,12 @@ class BatchedApproach:
                      self.steps, self.prev_accel, self.clearance, self.slot, self.potential, self.sums, self.terms,
                      self.rewards, self.flags)
         return self.rewards.copy(), self.flags[:, kernels.TERMINATED].copy(), self.flags[:, kernels.TRUNCATED].copy()
+
+    def keep_out(self, i: int, margin: float) -> float:
+        """Radius around copy ``i``'s conversation centre the shaping's way to the slot keeps out of: the
+        footprint's corners, not its mean radius, must stay out of the intimate zone (plus ``margin``)."""
+        return (float(self.radius[i]) + self.social.human_radius + self.robot_params.reach + self.task.intimate_zone
+                + margin)
 
     def snapshot(self, i: int, t: float) -> dict[str, Any]:
         """Copy ``i``'s state at time ``t`` as recorded in trajectories (metrics, plots, videos): copies."""

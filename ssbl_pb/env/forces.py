@@ -3,9 +3,9 @@
 Agents live in one array ``P`` (k, 2) (metres, world frame). ``mask[a, b]`` says whether agent ``b`` may count as
 a neighbour of agent ``a``; the zone radius then decides who actually does. ``repulsion_on``, ``equality_on`` and
 ``cohesion_on`` give the force (and orientation) on agent ``a``: the members' motion (``humans.group_step``), the
-robot's field in the rewards and the SFFM baseline all call these. ``repulsion``, ``equality`` and ``cohesion``
-apply them to every agent (arrays (k, 2)), for tests and plots. Degenerate cases return zeros, never NaN: an agent
-with nobody in a zone feels no force from it, and coincident agents (no defined direction) exert none.
+robot's field in the rewards and the SFFM baseline all call these. Degenerate cases return zeros, never NaN: an
+agent with nobody in a zone feels no force from it, and coincident agents (no defined direction) exert none.
+``normalize`` and ``soft_normalize`` are the model's normalisations for arrays (the SFFM baseline).
 """
 
 from __future__ import annotations
@@ -94,62 +94,6 @@ def cohesion_on(a: int, P: np.ndarray, ox: float, oy: float, s: float, d_s: floa
         return 0.0, 0.0, dx, dy
     scale = (n_a / (n_s + 1.0)) * (1.0 - s / d)
     return scale * tx, scale * ty, dx, dy
-
-
-# -- every agent at once (tests, plots, the SFFM baseline) ------------------------------------------------------
-def _mask(P: np.ndarray, mask: np.ndarray | None) -> np.ndarray:
-    return np.ones((len(P), len(P)), dtype=np.bool_) if mask is None else np.asarray(mask, dtype=np.bool_)
-
-
-def _zones(P: np.ndarray, d_p: float | np.ndarray) -> np.ndarray:
-    return np.broadcast_to(np.asarray(d_p, dtype=float), (len(P), len(P))).astype(float)
-
-
-@njit(cache=True)
-def _repulsion_all(P: np.ndarray, zones: np.ndarray, mask: np.ndarray) -> np.ndarray:
-    out = np.zeros_like(P)
-    for a in range(P.shape[0]):
-        out[a, 0], out[a, 1] = repulsion_on(a, P, zones, mask)
-    return out
-
-
-@njit(cache=True)
-def _equality_all(P: np.ndarray, d_s: float, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    f, d = np.zeros_like(P), np.zeros_like(P)
-    for a in range(P.shape[0]):
-        f[a, 0], f[a, 1], d[a, 0], d[a, 1] = equality_on(a, P, d_s, mask)
-    return f, d
-
-
-@njit(cache=True)
-def _cohesion_all(P: np.ndarray, o: np.ndarray, s: np.ndarray, d_s: float, d_pub: float, mask: np.ndarray
-                  ) -> tuple[np.ndarray, np.ndarray]:
-    f, d = np.zeros_like(P), np.zeros_like(P)
-    for a in range(P.shape[0]):
-        f[a, 0], f[a, 1], d[a, 0], d[a, 1] = cohesion_on(a, P, o[a, 0], o[a, 1], s[a], d_s, d_pub, mask)
-    return f, d
-
-
-def repulsion(P: np.ndarray, d_p: float | np.ndarray, mask: np.ndarray | None = None) -> np.ndarray:
-    """``repulsion_on`` for every agent: (k, 2). ``d_p`` a radius or a (k, k) array of zones."""
-    P = np.asarray(P, dtype=float).reshape(-1, 2)
-    return _repulsion_all(P, _zones(P, d_p), _mask(P, mask))
-
-
-def equality(P: np.ndarray, d_s: float, mask: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """``equality_on`` for every agent: forces and orientations, (k, 2) each."""
-    P = np.asarray(P, dtype=float).reshape(-1, 2)
-    return _equality_all(P, float(d_s), _mask(P, mask))
-
-
-def cohesion(P: np.ndarray, o: np.ndarray, s: float | np.ndarray, d_s: float, d_pub: float,
-             mask: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """``cohesion_on`` for every agent: forces and orientations, (k, 2) each. ``o`` one centre (2,) or one per
-    agent (k, 2); ``s`` one radius or one per agent (k,)."""
-    P = np.asarray(P, dtype=float).reshape(-1, 2)
-    o = np.broadcast_to(np.asarray(o, dtype=float), P.shape).astype(float)
-    s = np.broadcast_to(np.asarray(s, dtype=float), (len(P),)).astype(float)
-    return _cohesion_all(P, o, s, float(d_s), float(d_pub), _mask(P, mask))
 
 
 def normalize(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

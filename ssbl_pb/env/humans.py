@@ -44,11 +44,6 @@ TWO_PI = 2.0 * math.pi
 (BASE_RADIUS, JOINED_RADIUS, JOIN_RADIUS, KEEP, SHIFT, RADIUS, JOIN_WEIGHT, N_SCALARS) = range(8)
 
 
-def member_spacing(social: SocialParams, radius: float) -> float:
-    """Angle (rad) between neighbours ``min_member_gap`` apart on a circle of ``radius``."""
-    return 2.0 * math.asin(min(1.0, social.min_member_gap / (2.0 * radius)))
-
-
 def formation_angles(formation: str, n: int, social: SocialParams) -> np.ndarray:
     """Members' angles (rad) around the o-space centre, before a random rotation.
 
@@ -60,7 +55,7 @@ def formation_angles(formation: str, n: int, social: SocialParams) -> np.ndarray
     if not 2 <= n <= 5:
         raise UserError(f"group size {n}: expected 2 to 5 members")
     radius = social.ospace_radius_for(n)
-    delta = member_spacing(social, radius)
+    delta = 2.0 * math.asin(min(1.0, social.min_member_gap / (2.0 * radius)))  # neighbours min_member_gap apart
     if formation == "circular":
         return 2.0 * math.pi * np.arange(n) / n
     if formation == "side_by_side":
@@ -99,7 +94,7 @@ def _gaps(angles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 @njit(cache=True)
-def widest_gap_toward(angles: np.ndarray, toward: float, use_toward: bool, tie_deg: float) -> tuple[float, float]:
+def widest_gap(angles: np.ndarray, toward: float, use_toward: bool, tie_deg: float) -> tuple[float, float]:
     """Mid-angle and size (rad) of the widest angular gap between members. Gaps within ``tie_deg`` of the widest
     are ties; with ``use_toward`` the tie whose middle is closest to ``toward`` wins (the robot's side of a
     vis-a-vis pair), else the widest of them."""
@@ -113,12 +108,6 @@ def widest_gap_toward(angles: np.ndarray, toward: float, use_toward: bool, tie_d
         if err < pick_err:
             pick, pick_err = j, err
     return (a[pick] + gaps[pick] / 2.0) % TWO_PI, gaps[pick]
-
-
-def widest_gap(angles: np.ndarray, toward: float | None = None, tie_deg: float = 10.0) -> tuple[float, float]:
-    """``widest_gap_toward`` with an optional ``toward``."""
-    return widest_gap_toward(np.asarray(angles, dtype=float), 0.0 if toward is None else float(toward),
-                             toward is not None, float(tie_deg))
 
 
 @njit(cache=True)
@@ -154,7 +143,7 @@ def free_slot(n: int, pos: np.ndarray, cx: float, cy: float, radius: float, keep
     for j in range(n):
         rel[j, 0], rel[j, 1] = pos[j, 0] - cx, pos[j, 1] - cy
         angles[j] = math.atan2(rel[j, 1], rel[j, 0])
-    mid, _ = widest_gap_toward(angles, math.atan2(ry - cy, rx - cx), use_robot, 10.0)
+    mid, _ = widest_gap(angles, math.atan2(ry - cy, rx - cx), use_robot, 10.0)
     ux, uy = math.cos(mid), math.sin(mid)
     t = slot_distance(rel, ux, uy, radius, keep)
     return cx + t * ux, cy + t * uy
@@ -270,13 +259,16 @@ class GroupArrays:
         sc = self.scalars[i]
         sc[BASE_RADIUS], sc[JOINED_RADIUS] = base, max(base, layout.joined_radius)
         sc[KEEP], sc[SHIFT] = (0.0, 1.0) if layout.paper else (keep, 0.0)
-        sc[RADIUS], sc[JOIN_WEIGHT] = base, 0.0
-        self.centre[i] = self.centre0[i]
         # the robot counts as joining from the slot's distance at rest (the ring on the paper's circle)
         sx, sy = free_slot(n, self.pos[i], *self.centre0[i], base, sc[KEEP], 0.0, 0.0, False)
         sc[JOIN_RADIUS] = math.hypot(sx - self.centre0[i, 0], sy - self.centre0[i, 1]) if sc[KEEP] > 0 else base
-        w, cx, cy, r = update_centre(sffm_params(social, 1.0), n, float(robot_xy[0]), float(robot_xy[1]),
-                                     self.centre0[i], sc[JOIN_RADIUS], sc[SHIFT], base, sc[JOINED_RADIUS])
+        self.join(i, sffm_params(social, 1.0), robot_xy)
+
+    def join(self, i: int, sp: np.ndarray, robot_xy: np.ndarray) -> None:
+        """Row ``i``'s joining weight, centre and radius for a robot at ``robot_xy`` (``update_centre``)."""
+        sc = self.scalars[i]
+        w, cx, cy, r = update_centre(sp, int(self.count[i]), float(robot_xy[0]), float(robot_xy[1]), self.centre0[i],
+                                     sc[JOIN_RADIUS], sc[SHIFT], sc[BASE_RADIUS], sc[JOINED_RADIUS])
         sc[JOIN_WEIGHT], sc[RADIUS] = w, r
         self.centre[i] = cx, cy
 
@@ -344,11 +336,7 @@ class Group:
 
     def update_centre(self, robot_xy: np.ndarray) -> None:
         """Set ``join_weight``, ``centre`` and ``radius`` for a robot at ``robot_xy``."""
-        a, sc = self.arrays, self.arrays.scalars[self.i]
-        w, cx, cy, r = update_centre(self._sp, self.n, float(robot_xy[0]), float(robot_xy[1]), a.centre0[self.i],
-                                     sc[JOIN_RADIUS], sc[SHIFT], sc[BASE_RADIUS], sc[JOINED_RADIUS])
-        sc[JOIN_WEIGHT], sc[RADIUS] = w, r
-        a.centre[self.i] = cx, cy
+        self.arrays.join(self.i, self._sp, robot_xy)
 
     def step(self, robot_xy: np.ndarray, dt: float | None = None) -> None:
         """Advance the members by one control period given the robot's position."""

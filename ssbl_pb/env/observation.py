@@ -93,8 +93,8 @@ def vector_observation(
     """``fill_observation`` from arrays (world-frame metres, ``robot_vel`` (vx, vy, wz)); ``frame_yaw`` defaults
     to the approach frame (toward ``centre``). The robot's deploy loop builds its observation with this."""
     x, y, yaw = (float(v) for v in np.asarray(robot_pose, dtype=float)[:3])
-    if frame_yaw is None:
-        frame_yaw = approach_yaw(robot_pose, centre)
+    if frame_yaw is None:  # the approach frame: from the robot toward the group centre
+        frame_yaw = math.atan2(float(centre[1] - robot_pose[1]), float(centre[0] - robot_pose[0]))
     obs = np.zeros(OBS_SIZE, dtype=np.float32)
     v = np.asarray(robot_vel, dtype=float)
     fill_observation(obs, x, y, yaw, float(v[0]), float(v[1]), float(v[2]),
@@ -103,11 +103,6 @@ def vector_observation(
                      float(radius), float(slot[0]), float(slot[1]), tuple(float(w) for w in walls[:4]),
                      float(max_speed), float(max_yaw_rate), float(frame_yaw))
     return obs
-
-
-def approach_yaw(robot_pose: np.ndarray, centre: np.ndarray) -> float:
-    """Orientation (rad) of the approach frame: from the robot toward the group centre."""
-    return math.atan2(float(centre[1] - robot_pose[1]), float(centre[0] - robot_pose[0]))
 
 
 def decode_members(obs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

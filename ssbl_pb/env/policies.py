@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -147,8 +146,3 @@ def make_policy(name: str, robot: RobotParams | None = None, social: SocialParam
         return StraightPolicy(robot)
     raise UserError(f"policy {name!r}: expected one of {BASELINES}, 'vector' (the shipped model) or a path to a "
                      f"trained model (.zip)")
-
-
-def is_model_path(name: str) -> bool:
-    """Whether ``name`` looks like a path to a saved model rather than a baseline name."""
-    return name.endswith(".zip") or Path(name).exists()

@@ -81,7 +81,7 @@ def run_batch(env: gym.Env, policy: Policy, seeds: list[int], keep: list[bool]) 
     for i, seed in enumerate(seeds):
         sim.seed(i, seed)
         infos.append(sim.reset(i))
-    trajectories = [[{**sim.snapshot(i, 0.0), "keep_out": _keep_out(core, sim, i)}] for i in range(len(seeds))]
+    trajectories = [[{**sim.snapshot(i, 0.0), "keep_out": sim.keep_out(i, 0.0)}] for i in range(len(seeds))]
     if hasattr(policy, "reset"):
         policy.reset()
     obs, state = sim.observations(), None
@@ -100,11 +100,6 @@ def run_batch(env: gym.Env, policy: Policy, seeds: list[int], keep: list[bool]) 
                 active[i] = False
                 out[i] = _result(core, seeds[i], trajectories[i], {**infos[i], **sim.outcome(i)}, keep[i])
     return out  # type: ignore[return-value]
-
-
-def _keep_out(core: Any, sim: Any, i: int) -> float:
-    """``ApproachGroupEnv.keep_out(0)`` of copy ``i``."""
-    return (float(sim.radius[i]) + core.social.human_radius + core.robot_params.reach + core.task.intimate_zone)
 
 
 # -- parallel runs: each worker builds its own env and policy once ------------------------------------------

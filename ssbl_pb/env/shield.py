@@ -114,20 +114,14 @@ def shield_actions(obs: np.ndarray, actions: np.ndarray, p: ShieldParams) -> np.
     """``shield_row`` for N observations (N, OBS_SIZE) and actions (N, A) at once."""
     a = np.ascontiguousarray(actions, dtype=np.float32)
     out = np.empty_like(a)
-    _shield_rows(np.ascontiguousarray(obs, dtype=np.float32), a, out, *_limits(p))
+    _shield_rows(np.ascontiguousarray(obs, dtype=np.float32), a, out, p.clearance_min, p.brake_accel, p.max_speed,
+                 p.half_length, p.half_width, p.human_radius)
     return out
 
 
 def shield_action(obs: np.ndarray, action: np.ndarray, p: ShieldParams) -> np.ndarray:
     """``shield_row`` for one observation and action."""
-    a = np.asarray(action, dtype=np.float32).reshape(-1)
-    out = np.empty_like(a)
-    shield_row(np.asarray(obs, dtype=np.float32), a, out, *_limits(p))
-    return out
-
-
-def _limits(p: ShieldParams) -> tuple[float, ...]:
-    return p.clearance_min, p.brake_accel, p.max_speed, p.half_length, p.half_width, p.human_radius
+    return shield_actions(np.asarray(obs)[None], np.asarray(action).reshape(1, -1), p)[0]
 
 
 class SafetyShield:
