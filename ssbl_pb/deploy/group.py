@@ -35,9 +35,11 @@ class GroupParams:
 
     forget_frames: int = 5  # frames a remembered member's place is in clear view with nobody there
     same_person_m: float = 0.6  # a new track this close to a remembered member replaces it
-    view_margin: float = 0.1  # fraction of the image width at each side where people are not expected whole
     max_range_m: float = 6.0  # people farther away are not expected to be detected
-    person_halfwidth_m: float = 0.3  # for occlusion: a person hides what lies behind this half-width
+    person_halfwidth_m: float = 0.3  # a person's half-width across the line of sight: the torso's 0.23 m
+    #   (urdf/human.urdf) plus 0.07 m for the estimate's error. Hides what lies behind it, and a person is
+    #   expected to be detected only when both sides project inside the image (``perceive`` drops boxes cut by
+    #   the image's side: close to the group, a member 20 deg off the axis is cut and goes undetected)
     coast_tau_s: float = 1.0  # before a group is known, a remembered member's last velocity decays with this
     #                           time constant (once it is known, the social force model moves them)
     slot_hysteresis_deg: float = 20.0  # the slot stays in its gap unless another is wider by more than this
@@ -164,7 +166,7 @@ class GroupModel:
         slot = g.free_slot(robot_xy)
         if self.slot_angle is not None:  # hysteresis: stay in the previous slot's gap unless another is much wider
             rel = g.pos - g.centre
-            mid, _ = widest_gap(np.arctan2(rel[:, 1], rel[:, 0]), self.slot_angle, self.hysteresis_deg)
+            mid, _ = widest_gap(np.arctan2(rel[:, 1], rel[:, 0]), self.slot_angle, True, self.hysteresis_deg)
             u = np.array([math.cos(mid), math.sin(mid)])
             slot = g.centre + slot_distance(rel, float(u[0]), float(u[1]), g.radius, g.keep) * u
         d = slot - g.centre
@@ -203,15 +205,15 @@ class GroupTracker:
         self.centre0: np.ndarray | None = None  # the group's centre before joining (the loop's ``GroupModel``)
 
     def visible(self, xy_robot: np.ndarray, seen_robot: np.ndarray) -> np.ndarray:
-        """Which robot-frame points (k, 2) a detector should find: in range, inside the image's middle part,
-        and not hidden behind a nearer seen person (``seen_robot``, (m, 2))."""
+        """Which robot-frame points (k, 2) a detector should find: in range, the whole body inside the image
+        (``person_halfwidth_m`` either side), and not hidden behind a nearer seen person (``seen_robot``, (m, 2))."""
         xy = np.asarray(xy_robot, dtype=float).reshape(-1, 2)
-        pts = np.column_stack([xy, np.full(len(xy), BODY_HEIGHT)])
-        u = self.camera.robot_to_pixel(pts)[:, 0]
-        margin = self.p.view_margin * self.camera.width
         rng = np.hypot(xy[:, 0], xy[:, 1])
-        ok = (np.isfinite(u) & (u >= margin) & (u <= self.camera.width - 1 - margin) & (rng <= self.p.max_range_m)
-              & (xy[:, 0] > 0))
+        across = np.column_stack([-xy[:, 1], xy[:, 0]]) / np.maximum(rng, 1e-6)[:, None] * self.p.person_halfwidth_m
+        ok = (rng <= self.p.max_range_m) & (xy[:, 0] > 0)
+        for side in (xy - across, xy + across):  # both sides of the body inside the image, as perceive keeps boxes
+            u = self.camera.robot_to_pixel(np.column_stack([side, np.full(len(xy), BODY_HEIGHT)]))[:, 0]
+            ok &= np.isfinite(u) & (u > 1) & (u < self.camera.width - 1) & (side[:, 0] > 0)
         if len(seen_robot):
             bearing, s_bearing = np.arctan2(xy[:, 1], xy[:, 0]), np.arctan2(seen_robot[:, 1], seen_robot[:, 0])
             s_rng = np.hypot(seen_robot[:, 0], seen_robot[:, 1])
