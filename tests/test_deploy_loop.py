@@ -13,7 +13,7 @@ from ssbl_pb.calib.dynamics_log import read_log as read_dynamics_log
 from ssbl_pb.deploy.faults import EXIT_CODES
 from ssbl_pb.deploy.frames import Frames
 from ssbl_pb.deploy.log import RunLog, read_log
-from ssbl_pb.deploy.loop import DeployLoop, DeployParams, Setup
+from ssbl_pb.deploy.loop import DeployLoop, DeployParams, Setup, deploy_shield
 from ssbl_pb.deploy.perceive import Perception
 from ssbl_pb.deploy.robot import SimClock, SimRobot
 from ssbl_pb.env.policies import make_policy
@@ -36,11 +36,11 @@ def make_loop(seed=11, policy="sffm", folder=None, clock_cls=SimClock, groups="c
     clock = clock_cls(robot)
     social = SocialParams()
     if policy == "vector":
-        from ssbl_pb.env.shield import ShieldParams
         from ssbl_pb.env.task import TaskParams
         from ssbl_pb.env.trained import load_trained
 
-        policy = load_trained("vector", shield_params=ShieldParams.from_env(RobotParams(), social, TaskParams()))
+        shield = deploy_shield(RobotParams(), social, TaskParams(), DeployParams().stop_distance)
+        policy = load_trained("vector", shield_params=shield)
     pol = policy if not isinstance(policy, str) else make_policy(policy, RobotParams(), social, seed=0)
     perception = Perception(robot, clock.now, "colour", RobotParams(), social=social, threaded=False)
     log = RunLog(folder) if folder is not None else None

@@ -174,6 +174,20 @@ class GroupModel:
         return g.centre.copy(), g.radius, g.join_weight, slot
 
 
+def policy_groups(spec: str) -> str:
+    """The group model (``env.layouts.GROUP_MODELS``) the policy ``spec`` was trained on: its run config's
+    ``env.groups``; a baseline, or a config without one, the env's default."""
+    from ..env.layouts import GroupModel as EnvGroups
+    from ..env.policies import BASELINES
+    from ..env.trained import resolve_model
+
+    if spec in BASELINES:
+        return EnvGroups().name
+    env = resolve_model(spec)[2].get("env") or {}
+    groups = env.get("groups") if isinstance(env, dict) else None
+    return EnvGroups(str(groups)).name if groups else EnvGroups().name
+
+
 def default_model(social: SocialParams) -> GroupModel:
     """``GroupModel`` with the robot's place as the default robot and task keep it (``layouts.slot_keep``)."""
     from ..env.layouts import slot_keep

@@ -61,6 +61,18 @@ class DeployParams:
         _check(self.settle_s >= 0 and self.status_s >= 0, "deploy", "settle_s", self.settle_s, ">= 0")
 
 
+ESTIMATE_MARGIN = 0.1  # m the policy's shield keeps beyond --stop-distance: the tracked people's error near the
+#   robot (virtual Pepper, seeded lockstep runs: 0.01-0.03 m along the line of sight, 0.03-0.08 m across it for a
+#   person just out of view) must not turn the policy's closest pass (0.5 m by the training shield) into a stop
+
+
+def deploy_shield(robot: RobotParams, social: SocialParams, task: TaskParams, stop_distance: float) -> ShieldParams:
+    """The policy's safety shield on the robot: the training one (``ShieldParams.from_env``), braking
+    ``ESTIMATE_MARGIN`` before ``stop_distance`` when that is further out."""
+    shield = ShieldParams.from_env(robot, social, task)
+    return dataclasses.replace(shield, clearance_min=max(shield.clearance_min, stop_distance + ESTIMATE_MARGIN))
+
+
 @dataclasses.dataclass
 class Setup:
     """What the loop drives: the robot, the policy and the models it needs (all already checked)."""
