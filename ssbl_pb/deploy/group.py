@@ -90,19 +90,6 @@ def group_circle(members: np.ndarray, robot_xy: np.ndarray, social: SocialParams
     return centre, math.sqrt(r2)
 
 
-def pair_centre(centre: np.ndarray, pair: np.ndarray, paper: bool) -> np.ndarray:
-    """Where a pair's (2, 2) centre is, given a held ``centre``: its midpoint (the calibrated model: a pair
-    stands symmetric about its centre), or in the paper's model ``centre`` moved onto the pair's perpendicular
-    bisector. Either way the pair stands symmetric about it, as in the env: the centre's estimate must not make
-    one of the pair's gaps wider than the other (the env breaks their 10 deg tie toward the robot)."""
-    mid, d = 0.5 * (pair[0] + pair[1]), pair[1] - pair[0]
-    length = float(np.hypot(*d))
-    if not paper or length < 1e-6:
-        return mid
-    u = d / length
-    return centre - ((centre - mid) @ u) * u
-
-
 class GroupModel:
     """The group the policy sees: centre, o-space radius, joining weight and free slot, by the env's model.
 
@@ -110,7 +97,7 @@ class GroupModel:
     robot joins) and then moves; a joining robot widens its ring, and in the paper's model moves its centre toward
     the robot at once while the members follow over seconds. So the centre before joining (``centre0``) is
     measured from the members while the robot is outside the joining zone (smoothed over frames) and held while
-    it is inside (a pair stays symmetric about its centre, ``pair_centre``); the group is spawned
+    it is inside (a calibrated pair's is its midpoint throughout); the group is spawned
     at the members' rest positions (``Member.rest``) and its members put where they stand now. The slot stays in
     the gap it was in unless another gap is wider by more than ``hysteresis_deg``: estimated members jitter, and
     the env's 10 deg tie would otherwise send the robot from one side of the group to the other. ``keep`` and
@@ -158,7 +145,10 @@ class GroupModel:
             probe.update_centre(robot_xy)
             if probe.join_weight == 0.0:  # not joining: measure centre0
                 self.centre0 = self.centre0 + self.smoothing * (measured - self.centre0)
-        centre = pair_centre(self.centre0, members, self.paper) if n == 2 else self.centre0
+        # a calibrated pair stands symmetric about its centre, in the env as it re-forms too: its midpoint, now (a
+        # held centre would make one of its gaps wider than the other as the estimates jitter; the env breaks their
+        # 10 deg tie toward the robot). The paper's pair moves its centre toward the robot: the held one, shifted.
+        centre = members.mean(axis=0) if n == 2 and not self.paper else self.centre0
         self.centre = centre
         g = self.group(members, centre, rest)
         g.update_centre(robot_xy)
