@@ -50,14 +50,17 @@ def make_loop(seed=11, policy="sffm", folder=None, clock_cls=SimClock, groups="c
 
 
 @pytest.mark.slow
-def test_joins_the_group_and_logs_a_dynamics_log(tmp_path):
-    # the shipped policy was trained on the paper's groups (until it is retrained for calibrated ones)
-    loop, robot, log = make_loop(12, "vector", tmp_path, groups="paper")
+@pytest.mark.parametrize("groups", ["calibrated", "paper"])
+def test_joins_the_group_and_logs_a_dynamics_log(tmp_path, groups):
+    # the shipped policy was trained on real-sized groups (calibrated); the paper's 1.0 m circles still work
+    loop, robot, log = make_loop(12, "vector", tmp_path, groups=groups)
     outcome, message = loop.run()
     log.close()
     assert outcome == "success" and loop.exit_code == 0, message
     truth = robot.truth()
     assert math.dist(truth["pose"][:2], truth["slot"]) < 0.3  # the simulator's own success distance
+    assert loop.group.paper == (groups == "paper")  # deploy models the groups the env spawned
+    assert robot.world.group.keep == (0.0 if groups == "paper" else loop.group.keep)
     assert robot._cmd.tolist() == [0.0, 0.0, 0.0] and robot.closed
     rows = read_log(tmp_path)
     assert [r["state"] for r in rows][:3] == ["settle"] * 3 and rows[-1]["state"] == "joined"
