@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from ..env.humans import MAX_HUMANS, measured_group, slot_distance, widest_gap
+from ..env.humans import MAX_HUMANS, measured_group
 from ..params import SocialParams
 from ..perception.camera import PinholeCamera
 from ..perception.tracker import Tracker, TrackerParams
@@ -42,7 +42,6 @@ class GroupParams:
     #   the image's side: close to the group, a member 20 deg off the axis is cut and goes undetected)
     coast_tau_s: float = 1.0  # before a group is known, a remembered member's last velocity decays with this
     #                           time constant (once it is known, the social force model moves them)
-    slot_hysteresis_deg: float = 20.0  # the slot stays in its gap unless another is wider by more than this
 
 
 @dataclasses.dataclass
@@ -98,24 +97,20 @@ class GroupModel:
     the robot at once while the members follow over seconds. So the centre before joining (``centre0``) is
     measured from the members while the robot is outside the joining zone (smoothed over frames) and held while
     it is inside (a calibrated pair's is its midpoint throughout); the group is spawned
-    at the members' rest positions (``Member.rest``) and its members put where they stand now. The slot stays in
-    the gap it was in unless another gap is wider by more than ``hysteresis_deg``: estimated members jitter, and
-    the env's 10 deg tie would otherwise send the robot from one side of the group to the other. ``keep`` and
-    ``paper`` are the training env's (``layouts.slot_keep``; the groups model).
+    at the members' rest positions (``Member.rest``) and its members put where they stand now; the free slot is
+    the env's (``Group.free_slot``). ``keep`` and ``paper`` are the training env's (``layouts.slot_keep``; the
+    groups model).
     """
 
-    def __init__(self, social: SocialParams, keep: float, paper: bool = False, smoothing: float = 0.3,
-                 hysteresis_deg: float = GroupParams.slot_hysteresis_deg) -> None:
+    def __init__(self, social: SocialParams, keep: float, paper: bool = False, smoothing: float = 0.3) -> None:
         self.social, self.keep, self.paper, self.smoothing = social, keep, paper, smoothing
-        self.hysteresis_deg = hysteresis_deg
         self.centre0: np.ndarray | None = None
         self.n = 0
         self.weight = 0.0  # the joining weight of the last update (read by ``GroupTracker`` to record rests)
-        self.slot_angle: float | None = None  # direction of the last slot from the centre (rad)
         self.centre: np.ndarray | None = None  # the centre the last group was spawned around (before joining)
 
     def reset(self) -> None:
-        self.centre0, self.n, self.weight, self.slot_angle, self.centre = None, 0, 0.0, None, None
+        self.centre0, self.n, self.weight, self.centre = None, 0, 0.0, None
 
     def group(self, members: np.ndarray, centre: np.ndarray, rest: np.ndarray | None = None) -> Any:
         """The env's group spawned where ``rest`` (default ``members``) stand around ``centre``
@@ -139,7 +134,7 @@ class GroupModel:
         n = len(members)
         measured, _ = group_circle(members, robot_xy, self.social, self.paper)
         if self.centre0 is None or n != self.n:
-            self.centre0, self.n, self.slot_angle = measured, n, None
+            self.centre0, self.n = measured, n
         else:
             probe = self.group(members, measured)
             probe.update_centre(robot_xy)
@@ -153,15 +148,7 @@ class GroupModel:
         g = self.group(members, centre, rest)
         g.update_centre(robot_xy)
         self.weight = g.join_weight
-        slot = g.free_slot(robot_xy)
-        if self.slot_angle is not None:  # hysteresis: stay in the previous slot's gap unless another is much wider
-            rel = g.pos - g.centre
-            mid, _ = widest_gap(np.arctan2(rel[:, 1], rel[:, 0]), self.slot_angle, True, self.hysteresis_deg)
-            u = np.array([math.cos(mid), math.sin(mid)])
-            slot = g.centre + slot_distance(rel, float(u[0]), float(u[1]), g.radius, g.keep) * u
-        d = slot - g.centre
-        self.slot_angle = math.atan2(d[1], d[0])
-        return g.centre.copy(), g.radius, g.join_weight, slot
+        return g.centre.copy(), g.radius, g.join_weight, g.free_slot(robot_xy)
 
 
 def policy_groups(spec: str) -> str:
