@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from ssbl_pb.deploy.group import GroupModel, GroupTracker, group_circle
+from ssbl_pb.deploy.group import GroupModel, GroupTracker, group_circle, policy_groups
 from ssbl_pb.env.humans import Group
 from ssbl_pb.env.layouts import free_layout, paper_layout, slot_keep
 from ssbl_pb.env.task import TaskParams
@@ -129,3 +129,12 @@ def test_members_out_of_view_move_as_the_simulated_group_does_while_the_robot_jo
         members = frame(np.zeros((0, 2)), away)
     assert model.weight == 1.0 and len(members) == 2 and not any(m.seen for m in members)
     assert np.array([m.pos for m in members]) == pytest.approx(g.pos[np.argsort(g.pos[:, 1])], abs=0.05)
+
+
+def test_the_group_model_defaults_to_the_one_the_policy_was_trained_on(tmp_path):
+    assert policy_groups("vector") == "calibrated" and policy_groups("sffm") == "calibrated"
+    (tmp_path / "model.zip").write_bytes(b"")
+    (tmp_path / "config.yaml").write_text("obs_mode: vector\nenv:\n  groups: paper\n")
+    assert policy_groups(str(tmp_path)) == "paper"
+    (tmp_path / "config.yaml").write_text("obs_mode: vector\nenv: {}\n")
+    assert policy_groups(str(tmp_path)) == "calibrated"  # the env's default
