@@ -13,7 +13,7 @@ from ssbl_pb.calib.dynamics_log import read_log as read_dynamics_log
 from ssbl_pb.deploy.faults import EXIT_CODES
 from ssbl_pb.deploy.frames import Frames
 from ssbl_pb.deploy.log import RunLog, read_log
-from ssbl_pb.deploy.loop import DeployLoop, DeployParams, Setup
+from ssbl_pb.deploy.loop import DeployLoop, DeployParams, Setup, deploy_shield
 from ssbl_pb.deploy.perceive import Perception
 from ssbl_pb.deploy.robot import SimClock, SimRobot
 from ssbl_pb.env.policies import make_policy
@@ -36,11 +36,11 @@ def make_loop(seed=11, policy="sffm", folder=None, clock_cls=SimClock, groups="c
     clock = clock_cls(robot)
     social = SocialParams()
     if policy == "vector":
-        from ssbl_pb.env.shield import ShieldParams
         from ssbl_pb.env.task import TaskParams
         from ssbl_pb.env.trained import load_trained
 
-        policy = load_trained("vector", shield_params=ShieldParams.from_env(RobotParams(), social, TaskParams()))
+        shield = deploy_shield(RobotParams(), social, TaskParams(), DeployParams().stop_distance)
+        policy = load_trained("vector", shield_params=shield)
     pol = policy if not isinstance(policy, str) else make_policy(policy, RobotParams(), social, seed=0)
     perception = Perception(robot, clock.now, "colour", RobotParams(), social=social, threaded=False)
     log = RunLog(folder) if folder is not None else None
@@ -50,14 +50,17 @@ def make_loop(seed=11, policy="sffm", folder=None, clock_cls=SimClock, groups="c
 
 
 @pytest.mark.slow
-def test_joins_the_group_and_logs_a_dynamics_log(tmp_path):
-    # the shipped policy was trained on the paper's groups (until it is retrained for calibrated ones)
-    loop, robot, log = make_loop(12, "vector", tmp_path, groups="paper")
+@pytest.mark.parametrize("groups", ["calibrated", "paper"])
+def test_joins_the_group_and_logs_a_dynamics_log(tmp_path, groups):
+    # the shipped policy was trained on real-sized groups (calibrated); the paper's 1.0 m circles still work
+    loop, robot, log = make_loop(12, "vector", tmp_path, groups=groups)
     outcome, message = loop.run()
     log.close()
     assert outcome == "success" and loop.exit_code == 0, message
     truth = robot.truth()
     assert math.dist(truth["pose"][:2], truth["slot"]) < 0.3  # the simulator's own success distance
+    assert loop.group.paper == (groups == "paper")  # deploy models the groups the env spawned
+    assert robot.world.group.keep == (0.0 if groups == "paper" else loop.group.keep)
     assert robot._cmd.tolist() == [0.0, 0.0, 0.0] and robot.closed
     rows = read_log(tmp_path)
     assert [r["state"] for r in rows][:3] == ["settle"] * 3 and rows[-1]["state"] == "joined"

@@ -12,6 +12,7 @@ import shutil
 from pathlib import Path
 
 from ssbl_pb.cli import ArgumentParser, int_at_least, progress_bar, run
+from ssbl_pb.env.layouts import GROUP_MODELS
 from ssbl_pb.errors import UserError
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -25,6 +26,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=500_000, help="first held-out seed")
     ap.add_argument("--scenario", default="default", help="the virtual Pepper's scenario (default: the paper's)")
     ap.add_argument("--policy", default="vector", help="the policy deploy runs (default: the shipped vector)")
+    ap.add_argument("--groups", choices=GROUP_MODELS, help="the group model of the virtual Pepper and deploy "
+                    "(default: the policy's, its config's env.groups)")
     ap.add_argument("--faults", default=",".join(FAULTS), help=f"comma list of {', '.join(FAULTS)}, or none")
     ap.add_argument("--soak", type=float, default=600.0, help="soak seconds (0: none)")
     ap.add_argument("--out", type=Path, default=ROOT / "results" / "bench_deploy",
@@ -40,6 +43,10 @@ def main(argv: list[str] | None = None) -> int:
     from ssbl_pb.files import check_output_path
 
     check_policy_spec(args.policy)
+    if args.groups is None:
+        from ssbl_pb.deploy.group import policy_groups
+
+        args.groups = policy_groups(args.policy)
     check_output_path(args.out.with_suffix(".json"), is_dir=False)
 
     from ssbl_pb.deploy.bench import environment, markdown, run_approach, run_fault, soak
@@ -47,11 +54,13 @@ def main(argv: list[str] | None = None) -> int:
 
     logs = args.out.with_suffix("")
     shutil.rmtree(logs, ignore_errors=True)
-    res = {"environment": environment(), "scenario": args.scenario, "policy": args.policy, "approaches": [],
+    res = {"environment": environment(), "scenario": args.scenario, "policy": args.policy, "groups": args.groups,
+           "approaches": [],
            "faults": []}
     with progress_bar(args.runs, "approaches", "run") as bar:
         for i in range(args.runs):
-            res["approaches"].append(run_approach(logs / f"run{i:02d}", args.seed + i, args.policy, args.scenario))
+            res["approaches"].append(run_approach(logs / f"run{i:02d}", args.seed + i, args.policy, args.scenario,
+                                                   groups=args.groups))
             bar(1)
     for f in faults:
         res["faults"].append(run_fault(f, logs / f"fault_{f}"))

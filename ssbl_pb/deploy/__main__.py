@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from ..cli import ArgumentParser, run
+from ..env.layouts import GROUP_MODELS
 from ..errors import UserError
 from ..files import check_output_path
 from .faults import EXIT_CODES
@@ -48,6 +49,9 @@ def _parser() -> argparse.ArgumentParser:
     ap.add_argument("--camera-yaml", help="calibrated camera (tools/calibrate_camera.py); default nominal CameraTop")
     ap.add_argument("--robot-yaml", help="identified base dynamics (tools/identify_dynamics.py)")
     ap.add_argument("--social-yaml", help="calibrated group parameters (tools/calibrate_humans.py)")
+    ap.add_argument("--groups", choices=GROUP_MODELS, help="the group model the policy sees: calibrated (real "
+                    "groups' size) or paper (1.0 m circles); default: the one the policy was trained on (its "
+                    "config's env.groups; baselines: calibrated)")
     ap.add_argument("--map", help="room YAML from tools/import_map.py: real walls for the policy, paths on the map")
     ap.add_argument("--start-pose", type=float, nargs=3, metavar=("X", "Y", "YAW"),
                     help="with --map: the robot's start pose on the map (metres, degrees)")
@@ -100,22 +104,28 @@ def _params(args: argparse.Namespace) -> Any:
         start = np.array([x, y, math.radians(yaw)])
     frames = Frames(load_room(args.map) if args.map else None, start)
     frames.check_start()
-    return params, robot, social, task, _policy(args.policy, robot, social, task), frames
+    policy = _policy(args.policy, robot, social, task, params.stop_distance)
+    if args.groups is None:
+        from .group import policy_groups
+
+        args.groups = policy_groups(args.policy)
+    return params, robot, social, task, policy, frames
 
 
-def _policy(spec: str, robot: Any, social: Any, task: Any) -> Any:
-    """A baseline by name or a trained Vector model, its shield braking within this robot's limits."""
+def _policy(spec: str, robot: Any, social: Any, task: Any, stop_distance: float) -> Any:
+    """A baseline by name or a trained Vector model, its shield braking within this robot's limits and short of
+    the stop distance (``loop.deploy_shield``)."""
     import gymnasium as gym
 
     from ..env import observation as ob
     from ..env.policies import make_policy
-    from ..env.shield import ShieldParams
     from ..env.trained import load_trained
+    from .loop import deploy_shield
 
     if spec in BASELINES:
         return make_policy(spec, robot, social, seed=0)
     space = gym.spaces.Box(-ob.OBS_LIMIT, ob.OBS_LIMIT, shape=(ob.OBS_SIZE,), dtype=np.float32)
-    return load_trained(spec, space, None, ShieldParams.from_env(robot, social, task))
+    return load_trained(spec, space, None, deploy_shield(robot, social, task, stop_distance))
 
 
 def _warm_up(policy: Any) -> None:
@@ -176,12 +186,12 @@ def _run(args: argparse.Namespace, url: str, folder: Path, robot: Any, params: A
 
     camera = PinholeCamera.from_yaml(args.camera_yaml) if args.camera_yaml else None
     perception = Perception(robot, time.monotonic, args.detector, robot_params, camera, social=social)
-    write_run(folder, {"url": url, "policy": args.policy,
+    write_run(folder, {"url": url, "policy": args.policy, "groups": args.groups,
                        "detector": args.detector, "map": args.map, "deploy": dataclasses.asdict(params),
                        "robot": dataclasses.asdict(robot_params), "watchdog": robot.watchdog is not None,
                        "started": time.strftime("%Y-%m-%d %H:%M:%S"), **frames.info()})
     log = RunLog(folder)
-    loop = DeployLoop(Setup(robot, policy, perception, frames, robot_params, social, task), params, log,
+    loop = DeployLoop(Setup(robot, policy, perception, frames, robot_params, social, task, args.groups), params, log,
                       status=None if args.quiet else status_printer())
     try:
         outcome, message = loop.run()

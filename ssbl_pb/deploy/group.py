@@ -2,13 +2,15 @@
 centre, the o-space radius and the free slot, all in the odometry frame.
 
 Pepper's camera sees 56 deg: at the free slot the members stand 60-90 deg to either side, so tracks of people
-who leave the view are kept as *remembered* members (standing still where last seen) until their place comes
-back into view, unoccluded and within detection range, and nobody is found there for ``forget_frames`` frames.
+who leave the view are kept as *remembered* members (moved by the group's model) until their place comes back
+into view, unoccluded and within detection range, and nobody is found there for ``forget_frames`` frames.
 The group's geometry is the simulator's (``env.humans.measured_group``: the centre, the o-space radius, the
-joining weight and the free slot come from the same functions the env steps). The centre is measured: three or
-more members give it by a least-squares circle fit; a pair gives its midpoint (the calibrated model: real pairs
-stand symmetric about their centre), or, in the paper's model, a point on the robot's side of the chord at the
-model's radius (``SocialParams.ospace_radius_for``).
+joining weight and the free slot come from the same functions the env steps), spawned where the members stood
+before the robot came to join (their *rest* positions) and then moved to where they stand now, as in the env.
+The centre is measured: a pair gives its midpoint (the calibrated model: real pairs stand symmetric about their
+centre), or, in the paper's model, a point on the robot's side of the chord at the model's radius
+(``SocialParams.ospace_radius_for``); three or more give their centroid (the calibrated model: the centre of
+real groups is their centroid) or, in the paper's model, a least-squares circle through them.
 """
 
 from __future__ import annotations
@@ -33,9 +35,11 @@ class GroupParams:
 
     forget_frames: int = 5  # frames a remembered member's place is in clear view with nobody there
     same_person_m: float = 0.6  # a new track this close to a remembered member replaces it
-    view_margin: float = 0.1  # fraction of the image width at each side where people are not expected whole
     max_range_m: float = 6.0  # people farther away are not expected to be detected
-    person_halfwidth_m: float = 0.3  # for occlusion: a person hides what lies behind this half-width
+    person_halfwidth_m: float = 0.3  # a person's half-width across the line of sight: the torso's 0.23 m
+    #   (urdf/human.urdf) plus 0.07 m for the estimate's error. Hides what lies behind it, and a person is
+    #   expected to be detected only when both sides project inside the image (``perceive`` drops boxes cut by
+    #   the image's side: close to the group, a member 20 deg off the axis is cut and goes undetected)
     coast_tau_s: float = 1.0  # before a group is known, a remembered member's last velocity decays with this
     #                           time constant (once it is known, the social force model moves them)
 
@@ -51,6 +55,7 @@ class Member:
     cov: np.ndarray
     seen: bool = True
     unseen_in_view: int = 0
+    rest: np.ndarray | None = None  # where the member stood while the robot was not joining (odometry frame)
 
 
 def group_circle(members: np.ndarray, robot_xy: np.ndarray, social: SocialParams, paper: bool = False
@@ -69,48 +74,63 @@ def group_circle(members: np.ndarray, robot_xy: np.ndarray, social: SocialParams
         if normal @ (robot_xy - mid) < 0:
             normal = -normal
         return mid + math.sqrt(r * r - half * half) * normal, r
-    # algebraic (Kasa) circle fit: x^2 + y^2 + D x + E y + F = 0
+    mean = pts.mean(axis=0)
+    centroid = (mean, float(np.hypot(*(pts - mean).T).mean()))
+    if not paper:  # real groups: the centre is the centroid (``layouts.real_layout``)
+        return centroid
+    # the paper's members stand on a circle: algebraic (Kasa) circle fit x^2 + y^2 + D x + E y + F = 0
     a = np.column_stack([pts, np.ones(n)])
     b = -(pts ** 2).sum(axis=1)
     sol, *_ = np.linalg.lstsq(a, b, rcond=None)
     centre = -0.5 * sol[:2]
     r2 = float(centre @ centre - sol[2])
-    mean = pts.mean(axis=0)
     if not (r2 > 0 and math.sqrt(r2) <= 3.0 * social.ospace_radius_for(n + 1)):  # collinear: fall back
-        return mean, float(np.hypot(*(pts - mean).T).mean())
+        return centroid
     return centre, math.sqrt(r2)
 
 
 class GroupModel:
     """The group the policy sees: centre, o-space radius, joining weight and free slot, by the env's model.
 
-    Members re-form around a joining robot over seconds, while the model's centre and radius follow the robot
-    at once (``humans.update_centre``): the centre the policy was trained on is not the circle through the
-    members while they move. So the centre before joining (``centre0``) is measured from the members while the
-    robot is outside the joining zone (smoothed over frames), and held while it is inside. ``keep`` and
-    ``paper`` are the training env's (``layouts.slot_keep``; the groups model).
+    In the env a group is spawned at rest (its o-space radius, the rings its members keep, the distance at which a
+    robot joins) and then moves; a joining robot widens its ring, and in the paper's model moves its centre toward
+    the robot at once while the members follow over seconds. So the centre before joining (``centre0``) is
+    measured from the members while the robot is outside the joining zone (smoothed over frames) and held while
+    it is inside (a calibrated pair's is its midpoint throughout); the group is spawned
+    at the members' rest positions (``Member.rest``) and its members put where they stand now; the free slot is
+    the env's (``Group.free_slot``). ``keep`` and ``paper`` are the training env's (``layouts.slot_keep``; the
+    groups model).
     """
 
     def __init__(self, social: SocialParams, keep: float, paper: bool = False, smoothing: float = 0.3) -> None:
         self.social, self.keep, self.paper, self.smoothing = social, keep, paper, smoothing
         self.centre0: np.ndarray | None = None
         self.n = 0
+        self.weight = 0.0  # the joining weight of the last update (read by ``GroupTracker`` to record rests)
+        self.centre: np.ndarray | None = None  # the centre the last group was spawned around (before joining)
 
     def reset(self) -> None:
-        self.centre0, self.n = None, 0
+        self.centre0, self.n, self.weight, self.centre = None, 0, 0.0, None
 
-    def group(self, members: np.ndarray, centre: np.ndarray) -> Any:
-        """The env's group standing where ``members`` stand around ``centre`` (``humans.measured_group``; the
-        ``MAX_HUMANS`` nearest the centre when more people are tracked, as the observation holds no more)."""
+    def group(self, members: np.ndarray, centre: np.ndarray, rest: np.ndarray | None = None) -> Any:
+        """The env's group spawned where ``rest`` (default ``members``) stand around ``centre``
+        (``humans.measured_group``), its members then put at ``members``; the ``MAX_HUMANS`` nearest the centre
+        when more people are tracked, as the observation holds no more."""
         members = np.asarray(members, dtype=float).reshape(-1, 2)
+        rest = members if rest is None else np.asarray(rest, dtype=float).reshape(-1, 2)
         if len(members) > MAX_HUMANS:
-            members = members[np.argsort(np.hypot(*(members - centre).T), kind="stable")[:MAX_HUMANS]]
-        return measured_group(self.social, members, centre, self.keep, self.paper)
+            keep = np.argsort(np.hypot(*(members - centre).T), kind="stable")[:MAX_HUMANS]
+            members, rest = members[keep], rest[keep]
+        g = measured_group(self.social, rest, centre, self.keep, self.paper)
+        g.pos[:] = members
+        return g
 
-    def update(self, members: np.ndarray, robot_xy: np.ndarray) -> tuple[np.ndarray, float, float, np.ndarray]:
+    def update(self, members: np.ndarray, robot_xy: np.ndarray, rest: np.ndarray | None = None
+               ) -> tuple[np.ndarray, float, float, np.ndarray]:
         """Centre (2,), o-space radius (m), joining weight and free slot (2,) for members (n >= 2, (n, 2)) and
-        the robot."""
+        the robot; ``rest``: where each member stood before the robot came to join (default: where it stands)."""
         members = np.asarray(members, dtype=float).reshape(-1, 2)
+        rest = members if rest is None else np.asarray(rest, dtype=float).reshape(-1, 2)
         n = len(members)
         measured, _ = group_circle(members, robot_xy, self.social, self.paper)
         if self.centre0 is None or n != self.n:
@@ -120,9 +140,29 @@ class GroupModel:
             probe.update_centre(robot_xy)
             if probe.join_weight == 0.0:  # not joining: measure centre0
                 self.centre0 = self.centre0 + self.smoothing * (measured - self.centre0)
-        g = self.group(members, self.centre0)
+        # a calibrated pair stands symmetric about its centre, in the env as it re-forms too: its midpoint, now (a
+        # held centre would make one of its gaps wider than the other as the estimates jitter; the env breaks their
+        # 10 deg tie toward the robot). The paper's pair moves its centre toward the robot: the held one, shifted.
+        centre = members.mean(axis=0) if n == 2 and not self.paper else self.centre0
+        self.centre = centre
+        g = self.group(members, centre, rest)
         g.update_centre(robot_xy)
+        self.weight = g.join_weight
         return g.centre.copy(), g.radius, g.join_weight, g.free_slot(robot_xy)
+
+
+def policy_groups(spec: str) -> str:
+    """The group model (``env.layouts.GROUP_MODELS``) the policy ``spec`` was trained on: its run config's
+    ``env.groups``; a baseline, or a config without one, the env's default."""
+    from ..env.layouts import GroupModel as EnvGroups
+    from ..env.policies import BASELINES
+    from ..env.trained import resolve_model
+
+    if spec in BASELINES:
+        return EnvGroups().name
+    env = resolve_model(spec)[2].get("env") or {}
+    groups = env.get("groups") if isinstance(env, dict) else None
+    return EnvGroups(str(groups)).name if groups else EnvGroups().name
 
 
 def default_model(social: SocialParams) -> GroupModel:
@@ -156,15 +196,15 @@ class GroupTracker:
         self.centre0: np.ndarray | None = None  # the group's centre before joining (the loop's ``GroupModel``)
 
     def visible(self, xy_robot: np.ndarray, seen_robot: np.ndarray) -> np.ndarray:
-        """Which robot-frame points (k, 2) a detector should find: in range, inside the image's middle part,
-        and not hidden behind a nearer seen person (``seen_robot``, (m, 2))."""
+        """Which robot-frame points (k, 2) a detector should find: in range, the whole body inside the image
+        (``person_halfwidth_m`` either side), and not hidden behind a nearer seen person (``seen_robot``, (m, 2))."""
         xy = np.asarray(xy_robot, dtype=float).reshape(-1, 2)
-        pts = np.column_stack([xy, np.full(len(xy), BODY_HEIGHT)])
-        u = self.camera.robot_to_pixel(pts)[:, 0]
-        margin = self.p.view_margin * self.camera.width
         rng = np.hypot(xy[:, 0], xy[:, 1])
-        ok = (np.isfinite(u) & (u >= margin) & (u <= self.camera.width - 1 - margin) & (rng <= self.p.max_range_m)
-              & (xy[:, 0] > 0))
+        across = np.column_stack([-xy[:, 1], xy[:, 0]]) / np.maximum(rng, 1e-6)[:, None] * self.p.person_halfwidth_m
+        ok = (rng <= self.p.max_range_m) & (xy[:, 0] > 0)
+        for side in (xy - across, xy + across):  # both sides of the body inside the image, as perceive keeps boxes
+            u = self.camera.robot_to_pixel(np.column_stack([side, np.full(len(xy), BODY_HEIGHT)]))[:, 0]
+            ok &= np.isfinite(u) & (u > 1) & (u < self.camera.width - 1) & (side[:, 0] > 0)
         if len(seen_robot):
             bearing, s_bearing = np.arctan2(xy[:, 1], xy[:, 0]), np.arctan2(seen_robot[:, 1], seen_robot[:, 0])
             s_rng = np.hypot(seen_robot[:, 0], seen_robot[:, 1])
@@ -177,8 +217,9 @@ class GroupTracker:
 
     def predict(self, seen: list[Member], gone: list[Member], robot_xy: np.ndarray, dt: float) -> None:
         """Move the members out of view by ``dt``: by the social force model around the group (as tracking with
-        social-force motion priors does, Luber et al., ICRA 2010), or, before a group is known, with their last
-        velocity decaying over ``coast_tau_s``."""
+        social-force motion priors does, Luber et al., ICRA 2010), the group spawned at the members' rest
+        positions as in the env (so the rings they keep do not follow them), or, before a group is known, with
+        their last velocity decaying over ``coast_tau_s``."""
         if not gone:
             return
         if self.centre0 is None or not 2 <= len(seen) + len(gone) <= MAX_HUMANS:  # no group model: coast
@@ -188,7 +229,8 @@ class GroupTracker:
                 m.vel = m.vel * decay
             return
         everyone = seen + gone
-        group = self.model.group(np.array([m.pos for m in everyone]), self.centre0)
+        group = self.model.group(np.array([m.pos for m in everyone]), self.centre0,
+                                 np.array([m.pos if m.rest is None else m.rest for m in everyone]))
         group.vel[:] = np.array([m.vel for m in everyone])
         group.step(np.asarray(robot_xy, dtype=float), dt)
         for m, q, v in zip(gone, group.pos[len(seen):], group.vel[len(seen):], strict=True):
@@ -199,9 +241,13 @@ class GroupTracker:
         states = self.tracker.update(np.asarray(detections, dtype=float).reshape(-1, 2), dt=dt, odom=pose)
         rot, t = _se2(pose)
         seen = {}
+        at_rest = self.model.weight == 0.0  # the robot is not joining: where people stand now is their rest
         for st in states:
-            seen[st.id] = Member(st.id, rot @ st.position + t, rot @ st.velocity, rot @ st.covariance[:2, :2] @ rot.T,
-                                 st.misses == 0)
+            m = Member(st.id, rot @ st.position + t, rot @ st.velocity, rot @ st.covariance[:2, :2] @ rot.T,
+                       st.misses == 0)
+            old = self.members.get(st.id)
+            m.rest = m.pos.copy() if at_rest or old is None or old.rest is None else old.rest
+            seen[st.id] = m
         seen_robot = np.array([st.position for st in states]).reshape(-1, 2)
         gone = [m for k, m in self.members.items() if k not in seen]
         for m in gone:

@@ -61,6 +61,18 @@ class DeployParams:
         _check(self.settle_s >= 0 and self.status_s >= 0, "deploy", "settle_s", self.settle_s, ">= 0")
 
 
+ESTIMATE_MARGIN = 0.1  # m the policy's shield keeps beyond --stop-distance: the tracked people's error near the
+#   robot (virtual Pepper, seeded lockstep runs: 0.01-0.03 m along the line of sight, 0.03-0.08 m across it for a
+#   person just out of view) must not turn the policy's closest pass (0.5 m by the training shield) into a stop
+
+
+def deploy_shield(robot: RobotParams, social: SocialParams, task: TaskParams, stop_distance: float) -> ShieldParams:
+    """The policy's safety shield on the robot: the training one (``ShieldParams.from_env``), braking
+    ``ESTIMATE_MARGIN`` before ``stop_distance`` when that is further out."""
+    shield = ShieldParams.from_env(robot, social, task)
+    return dataclasses.replace(shield, clearance_min=max(shield.clearance_min, stop_distance + ESTIMATE_MARGIN))
+
+
 @dataclasses.dataclass
 class Setup:
     """What the loop drives: the robot, the policy and the models it needs (all already checked)."""
@@ -105,7 +117,7 @@ class DeployLoop:
         pos = np.array([m.pos + m.vel * age for m in est.members])
         return pos, np.array([m.vel for m in est.members]), est.members, age, est.detections
 
-    def _act(self, pose: np.ndarray, vel: np.ndarray, pos: np.ndarray, mvel: np.ndarray
+    def _act(self, pose: np.ndarray, vel: np.ndarray, pos: np.ndarray, mvel: np.ndarray, rest: np.ndarray
              ) -> tuple[np.ndarray, dict[str, Any]]:
         """The policy's body command for a known group (odometry-frame inputs), and what it saw."""
         s, fr = self.s, self.s.frames
@@ -114,8 +126,8 @@ class DeployLoop:
             if hasattr(s.policy, "reset"):
                 s.policy.reset()
             self._policy_state, self._approaching = None, True
-        centre, radius, joining, slot = self.group.update(pos, pose[:2])
-        s.perception.centre0 = self.group.centre0
+        centre, radius, joining, slot = self.group.update(pos, pose[:2], rest)
+        s.perception.centre0 = self.group.centre
         room = fr.room_pose(pose)
         rot = fr.room_from_odom[2]
         c, sn = math.cos(rot), math.sin(rot)
@@ -170,7 +182,8 @@ class DeployLoop:
             s.perception.centre0 = None
             state, cmd = self._search(odo.pose, pos)
         else:
-            cmd, info = self._act(odo.pose, odo.velocity, pos, mvel)
+            rest = np.array([q if m.rest is None else m.rest for m, q in zip(members, pos, strict=True)])
+            cmd, info = self._act(odo.pose, odo.velocity, pos, mvel, rest)
             state = "joined" if info["success"] else "approach"
         t_send = self.now()
         sent = s.robot.send(cmd)

@@ -31,6 +31,7 @@ import cv2
 import numpy as np
 
 from ..cli import ArgumentParser, run
+from ..env.layouts import GROUP_MODELS
 from ..errors import UserError
 from ..files import check_output_path
 from .naoqi import BGR, RESOLUTIONS, RGB, import_qi
@@ -308,6 +309,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--listen", default="tcp://127.0.0.1:9559", help="tcp://HOST:PORT (default %(default)s)")
     ap.add_argument("--seed", type=int, default=0, help="episode seed of the simulated scene (default 0)")
     ap.add_argument("--scenario", default="default", help="default | mixed | FORMATION[-N] | ... (as evaluate)")
+    ap.add_argument("--groups", choices=GROUP_MODELS, help="how the group stands: calibrated (real groups' size) "
+                    "or paper (1.0 m circles); default: the one the shipped policy was trained on")
     ap.add_argument("--log", type=Path, help="JSONL log of every simulation step")
     ap.add_argument("--allow-remote", action="store_true", help="allow a non-loopback --listen address")
     ap.add_argument("--duration", type=float, default=0.0, help="exit after this many seconds (0: run until killed)")
@@ -322,7 +325,11 @@ def main(argv: list[str] | None = None) -> int:
         if path is not None:
             check_output_path(path, flag, is_dir=is_dir)
     qi = import_qi()
-    robot = SimRobot(args.scenario, args.seed)
+    if args.groups is None:
+        from .group import policy_groups
+
+        args.groups = policy_groups("vector")
+    robot = SimRobot(args.scenario, args.seed, groups=args.groups)
     on_map = write_room_map(args.write_map, robot) if args.write_map is not None else None
     session = qi.Session()
     try:
@@ -336,8 +343,8 @@ def main(argv: list[str] | None = None) -> int:
     signal.signal(signal.SIGUSR1, lambda *_: setattr(vp, "frozen", not vp.frozen))
     x, y, yaw = robot.start_pose
     print(f"listening on {session.endpoints()[0]}", flush=True)
-    print(f"scene: seed {args.seed}, {robot.info['formation']} group of {robot.info['n_humans']}, robot at "
-          f"({x:.2f}, {y:.2f}, {math.degrees(yaw):.0f} deg) in the room frame", flush=True)
+    print(f"scene: seed {args.seed}, {robot.info['formation']} group of {robot.info['n_humans']} ({args.groups}), "
+          f"robot at ({x:.2f}, {y:.2f}, {math.degrees(yaw):.0f} deg) in the room frame", flush=True)
     if on_map is not None:
         (mx, my, myaw) = on_map[1]
         print(f"map: --map {on_map[0]} --start-pose {mx:.3f} {my:.3f} {math.degrees(myaw):.2f}", flush=True)
