@@ -242,3 +242,30 @@ def test_policy_flag_picks_its_config_and_a_run_name_of_its_own():
 def test_env_keys_are_checked_before_any_output(tmp_path):
     with pytest.raises(ConfigError, match=r"config.env = \['bogus'\]"):
         load_config(None, {"env": {"bogus": 1}})
+
+
+def test_fine_tuning_onto_the_range_scan_starts_as_the_source():
+    """``--init-from`` a 40-entry Vector policy into a config whose observation has the range scan: the new inputs'
+    weights start at zero and the source's normalisation is kept, so the fine-tuned model acts as the source."""
+    import torch
+
+    from ssbl_pb.env import observation as ob
+    from ssbl_pb.env.trained import load_trained
+    from ssbl_pb.policies import SHIPPED
+    from ssbl_pb.training.run import _init_from, build_model, make_vec_env
+
+    cfg = load_config(ROOT / "configs" / "vector_rooms_finetune.yaml", {"n_envs": 2})
+    venv = make_vec_env(cfg, 0)
+    model = build_model(cfg, venv, Path("/nonexistent/tb"))
+    src = load_trained(str(SHIPPED["vector"]), None)
+    if src.observation_space.shape != (ob.BASE_SIZE,):
+        pytest.skip("the shipped policy already reads the range scan")
+    new = _init_from(model, venv, SHIPPED["vector"])
+    assert new.observation_space.shape == (ob.OBS_SIZE,) and new.obs_rms.mean.shape == (ob.OBS_SIZE,)
+    first = model.policy.state_dict()["mlp_extractor.policy_net.0.weight"]
+    assert first.shape[1] == ob.OBS_SIZE and torch.all(first[:, ob.BASE_SIZE:] == 0)
+    obs = venv.venv.reset()
+    assert np.all(obs[:, ob.BASE_SIZE:] <= 1.0) and np.any(obs[:, ob.BASE_SIZE:] < 1.0)
+    mine, _ = model.predict(new.normalize_obs(obs), deterministic=True)
+    theirs, _ = src.model.predict(src.normalize(obs[:, :ob.BASE_SIZE]), deterministic=True)
+    assert np.allclose(mine, theirs, atol=1e-6)
