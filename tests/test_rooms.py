@@ -152,3 +152,30 @@ def test_pybullet_sees_the_obstacles(room_yaml):
     img = world.render_top_down(world.top_down_camera(96))
     brown = (np.abs(img.astype(int) - [115, 84, 56]).sum(axis=2) < 60).mean()
     assert brown > 0.01  # the obstacles show in the top-down view
+
+
+def test_the_way_around_the_group_agrees_with_labelling_the_free_space():
+    """Spawning's search (a breadth-first search that stops on arrival) answers as labelling the room's free space
+    outside the group's disc does (scipy's 4-connected labels)."""
+    from scipy import ndimage
+
+    from ssbl_pb.env.obstacles import CELL
+    from ssbl_pb.env.rooms import FurnitureParams, furnished_room
+    from ssbl_pb.env.spawn import _around_group
+
+    reach, rng, answers = RobotParams().reach, np.random.default_rng(0), []
+    for _ in range(15):
+        room = furnished_room(rng, FurnitureParams())
+        ny, nx = room.field.shape
+        xs, ys = room.x0 + CELL * np.arange(nx), room.y0 + CELL * np.arange(ny)
+        for _ in range(20):
+            c, a, b = (rng.uniform(-3, 3, 2) for _ in range(3))
+            keep_out = rng.uniform(0.5, 1.5)
+            outside = (xs[None, :] - c[0]) ** 2 + (ys[:, None] - c[1]) ** 2 > keep_out ** 2
+            labels = ndimage.label((room.free_component(reach) > 0) & outside)[0]
+            la = labels[int(round((a[1] - room.y0) / CELL)), int(round((a[0] - room.x0) / CELL))]
+            lb = labels[int(round((b[1] - room.y0) / CELL)), int(round((b[0] - room.x0) / CELL))]
+            want = bool(la > 0 and la == lb)
+            assert _around_group(room, reach, c, keep_out, a, b) == want
+            answers.append(want)
+    assert 0.2 < np.mean(answers) < 0.9  # both answers are exercised

@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 
 from ..params import ConfigError, RobotParams, SocialParams, WorldParams
 from .humans import MAX_HUMANS, free_slot
@@ -100,9 +101,6 @@ class Approach:
             if _clearance(room, centre + d * u) < reach + GROUP_CLEARANCE:
                 return False
         entry = centre + way_in * u
-        label = room.component_at(reach, *xy)
-        if label == 0 or label != room.component_at(reach, *entry):
-            return False
         return _around_group(room, reach, centre, self.keep_out, xy, entry)
 
 
@@ -115,16 +113,47 @@ def _clearance(room: Room, xy: np.ndarray) -> float:
 def _around_group(room: Room, reach: float, centre: np.ndarray, keep_out: float, a: np.ndarray, b: np.ndarray
                   ) -> bool:
     """Whether ``a`` and ``b`` connect keeping ``reach`` from obstacles and walls and staying out of the disc of
-    ``keep_out`` around ``centre``."""
-    from scipy import ndimage
-
-    ny, nx = room.field.shape
-    xs, ys = room.x0 + CELL * np.arange(nx), room.y0 + CELL * np.arange(ny)
-    outside = (xs[None, :] - centre[0]) ** 2 + (ys[:, None] - centre[1]) ** 2 > keep_out ** 2
-    labels = ndimage.label((room.free_component(reach) > 0) & outside)[0]
+    ``keep_out`` around ``centre`` (through the field's nodes, 4-connected: ``Room.free_component``'s rule)."""
     ia, ja = int(round((a[1] - room.y0) / CELL)), int(round((a[0] - room.x0) / CELL))
     ib, jb = int(round((b[1] - room.y0) / CELL)), int(round((b[0] - room.x0) / CELL))
-    return bool(labels[ia, ja] > 0 and labels[ia, ja] == labels[ib, jb])
+    return _connected(room.field, room.x0, room.y0, room.size[0], room.size[1], reach, centre[0], centre[1],
+                      keep_out, ia, ja, ib, jb)
+
+
+@njit(cache=True)
+def _connected(field: np.ndarray, x0: float, y0: float, size_x: float, size_y: float, clearance: float,
+               cx: float, cy: float, keep_out: float, ia: int, ja: int, ib: int, jb: int) -> bool:
+    """Breadth-first search over the field's nodes from (ia, ja) to (ib, jb) through nodes at least ``clearance``
+    from obstacles and walls and farther than ``keep_out`` from (cx, cy); stops when it arrives (a reset checks
+    one start, so a search that ends early beats labelling the whole room)."""
+    ny, nx = field.shape
+
+    def free(i: int, j: int) -> bool:
+        if i < 0 or j < 0 or i >= ny or j >= nx or field[i, j] < clearance:
+            return False
+        x, y = x0 + j * CELL, y0 + i * CELL
+        return (abs(x) <= size_x / 2 - clearance and abs(y) <= size_y / 2 - clearance
+                and (x - cx) ** 2 + (y - cy) ** 2 > keep_out ** 2)
+
+    if not free(ia, ja) or not free(ib, jb):
+        return False
+    seen = np.zeros((ny, nx), dtype=np.bool_)
+    queue = np.empty(ny * nx, dtype=np.int64)
+    queue[0], seen[ia, ja] = ia * nx + ja, True
+    head, tail = 0, 1
+    while head < tail:
+        k = queue[head]
+        head += 1
+        i, j = k // nx, k % nx
+        if i == ib and j == jb:
+            return True
+        for di, dj in ((1, 0), (-1, 0), (0, 1), (0, -1)):
+            u, v = i + di, j + dj
+            if free(u, v) and not seen[u, v]:
+                seen[u, v] = True
+                queue[tail] = u * nx + v
+                tail += 1
+    return False
 
 
 def fitting_sizes(room: Room, world: WorldParams | None = None, robot: RobotParams | None = None,
