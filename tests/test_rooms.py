@@ -179,3 +179,16 @@ def test_the_way_around_the_group_agrees_with_labelling_the_free_space():
             assert _around_group(room, reach, c, keep_out, a, b) == want
             answers.append(want)
     assert 0.2 < np.mean(answers) < 0.9  # both answers are exercised
+
+
+def test_a_small_map_room_is_judged_by_spawning_in_it(tmp_path):
+    """A map room smaller than the empty-room rule allows (6 x 5.5 m) is used when its group and the robot fit
+    (as tools/import_map.py reports); its obstacle-free twin (@empty) is refused by the empty-room rule."""
+    path = tmp_path / "small.yaml"
+    path.write_text("world:\n  room_size: [6.0, 5.5]\nobstacles:\n  boxes:\n  - [2.6, 2.4, 0.8, 0.7, 0]\n")
+    env = make_env(room_yaml=str(path), scenario="default")
+    for seed in range(5):
+        env.reset(seed=seed)
+        assert env.unwrapped.sim.rooms[0].size == (6.0, 5.5)
+    with pytest.raises(ConfigError, match="room_size"):
+        make_env(room_yaml=str(path), scenario="default@empty")

@@ -74,7 +74,7 @@ def parse_env_params(scenario: str, world: Any, robot: Any, social: Any, reward:
     world_p, social_p = _params(WorldParams, world, "world"), _params(SocialParams, social, "social")
     furniture_p = _params(FurnitureParams, furniture, "furniture")
     biggest = max(max(sc.sizes) for sc in mix.members)
-    if mix.rooms - {"furnished"}:
+    if "empty" in mix.rooms:  # a map room is checked by spawning in it (``BatchedApproach._check_map_room``)
         world_p.check_fits(social_p)
         WorldParams(**{**world_p.__dict__, "n_humans": biggest}).check_fits(social_p)
     if "furnished" in mix.rooms:
@@ -156,7 +156,7 @@ class ApproachGroupEnv(gym.Env):
         self.render_mode = render_mode
         self.render_width = render_width
         self.record = record or render_mode is not None
-        self.world = World(self.world_params, self.robot_params, self.social, self.groups, sim.keep)
+        self.world = World(self.world_params, self.robot_params, self.social, self.groups, sim.keep, sim.rooms[0])
         self.world.attach(sim.bases, sim.groups_state, 0)
         self.action_space = gym.spaces.Box(-1.0, 1.0, shape=(sim.n_act,), dtype=np.float32)
         self.observation_space = gym.spaces.Box(-ob.OBS_LIMIT, ob.OBS_LIMIT, shape=(ob.obs_size(scan),),

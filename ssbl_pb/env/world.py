@@ -54,18 +54,22 @@ class World:
     """Pepper and one conversation group in a walled room; ``reset`` spawns, ``step`` advances by ``dt``."""
 
     def __init__(self, world: WorldParams | None = None, robot: RobotParams | None = None,
-                 social: SocialParams | None = None, groups: GroupModel | None = None, keep: float = 0.0) -> None:
+                 social: SocialParams | None = None, groups: GroupModel | None = None, keep: float = 0.0,
+                 room: Room | None = None) -> None:
         """``groups``: where members stand (``layouts.GroupModel``, calibrated by default); ``keep``: the distance
-        the robot's place keeps from every member's centre (``Group``, ``layouts.slot_keep``)."""
+        the robot's place keeps from every member's centre (``Group``, ``layouts.slot_keep``); ``room``: the room
+        to show (``set_room``; a room given here was checked by its owner, an env: the empty room of ``world``
+        must hold the group otherwise)."""
         self.params = world or WorldParams()
         self.robot_params = robot or RobotParams()
         self.social = social or SocialParams()
         self.groups = groups or GroupModel()
         self.keep = keep
-        self.params.check_fits(self.social)
+        if room is None:
+            self.params.check_fits(self.social)
         self.base = HolonomicBase(self.robot_params, self.params.dt)
         self.group: Group | None = None
-        self._room: Room | None = None
+        self._room: Room | None = room
         self._attached = False
         self.client = p.connect(p.DIRECT)
         self.t = 0.0
