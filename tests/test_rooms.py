@@ -192,3 +192,21 @@ def test_a_small_map_room_is_judged_by_spawning_in_it(tmp_path):
         assert env.unwrapped.sim.rooms[0].size == (6.0, 5.5)
     with pytest.raises(ConfigError, match="room_size"):
         make_env(room_yaml=str(path), scenario="default@empty")
+
+
+def test_clutter_covers_the_share_of_the_floor_asked_for():
+    """Clutter (blobs of small boxes, as a SLAM map shows) covers about the drawn share of the floor, measured on
+    the distance field; without it a room holds its furniture only."""
+    from ssbl_pb.env.rooms import FurnitureParams, furnished_room
+
+    rng = np.random.default_rng(3)
+    plain = [furnished_room(rng, FurnitureParams(density_min=0.0, density_max=0.0)) for _ in range(3)]
+    assert all(not room.furnished for room in plain)
+    p = FurnitureParams(density_min=0.0, density_max=0.0, clutter_min=0.2, clutter_max=0.2)
+    for _ in range(5):
+        room = furnished_room(rng, p)
+        occupied = float((room.field <= 0).mean())
+        assert 0.08 < occupied < 0.2, occupied  # overlapping boxes and boxes past the walls cover less
+        assert np.all(room.rows[:, 2:4] <= 0.3 + 1e-9)  # half sizes of 0.1-0.6 m boxes
+    with pytest.raises(ConfigError, match="furniture.clutter_max"):
+        FurnitureParams(clutter_min=0.3, clutter_max=0.2)
