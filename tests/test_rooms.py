@@ -46,8 +46,8 @@ def test_furnished_starts_leave_room_for_the_group_and_a_way_to_it():
         assert boxes_distance(*g.centre0, room.rows) >= members + GROUP_CLEARANCE
         slot = env.slot()
         assert boxes_distance(*slot, room.rows) >= reach + GROUP_CLEARANCE  # the robot fits at its place
-        label = room.component_at(reach, x, y)
-        assert label > 0 and label == room.component_at(reach, *slot)  # and can drive there
+        label = room.component_at(reach + START_CLEARANCE, x, y)
+        assert label > 0 and label == room.component_at(reach + START_CLEARANCE, *slot)  # and can drive there
         assert not env.world.collisions()
     assert len(sizes) == 25  # a new room every episode
 

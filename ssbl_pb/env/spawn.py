@@ -19,10 +19,13 @@ from .humans import MAX_HUMANS, free_slot
 from .layouts import GroupModel, Layout
 from .obstacles import CELL, boxes_distance
 from .rooms import Room
+from .shield import ShieldParams
 from .task import TaskParams
 
 ROBOT_TRIES = 20  # robot starts tried per group centre in a room with obstacles
-START_CLEARANCE = 0.1  # m the footprint's reach keeps from obstacles at the start (ours)
+# m the footprint's reach keeps from obstacles at the start and on its way to the group: the safety shield's
+# margin (``ShieldParams.obstacle_clearance_min``), so the way is one the shielded robot can drive through
+START_CLEARANCE = ShieldParams().obstacle_clearance_min
 GROUP_CLEARANCE = 0.2  # m beyond the members' bodies and the robot at its place kept free of obstacles (a step)
 
 
@@ -75,7 +78,7 @@ class Approach:
     the members' bodies keep ``GROUP_CLEARANCE`` from every obstacle (``members``: the free radius they need); the
     robot at its place (the slot at rest, toward the robot) and on the way in along the slot's ray keeps its
     footprint's reach plus ``GROUP_CLEARANCE`` from obstacles and walls; the robot's start keeps its reach plus
-    ``START_CLEARANCE``, and a path keeping its reach leads from the start to where that way in begins, around
+    ``START_CLEARANCE``, and a path keeping that clearance leads from the start to where that way in begins, around
     the group (its keep-out disc: the members' bodies plus the footprint's reach and the intimate zone, as the
     shaping's route keeps, ``reward.route_length``)."""
 
@@ -101,7 +104,7 @@ class Approach:
             if _clearance(room, centre + d * u) < reach + GROUP_CLEARANCE:
                 return False
         entry = centre + way_in * u
-        return _around_group(room, reach, centre, self.keep_out, xy, entry)
+        return _around_group(room, reach + START_CLEARANCE, centre, self.keep_out, xy, entry)
 
 
 def _clearance(room: Room, xy: np.ndarray) -> float:
