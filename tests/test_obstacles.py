@@ -64,7 +64,10 @@ def test_footprint_clearance_matches_the_exact_gap(room):
         if exact > CAP - 0.1 or exact < -0.05:
             continue
         got = obs.footprint_clearance(room.field, room.x0, room.y0, x, y, yaw, HL, HW)
-        assert got == pytest.approx(exact, abs=0.012), (x, y, yaw)
+        if exact <= obs.EXACT_BELOW:
+            assert got == pytest.approx(exact, abs=0.012), (x, y, yaw)
+        else:  # far from everything: a lower bound, itself beyond the exact range
+            assert obs.EXACT_BELOW - 0.012 <= got <= exact + 0.012, (x, y, yaw)
         checked += 1
     # a corner touching the desk's face (x = 0.8) from the left, turned 45 deg: the reach is the half diagonal
     reach = math.hypot(HL, HW)
