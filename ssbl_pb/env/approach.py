@@ -159,7 +159,7 @@ class ApproachGroupEnv(gym.Env):
         self.world = World(self.world_params, self.robot_params, self.social, self.groups, sim.keep, sim.rooms[0])
         self.world.attach(sim.bases, sim.groups_state, 0)
         self.action_space = gym.spaces.Box(-1.0, 1.0, shape=(sim.n_act,), dtype=np.float32)
-        self.observation_space = gym.spaces.Box(-ob.OBS_LIMIT, ob.OBS_LIMIT, shape=(ob.obs_size(scan),),
+        self.observation_space = gym.spaces.Box(-ob.OBS_LIMIT, ob.OBS_LIMIT, shape=(sim.obs_size,),
                                                 dtype=np.float32)
         self.dt = self.world_params.dt
         self.trajectory: list[dict[str, Any]] = []

@@ -76,7 +76,8 @@ class BatchedApproach:
         self.terms = np.zeros((num, len(TERMS)))  # the last step's terms
         self.rewards = np.zeros(num)
         self.flags = np.zeros((num, kernels.N_FLAGS), dtype=bool)  # kernels.TERMINATED ... OBSTACLE_COLLISION
-        self._obs = np.zeros((num, ob.obs_size(scan)), dtype=np.float32)
+        self.obs_size = ob.obs_size(scan)  # Vector observation entries (with the range scan or without)
+        self._obs = np.zeros((num, self.obs_size), dtype=np.float32)
         self._all = np.arange(num)
         self._init_rooms()
 
