@@ -47,7 +47,8 @@ def _drive(num: int, steps: int, seed: int, noise: float = 0.15, **kwargs):
     {"scenario": "default,circular-5", "robot": {"latency_s": 0.15, "time_constant_s": 0.2}},
     {"scenario": "l_shape", "task": {"turn": True}},
     {"scenario": "mixed", "groups": "paper"},
-], ids=["mixed", "calibrated-base", "policy-turns", "paper-groups"])
+    {"scenario": "mixed@furnished,default@furnished"},
+], ids=["mixed", "calibrated-base", "policy-turns", "paper-groups", "furnished-rooms"])
 def test_batch_matches_single_env(kwargs):
     endings = {"success": 0, "violation": 0, "truncated": 0}
     for singles, single, batch, (rew, term, trunc) in _drive(6, 600, 7, **kwargs):
@@ -108,6 +109,7 @@ def _random_obs(rng: np.random.Generator, n: int) -> np.ndarray:
         block[:k, 2:4] = rng.normal(0, 0.4, (k, 2))
         block[:k, 4] = 1.0
         row[39] = rng.uniform(-1, 1)
+        row[ob.BASE_SIZE:] = np.where(rng.uniform(size=ob.SCAN_RAYS) < 0.2, rng.uniform(0.05, 0.5, ob.SCAN_RAYS), 1.0)
     return obs
 
 

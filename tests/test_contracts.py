@@ -186,6 +186,21 @@ CASES = [
     C("bench_sweep.py", "--out", "{out}.txt", expect="expected a .json"),
     C("bench_sweep.py", "--spec", "tests/sweep_specs/no_seeds.yaml", "--out", "{out}.json", expect="seeds: missing"),
     C("bench_sweep.py", "--out", "{file}/bench.json", expect="is a file"),
+    # rooms with obstacles (issue 18): bad room YAMLs, maps and room names
+    C("evaluate.py", "--policy", "sffm", "--room-yaml", "tests/room_specs/no_place.yaml", "--episodes", "2",
+      "--out", "{out}", expect="no_place.yaml: no place for a group of 2"),
+    C("evaluate.py", "--policy", "sffm", "--room-yaml", "tests/room_specs/bad_box.yaml", "--out", "{out}",
+      expect="bad_box.yaml: obstacles.boxes[0]"),
+    C("evaluate.py", "--policy", "sffm", "--scenario", "default@map", "--out", "{out}",
+      expect="room 'map' needs a room YAML with obstacles"),
+    C("evaluate.py", "--policy", "sffm", "--scenario", "mixed@attic", "--out", "{out}", expect="room 'attic'"),
+    C("train_pb.py", "--scenario", "mixed@map", "--out", "{out}", expect="room 'map' needs a room YAML"),
+    C("train_pb.py", "--set", "env.furniture.size_min=5", "--scenario", "mixed@furnished", "--out", "{out}",
+      expect="furniture.size_min = 5: too small"),
+    C("import_map.py", "tests/room_specs/solid.yaml", "--region", "0.1", "1.1", "1.9", "1.9", "--out", "{out}.yaml",
+      expect="all its 136 cells are occupied"),
+    C("import_map.py", "tests/room_specs/solid.yaml", "--region", "0.1", "0.1", "1.9", "0.9", "--out", "{out}.yaml",
+      expect="holds no free cell (0 occupied, 136 unknown)"),
 ]
 
 

@@ -72,3 +72,26 @@ def test_run_on_the_map_logs_true_poses_and_draws_them(robot, tmp_path):
     # the whole room is drawn: its 0.1 m walls (black) all around, ~40 m of them at ~70 px/m
     assert (img == 0).all(axis=2).sum() > 10000
     assert any(row["humans"] for row in rows)  # and people were tracked (their paths are drawn too)
+
+
+def test_scan_from_the_map_is_the_simulators(tmp_path):
+    """Deploy casts the scan from the room YAML at the localised pose exactly as the simulator does in that room."""
+    from ssbl_pb.env import observation as ob
+    from ssbl_pb.env.approach import make_env
+
+    r = SimRobot("default", seed=35)
+    try:
+        room_yaml, _ = write_room_map(tmp_path, r)
+    finally:
+        r.close()
+    with open(room_yaml, "a") as fh:
+        fh.write("obstacles:\n  boxes:\n  - [1.5, 0.5, 1.4, 0.7, 0]\n  - [-2.0, -1.0, 0.8, 0.8, 45]\n")
+    frames = Frames(load_room(room_yaml), np.zeros(3))
+    env = make_env(room_yaml=room_yaml, scenario="default")
+    for seed in range(5):
+        obs, _ = env.reset(seed=seed)
+        sim = env.unwrapped.sim
+        frame = ob.approach_yaw(sim.pose[0], sim.centre[0])
+        assert np.allclose(frames.scan(sim.pose[0], frame), obs[ob.BASE_SIZE:], atol=1e-6)
+    assert (frames.scan(np.array([0.8, 0.5, 0.0]), 0.0) < 1).sum() >= 3  # the desk fills several rays
+    assert np.all(Frames().scan(np.zeros(3), 0.0) == 1.0)  # no map: nothing known

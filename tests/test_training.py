@@ -272,3 +272,34 @@ def test_copy_policy_brings_the_encoder_along(tmp_path):
     enc.unlink()  # the shipped folder stands alone
     assert policy_env_kwargs(str(dest)) == {"obs_mode": "camera_speed", "camera_width": 64, "camera_height": 64,
                                             "encoder": str(dest / "encoder.pt")}
+
+
+def test_fine_tuning_onto_the_range_scan_starts_as_the_source(tmp_path):
+    """``--init-from`` a 40-entry Vector policy (trained without the range scan) into a config whose observation
+    has it: the new inputs' weights start at zero and the source's normalisation is kept for the old entries, so
+    the fine-tuned model acts exactly as the source."""
+    import torch
+
+    from ssbl_pb.env import observation as ob
+    from ssbl_pb.env.trained import load_trained
+    from ssbl_pb.training.run import _init_from, build_model, make_vec_env
+
+    src_dir = tmp_path / "no_scan"
+    res = subprocess.run([*TRAIN, "--total-steps", "256", "--out", str(src_dir), *SMALL, "--set", "env.scan=false"],
+                         capture_output=True, text=True, timeout=240)
+    assert res.returncode == 0, res.stderr[-2000:]
+    src = load_trained(str(src_dir), None)
+    assert src.observation_space.shape == (ob.BASE_SIZE,)
+    cfg = load_config(None, {"n_envs": 2, "scenario": "default@furnished", "ppo": {"net_arch": [32, 32]}})
+    venv = make_vec_env(cfg, 0)
+    model = build_model(cfg, venv, tmp_path / "tb")
+    new = _init_from(model, venv, src_dir)
+    assert new.observation_space.shape == (ob.OBS_SIZE,) and new.obs_rms.mean.shape == (ob.OBS_SIZE,)
+    assert np.allclose(new.obs_rms.mean[:ob.BASE_SIZE], src.normalizer.obs_rms.mean)
+    first = model.policy.state_dict()["mlp_extractor.policy_net.0.weight"]
+    assert first.shape[1] == ob.OBS_SIZE and torch.all(first[:, ob.BASE_SIZE:] == 0)
+    obs = venv.venv.reset()
+    assert np.all(obs[:, ob.BASE_SIZE:] <= 1.0) and np.any(obs[:, ob.BASE_SIZE:] < 1.0)
+    mine, _ = model.predict(new.normalize_obs(obs), deterministic=True)
+    theirs, _ = src.model.predict(src.normalize(obs[:, :ob.BASE_SIZE]), deterministic=True)
+    assert np.allclose(mine, theirs, atol=1e-6)

@@ -1,10 +1,13 @@
-"""Import a ROS map_server map (PGM + YAML) and write the room YAML (WorldParams room_size + map <- room).
+"""Import a ROS map_server map (PGM + YAML) and write the room YAML (WorldParams room_size + map <- room + the
+room's obstacles: every cell inside its walls that is not its free space, merged into boxes).
 
     python tools/import_map.py ../shared/data/maps/willow-full.yaml --region 14.5 22 20.5 27.5 \
         --out results/calib/room.yaml                                   # + room.png
+    python tools/evaluate.py --policy vector --room-yaml results/calib/room.yaml --scenario mixed --out DIR
 
 The room frame is centred on the room with the map image's axes; deploy maps env positions to the map with
-``ssbl_pb.calib.room_map.room_to_map(xy, yaml["map_to_room"])``. Exit code 2 on bad input.
+``ssbl_pb.calib.room_map.room_to_map(xy, yaml["map_to_room"])``. The simulator trains and evaluates in the room
+with its obstacles (scenarios ``@map``, the default with such a YAML). Exit code 2 on bad input.
 """
 
 from __future__ import annotations
@@ -37,12 +40,29 @@ def main(argv: list[str] | None = None) -> int:
     region = tuple(args.region) if args.region else None
     room = extract_room(m, seed, region, args.door_width, args.size_from)
     data = room_yaml(m, room, seed, region)
+    sizes = fits(data)
+    span = "-".join(str(n) for n in sorted({sizes[0], sizes[-1]})) if sizes else ""
+    holds = (f"holds groups of {span} and the robot" if sizes else
+             "holds no group of 2 with the robot: the simulator will refuse it (deploy --map can use it)")
     write_yaml(args.out, data, header=f"room cut from {args.map}; frame centred on the room, map axes")
     room_figure(m, room, args.out.with_suffix(".png"))
     print(f"{args.out}: room_size {data['world']['room_size']} m, centre {list(room.centre)} (map frame), "
           f"free rectangle {room.free_rect[2] - room.free_rect[0]:.1f} x {room.free_rect[3] - room.free_rect[1]:.1f}"
-          f" m, free fraction {room.free_fraction:.2f}")
+          f" m, free fraction {room.free_fraction:.2f}, {len(data['obstacles']['boxes'])} obstacle boxes; {holds}")
     return 0
+
+
+def fits(data: dict) -> list[int]:
+    """Group sizes the simulator can place in the room with the robot (``env.spawn.fitting_sizes``)."""
+    import math
+
+    from ssbl_pb.env.obstacles import box_rows
+    from ssbl_pb.env.rooms import Room
+    from ssbl_pb.env.spawn import fitting_sizes
+
+    boxes = [[x, y, sx, sy, math.radians(yaw)] for x, y, sx, sy, yaw in data["obstacles"]["boxes"]]
+    size = tuple(data["world"]["room_size"])
+    return fitting_sizes(Room(size, box_rows(boxes) if boxes else None, "imported"))
 
 
 if __name__ == "__main__":

@@ -1,7 +1,7 @@
 #!/usr/bin/env python
 """Ship a trained run as one of the package's policies (ssbl_pb/policies/NAME/), with its config, its frozen
 encoder (camera policies on a conv / SAEV autoencoder) and the evaluation that qualifies it (held-out seeds,
-default and mixed scenarios); `--policy NAME` then finds it in every tool.
+default and mixed scenarios, and mixed in random furnished rooms); `--policy NAME` then finds it in every tool.
 
 The model is loaded before anything else. The current shipped policy is evaluated on the same seeds, and a
 candidate that does worse on either scenario's success rate is refused unless --force.
@@ -21,7 +21,7 @@ from pathlib import Path
 from ssbl_pb.cli import ArgumentParser, UserError, int_at_least, progress_bar, run
 
 ROOT = Path(__file__).resolve().parents[1]
-SCENARIOS = ("default", "mixed")
+SCENARIOS = ("default", "mixed", "mixed@furnished")  # mixed@furnished: issue 18
 
 
 def pick_model(run_dir: Path, which: str) -> Path:

@@ -25,7 +25,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--obs-mode", choices=["vector", "camera", "camera_speed"])
     ap.add_argument("--encoder", choices=["none", "cnn", "conv", "saev"])
     ap.add_argument("--policy", choices=["ff", "lstm"], help="ff = PPO, lstm = RecurrentPPO")
-    ap.add_argument("--scenario", help="default | mixed | behind | FORMATION[-N] | a,b,...")
+    ap.add_argument("--scenario", help="default | mixed | behind | FORMATION[-N] | a,b,...; each may end in "
+                    "@empty, @furnished or @map (the --room-yaml room)")
     ap.add_argument("--n-envs", type=int, help="parallel environments")
     ap.add_argument("--vec-env", choices=["auto", "batched", "dummy", "subproc"],
                     help="auto (default): batched for the Vector mode (all envs in one array step), else dummy")

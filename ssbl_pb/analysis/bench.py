@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
@@ -23,7 +24,8 @@ def rate(fn: Callable[[], None], n: int, repeats: int = 5) -> float:
 
 def simulator_rates(n_steps: int = 20_000, n_frames: int = 500, seed: int = 0) -> dict[str, float]:
     """raw_step_per_s, raw_render_fps_84, world_step_per_s, camera_fps_84, camera_fps_128, env_step_per_s,
-    batched_env_step_per_s (env steps of the 8-copy training env, smoothing and shield included)."""
+    env_furnished_step_per_s (random furnished rooms), batched_env_step_per_s (env steps of the 8-copy training
+    env, smoothing and shield included)."""
     from ..env.approach import ApproachGroupEnv
     from ..env.cameras import first_person_view, perspective
     from ..env.world import World
@@ -53,19 +55,10 @@ def simulator_rates(n_steps: int = 20_000, n_frames: int = 500, seed: int = 0) -
     out["camera_fps_128"] = rate(step_and_render(128), n_frames)
     world.close()
 
-    env = ApproachGroupEnv()
-    env.reset(seed=seed)
     actions = np.random.default_rng(seed).uniform(-1, 1, (n_steps, 2)).astype(np.float32)
-    i = [0]
-
-    def env_step() -> None:
-        _, _, term, trunc, _ = env.step(actions[i[0] % n_steps])
-        i[0] += 1
-        if term or trunc:
-            env.reset()
-
-    out["env_step_per_s"] = rate(env_step, n_steps // 2)
-    env.close()
+    out["env_step_per_s"] = env_rate(ApproachGroupEnv(), actions, seed)
+    # issue 18: a new randomly furnished room every episode (its drawing and spawning timed with the steps)
+    out["env_furnished_step_per_s"] = env_rate(ApproachGroupEnv(scenario="default@furnished"), actions, seed)
 
     from ..training.vec_env import BatchedVecEnv
 
@@ -82,6 +75,24 @@ def simulator_rates(n_steps: int = 20_000, n_frames: int = 500, seed: int = 0) -
     batched_step()  # compiles the kernels (or loads them from the cache) outside the timing
     out["batched_env_step_per_s"] = 8 * rate(batched_step, n_steps // 8)
     return out
+
+
+def env_rate(env: Any, actions: np.ndarray, seed: int = 0) -> float:
+    """Steps per second of ``env`` in an SB3-style loop (reset when an episode ends) under ``actions``; closes it."""
+    env.reset(seed=seed)
+    i = [0]
+
+    def env_step() -> None:
+        _, _, term, trunc, _ = env.step(actions[i[0] % len(actions)])
+        i[0] += 1
+        if term or trunc:
+            env.reset()
+
+    env_step()  # compiled kernels loaded outside the timing
+    try:
+        return rate(env_step, len(actions) // 2)
+    finally:
+        env.close()
 
 
 def evaluation_seconds(episodes: int = 200, policy: str = "vector", seed: int = 500_000) -> dict[str, float]:

@@ -113,7 +113,8 @@ def outcome(metrics: dict[str, Any]) -> str:
     """Why an episode ended, in words: success, or what failed."""
     if metrics.get("success"):
         return "success"
-    for key, why in (("collision", "collided with a member"), ("violation", "entered a member's intimate zone")):
+    for key, why in (("obstacle_collision", "collided with a wall or an obstacle"),
+                     ("collision", "collided with a member"), ("violation", "entered a member's intimate zone")):
         if metrics.get(key):
             return f"fail: {why}"
     return "fail: time out before joining"

@@ -17,7 +17,7 @@ from ..files import write_json, write_text
 __all__ = ["mean_ci", "summarize", "write_csv", "write_json", "plot_paths"]
 
 SUMMARY_ALIASES = {"success_rate": "success", "collision_rate": "collision", "violation_rate": "violation",
-                   "mean_return": "return"}
+                   "obstacle_collision_rate": "obstacle_collision", "mean_return": "return"}
 
 
 def mean_ci(values: Sequence[float], level: float = 0.95) -> dict[str, float]:
@@ -42,7 +42,7 @@ def summarize(rows: list[dict[str, float]], extra: dict[str, Any] | None = None)
     for alias, key in SUMMARY_ALIASES.items():
         out[alias] = per[key]["mean"]
     for key in ("personal_zone_time_s", "human_displacement_m", "mean_jerk", "arrival_speed",
-                "outside_fov_time_s", "time_to_success_s", "path_length_m"):
+                "outside_fov_time_s", "time_to_success_s", "path_length_m", "min_obstacle_clearance_m"):
         out[key] = per[key]["mean"]
     out["metrics"] = per
     return out
@@ -60,14 +60,23 @@ def write_csv(path: Path, rows: list[dict[str, float]]) -> None:
     write_text(path, buf.getvalue())
 
 
+def box_corners(boxes: np.ndarray) -> np.ndarray:
+    """Corners (B, 4, 2) of boxes (B, 5) ``(cx, cy, size_x, size_y, yaw)``, for drawing."""
+    b = np.asarray(boxes, dtype=float).reshape(-1, 5)
+    local = np.array([[0.5, 0.5], [-0.5, 0.5], [-0.5, -0.5], [0.5, -0.5]])[None] * b[:, None, 2:4]
+    c, s = np.cos(b[:, 4])[:, None], np.sin(b[:, 4])[:, None]
+    return np.stack([c * local[..., 0] - s * local[..., 1], s * local[..., 0] + c * local[..., 1]], -1) + b[:, None, :2]
+
+
 def plot_paths(path: Path, trajectories: list[list[dict[str, Any]]], titles: list[str], room: tuple[float, float],
                cols: int = 3, personal: float = 1.2, human_radius: float = 0.28) -> None:
-    """Top-down paths of the robot (with speed colouring) and the members, one panel per episode."""
+    """Top-down paths of the robot (with speed colouring) and the members, one panel per episode, with the room's
+    walls and obstacles where the trajectory's first state carries them (``room_size``, ``obstacles``)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from matplotlib.patches import Circle
+    from matplotlib.patches import Circle, Polygon, Rectangle
 
     n = len(trajectories)
     rows = max(1, math.ceil(n / cols))
@@ -77,6 +86,10 @@ def plot_paths(path: Path, trajectories: list[list[dict[str, Any]]], titles: lis
         speed = np.array([math.hypot(*s["robot_vel"][:2]) for s in traj])
         members = np.array([s["members"] for s in traj])
         first, last = traj[0], traj[-1]
+        sx, sy = first.get("room_size", room)
+        ax.add_patch(Rectangle((-sx / 2, -sy / 2), sx, sy, fill=False, color="0.3", lw=2))
+        for corners in box_corners(first.get("obstacles", np.zeros((0, 5)))):
+            ax.add_patch(Polygon(corners, color="tab:brown", alpha=0.6))
         ax.add_patch(Circle(last["centre"], last["radius"], fill=False, ls="--", color="0.5"))
         for j in range(members.shape[1]):
             ax.plot(members[:, j, 0], members[:, j, 1], color="tab:blue", lw=1)

@@ -6,8 +6,10 @@ when ``negate``), occupied if ``p > occupied_thresh``, free if ``p < free_thresh
 
 The room: the free space inside a chosen box and/or connected to a seed point, split at doorways
 narrower than ``door_width`` so that a room does not leak into the corridor. Its bounding box gives the
-wall-to-wall extent; the largest free axis-aligned rectangle inside it gives the furniture-free size (the
-simulated room has no furniture).
+wall-to-wall extent; the largest free axis-aligned rectangle inside it gives the furniture-free size.
+Every cell inside the room's walls that is not its free space (occupied, unknown, or behind a door) becomes an
+obstacle of the simulated room: the cells are merged into boxes (``obstacle_boxes``, row runs stacked), which the
+room YAML carries (``obstacles.boxes``) and the env builds (``env.rooms``).
 The room frame is centred on the chosen rectangle, axes parallel to the map image's.
 """
 
@@ -137,6 +139,7 @@ class Room:
     centre: tuple[float, float]  # room frame origin in the map frame (yaw = the map's)
     free_fraction: float  # free cells / bounding-box cells
     component: np.ndarray  # bool mask of the room's free cells (map image shape)
+    cells: tuple[int, int, int, int] = (0, 0, 0, 0)  # rows and columns [r0, r1) x [c0, c1) of room_size
 
 
 def _cell(m: OccupancyMap, xy: tuple[float, float], what: str) -> tuple[int, int]:
@@ -172,7 +175,13 @@ def extract_room(m: OccupancyMap, seed: tuple[float, float] | None = None,
         inside[r_lo:r_hi, c_lo:c_hi] = 1
         free &= inside
         if not free.any():
-            raise CalibrationError(f"{m.yaml_path}: region {tuple(region)} holds no free cell")
+            cells = m.grid[r_lo:r_hi, c_lo:c_hi]
+            if cells.size and (cells == 1).all():
+                raise CalibrationError(f"{m.yaml_path}: region {tuple(region)}: all its {cells.size} cells are "
+                                       f"occupied; expected free space for the room")
+            occupied, unknown = int((cells == 1).sum()), int((cells == -1).sum())
+            raise CalibrationError(f"{m.yaml_path}: region {tuple(region)} holds no free cell ({occupied} occupied, "
+                                   f"{unknown} unknown); expected free space for the room")
     k = max(1, int(round(door_width / 2 / m.resolution)))
     kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * k + 1, 2 * k + 1))
     # cores: free cells at least door_width / 2 from anything else; a narrower door separates two cores
@@ -214,14 +223,50 @@ def extract_room(m: OccupancyMap, seed: tuple[float, float] | None = None,
     mid = m.cell_to_map(np.array([[0.5 * (ra + rb) - 0.5, 0.5 * (ca + cb) - 0.5]]))[0]
     centre = (round(float(mid[0]), 3), round(float(mid[1]), 3))
     frac = float(comp[r0:r1, c0:c1].mean())
-    return Room(bounds, free_rect, size, centre, frac, comp)
+    return Room(bounds, free_rect, size, centre, frac, comp, (ra, rb, ca, cb))
+
+
+def cell_boxes(mask: np.ndarray) -> list[tuple[int, int, int, int]]:
+    """Axis-aligned boxes (r0, r1, c0, c1), exclusive ends, whose union is exactly the True cells of ``mask``:
+    each row's runs of True cells, stacked onto the box above while the run spans the same columns."""
+    open_boxes: dict[tuple[int, int], int] = {}  # (c0, c1) -> first row
+    out = []
+    h = mask.shape[0]
+    for r in range(h + 1):
+        runs = set()
+        if r < h:
+            row = np.concatenate([[False], mask[r], [False]]).astype(np.int8)
+            edges = np.flatnonzero(np.diff(row))
+            runs = {(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True)}
+        for span in [s for s in open_boxes if s not in runs]:
+            out.append((open_boxes.pop(span), r, *span))
+        for span in runs - set(open_boxes):
+            open_boxes[span] = r
+    return out
+
+
+def obstacle_boxes(m: OccupancyMap, room: Room) -> np.ndarray:
+    """The room's obstacles as (B, 5) boxes ``(x, y, size_x, size_y, yaw_deg)`` in the room frame: every cell of
+    its ``room_size`` rectangle that is not its free space, merged by ``cell_boxes``."""
+    r0, r1, c0, c1 = room.cells
+    boxes = cell_boxes(~room.component[r0:r1, c0:c1])
+    if not boxes:
+        return np.zeros((0, 5))
+    b = np.array(boxes, dtype=float) + [r0, r0, c0, c0]
+    mid = m.cell_to_map(np.stack([(b[:, 0] + b[:, 1]) / 2 - 0.5, (b[:, 2] + b[:, 3]) / 2 - 0.5], axis=1))
+    transform = {"x": room.centre[0], "y": room.centre[1], "yaw": float(m.origin[2])}
+    xy = map_to_room(mid, transform)
+    size = np.stack([b[:, 3] - b[:, 2], b[:, 1] - b[:, 0]], axis=1) * m.resolution
+    return np.column_stack([np.round(xy, 3), np.round(size, 3), np.zeros(len(b))])
 
 
 def room_yaml(m: OccupancyMap, room: Room, seed: tuple[float, float] | None,
               region: tuple[float, float, float, float] | None = None) -> dict[str, Any]:
-    """The room YAML: WorldParams fields under ``world`` (validated), the map and the map <- room transform."""
+    """The room YAML: WorldParams fields under ``world`` (validated), the map and the map <- room transform, and
+    the room's obstacles (``obstacle_boxes``)."""
     world = {"room_size": [float(v) for v in room.room_size]}
     from_dict(WorldParams, {"room_size": tuple(world["room_size"])}, f"room from {m.yaml_path}")
+    boxes = obstacle_boxes(m, room)
     return {
         "world": world,
         "map": {"yaml": str(m.yaml_path), "image": str(m.image_path), "resolution": m.resolution,
@@ -232,6 +277,9 @@ def room_yaml(m: OccupancyMap, room: Room, seed: tuple[float, float] | None,
                    "bounds": [round(v, 3) for v in room.bounds],
                    "free_rect": [round(v, 3) for v in room.free_rect],
                    "free_fraction": round(room.free_fraction, 3)},
+        "obstacles": {"note": "cells inside the room's walls that are not its free space (occupied, unknown or "
+                              "behind a door), merged into boxes: [x, y, size_x, size_y, yaw_deg], room frame, metres",
+                      "boxes": [[float(v) for v in row] for row in boxes]},
     }
 
 
@@ -269,3 +317,10 @@ def room_to_map(xy: np.ndarray, transform: dict[str, float]) -> np.ndarray:
     c, s = math.cos(transform["yaw"]), math.sin(transform["yaw"])
     return np.stack([transform["x"] + c * xy[:, 0] - s * xy[:, 1], transform["y"] + s * xy[:, 0] + c * xy[:, 1]],
                     axis=1)
+
+
+def map_to_room(xy: np.ndarray, transform: dict[str, float]) -> np.ndarray:
+    """Map-frame (x, y) points (N, 2) -> the room frame (``room_to_map``'s inverse)."""
+    d = np.asarray(xy, dtype=float).reshape(-1, 2) - [transform["x"], transform["y"]]
+    c, s = math.cos(transform["yaw"]), math.sin(transform["yaw"])
+    return np.stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]], axis=1)

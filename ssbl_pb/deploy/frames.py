@@ -4,6 +4,12 @@ With ``--map room.yaml --start-pose X Y YAW`` (``tools/import_map.py``'s room YA
 frame, read off the map) the room frame is the room's, so the policy sees the real walls, and paths are drawn on
 the occupancy map. Without a map the room frame is the odometry frame and the walls are reported 5 m away on
 every side: the middle of the training room (10 m), a place the policy knows, with no wall near.
+
+The range scan of the observation is cast from the localised pose against the room's walls and the room YAML's
+obstacles (``scan``), with the simulator's own function (``env.obstacles.fill_scan``): what the policy saw in
+training, people excluded (Pepper's lasers would see the members' legs, which the observation carries apart, and
+leave the rear 120 deg blind). Without a map, or with a room YAML without obstacles, nothing is known: every ray
+reports its full range, as in the middle of an empty training room.
 """
 
 from __future__ import annotations
@@ -16,6 +22,9 @@ from typing import Any
 import numpy as np
 
 from ..calib.room_map import OccupancyMap, read_map
+from ..env import observation as ob
+from ..env.obstacles import box_rows, fill_scan
+from ..env.rooms import Room, read_obstacles
 from ..errors import UserError
 from ..params import WorldParams, load_yaml
 from .robot import compose, relative
@@ -42,6 +51,7 @@ class RoomMap:
     room_size: tuple[float, float]
     map_to_room: np.ndarray  # pose of the room frame in the map frame
     grid: OccupancyMap
+    obstacles: Room | None = None  # the room YAML's obstacles (``obstacles.boxes``), None without them
 
 
 def load_room(path: str | Path) -> RoomMap:
@@ -66,9 +76,11 @@ def load_room(path: str | Path) -> RoomMap:
         map_yaml = path.parent / map_yaml
     try:
         grid = read_map(map_yaml)
+        boxes = read_obstacles(path, data)
     except UserError as exc:
         raise UserError(f"--map {path}: its map does not load ({exc})") from None
-    return RoomMap(path, world.room_size, pose, grid)
+    room = None if boxes is None or not len(boxes) else Room(world.room_size, box_rows(boxes), str(path))
+    return RoomMap(path, world.room_size, pose, grid, room)
 
 
 class Frames:
@@ -120,6 +132,19 @@ class Frames:
             return np.full(4, NO_WALLS)
         (sx, sy), (x, y) = self.room.room_size, room_pose[:2]
         return np.array([sx / 2 - x, x + sx / 2, sy / 2 - y, y + sy / 2])
+
+    def scan(self, room_pose: np.ndarray, frame_yaw: float) -> np.ndarray:
+        """The observation's range scan (``observation.SCAN_RAYS`` entries, divided by the range) from the robot
+        at ``room_pose``, ray 0 along ``frame_yaw`` (both in the room frame)."""
+        out = np.ones(ob.SCAN_RAYS, dtype=np.float32)
+        if self.room is None:
+            return out
+        obstacles = self.room.obstacles
+        field = obstacles.field if obstacles is not None else np.zeros((1, 1), dtype=np.float32)
+        x0, y0 = (obstacles.x0, obstacles.y0) if obstacles is not None else (0.0, 0.0)
+        fill_scan(out, 0, ob.SCAN_RAYS, obstacles is not None, field, x0, y0, float(room_pose[0]),
+                  float(room_pose[1]), float(frame_yaw), ob.SCAN_RANGE, *self.room.room_size)
+        return out
 
     def info(self) -> dict[str, Any]:
         return {"map": None if self.room is None else str(self.room.path),

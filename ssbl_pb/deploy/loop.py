@@ -135,8 +135,10 @@ class DeployLoop:
         cy, sy = math.cos(room[2]), math.sin(room[2])
         vel_room = np.array([cy * vel[0] - sy * vel[1], sy * vel[0] + cy * vel[1], vel[2]])
         centre_room, slot_room = fr.room_points(np.array([centre, slot]))
+        frame = ob.approach_yaw(room, centre_room)
         obs = ob.vector_observation(room, vel_room, fr.room_points(pos), mvel_room, centre_room, radius, slot_room,
-                                    fr.walls(room), s.robot_params.max_speed, s.robot_params.max_yaw_rate)
+                                    fr.walls(room), s.robot_params.max_speed, s.robot_params.max_yaw_rate, frame,
+                                    fr.scan(room, frame))
         start = np.array([self._policy_state is None])
         action, self._policy_state = s.policy.predict(obs, state=self._policy_state, episode_start=start,
                                                       deterministic=True)

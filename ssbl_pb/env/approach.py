@@ -7,7 +7,7 @@ camera observation modes are wrappers of this one env (``wrappers``).
 from __future__ import annotations
 
 import dataclasses
-from typing import Any
+from typing import Any, NamedTuple
 
 import gymnasium as gym
 import numpy as np
@@ -17,7 +17,9 @@ from ..params import ConfigError, RobotParams, SocialParams, WorldParams, from_d
 from . import humans, kernels
 from . import observation as ob
 from .layouts import GROUP_MODELS, GroupModel
+from .obstacles import box_rows
 from .reward import RewardWeights
+from .rooms import FurnitureParams, Room, read_obstacles
 from .scenarios import ScenarioMix
 from .task import TaskParams
 from .world import World
@@ -33,21 +35,55 @@ def _params(cls: type, value: Any, name: str) -> Any:
     raise ConfigError(f"{name}: expected a {cls.__name__} or a mapping, got {type(value).__name__}")
 
 
+class EnvParams(NamedTuple):
+    """The env's parameters, checked (``parse_env_params``)."""
+
+    scenario: ScenarioMix
+    world: WorldParams
+    robot: RobotParams
+    social: SocialParams
+    reward: RewardWeights
+    task: TaskParams
+    groups: GroupModel
+    furniture: FurnitureParams
+    map_room: Room | None  # the room YAML's room with its obstacles (rooms ``@map``)
+
+
 def parse_env_params(scenario: str, world: Any, robot: Any, social: Any, reward: Any, task: Any,
-                     groups: Any = None, groups_yaml: str | None = None
-                     ) -> tuple[ScenarioMix, WorldParams, RobotParams, SocialParams, RewardWeights, TaskParams,
-                                GroupModel]:
+                     groups: Any = None, groups_yaml: str | None = None, room_yaml: str | None = None,
+                     furniture: Any = None) -> EnvParams:
     """The env's parameters from dataclasses, dicts or None (defaults), checked: the room must hold the largest
-    group the scenario may spawn, and the group data must hold every size it may spawn."""
-    mix = ScenarioMix(scenario)
+    group the scenario may spawn, and the group data must hold every size it may spawn. ``room_yaml``'s ``world``
+    section overlays ``world`` (explicit values win) and its ``obstacles`` make the map room, the scenario's room
+    by default."""
+    obstacles, data = None, None
+    if room_yaml is not None:
+        from ..params import load_yaml
+
+        data = load_yaml(room_yaml)
+        world = merged(world, "world", room_yaml, data, "world")
+        obstacles = read_obstacles(room_yaml, data)
+    mix = ScenarioMix(scenario, "map" if obstacles is not None else "empty")
+    if "map" in mix.rooms and obstacles is None:
+        raise ConfigError(f"scenario {scenario!r}: room 'map' needs a room YAML with obstacles (--room-yaml, "
+                          + (f"{room_yaml} has no 'obstacles:' section)" if room_yaml else "none given)"))
     fixed = sorted({"n_humans", "formation"} & set(world)) if isinstance(world, dict) else []
     if fixed:
         raise ConfigError(f"world.{fixed[0]} = {world[fixed[0]]!r}: the scenario sets the group (e.g. scenario "
                           f"'circular-4' for four members in a circle); remove world.{fixed[0]}")
     world_p, social_p = _params(WorldParams, world, "world"), _params(SocialParams, social, "social")
-    world_p.check_fits(social_p)
+    furniture_p = _params(FurnitureParams, furniture, "furniture")
     biggest = max(max(sc.sizes) for sc in mix.members)
-    WorldParams(**{**world_p.__dict__, "n_humans": biggest}).check_fits(social_p)
+    if "empty" in mix.rooms:  # a map room is checked by spawning in it (``BatchedApproach._check_map_room``)
+        world_p.check_fits(social_p)
+        WorldParams(**{**world_p.__dict__, "n_humans": biggest}).check_fits(social_p)
+    if "furnished" in mix.rooms:
+        smallest = (furniture_p.size_min, furniture_p.size_min)
+        try:
+            WorldParams(**{**world_p.__dict__, "room_size": smallest, "n_humans": biggest}).check_fits(social_p)
+        except ConfigError as exc:
+            raise ConfigError(f"furniture.size_min = {furniture_p.size_min}: too small for the scenario's groups "
+                              f"({exc})") from None
     if isinstance(groups, GroupModel):
         model = groups if groups_yaml is None else dataclasses.replace(groups, data_path=str(groups_yaml))
     elif groups is None or isinstance(groups, str):
@@ -55,19 +91,25 @@ def parse_env_params(scenario: str, world: Any, robot: Any, social: Any, reward:
     else:
         raise ConfigError(f"groups = {groups!r}: expected one of {GROUP_MODELS}")
     model.check_sizes({n for sc in mix.members for n in sc.sizes}, {f for sc in mix.members for f in sc.formations})
-    return (mix, world_p, _params(RobotParams, robot, "robot"), social_p, _params(RewardWeights, reward, "reward"),
-            _params(TaskParams, task, "task"), model)
+    map_room = None
+    if obstacles is not None and "map" in mix.rooms:
+        map_room = Room(world_p.room_size, box_rows(obstacles), str(room_yaml))
+    return EnvParams(mix, world_p, _params(RobotParams, robot, "robot"), social_p,
+                     _params(RewardWeights, reward, "reward"), _params(TaskParams, task, "task"), model, furniture_p,
+                     map_room)
 
 
 class ApproachGroupEnv(gym.Env):
     """Pepper approaches a conversation group and joins it at the free slot.
 
-    Observation: the Vector observation (``observation``, 40 floats). Action: (toward the centre, to its left) in
-    [-1, 1] (x max speed), plus a turn with ``TaskParams.turn``. Start: a group of the scenario's size and
-    formation at a random place, the robot 2.5-5.5 m away (``world.spawn_layout``). Reward: eq. 15 with our terms
-    (``reward``). Ends: success (``task.joined``), a collision or intimate-zone intrusion (terminated), or
-    ``max_steps`` (truncated). Each step's ``info``: ``terms`` (unweighted reward terms), ``success``,
-    ``collision``, ``violation``, ``slot_distance``; at the end also ``episode_terms`` and ``is_success``.
+    Observation: the Vector observation (``observation``, 64 floats with the range scan, 40 without). Action:
+    (toward the centre, to its left) in [-1, 1] (x max speed), plus a turn with ``TaskParams.turn``. Start: a room
+    (empty, furnished or the map's: the scenario's ``@ROOM``), a group of the scenario's size and formation at a
+    random free place, the robot 2.5-5.5 m away (``spawn.spawn_layout``). Reward: eq. 15 with our terms
+    (``reward``). Ends: success (``task.joined``), a collision (with a member, a wall or an obstacle) or an
+    intimate-zone intrusion (terminated), or ``max_steps`` (truncated). Each step's ``info``: ``terms``
+    (unweighted reward terms), ``success``, ``collision``, ``obstacle_collision`` (a wall or an obstacle),
+    ``violation``, ``slot_distance``; at the end also ``episode_terms`` and ``is_success``.
 
     The state and its step are a batch of one of the training engine (``batched.BatchedApproach``); ``world`` is
     the PyBullet scene showing that state (rendering, cameras, contact checks), its ``base`` and ``group`` views
@@ -89,27 +131,35 @@ class ApproachGroupEnv(gym.Env):
         record: bool = False,
         groups: str | GroupModel | None = None,
         groups_yaml: str | None = None,
+        room_yaml: str | None = None,
+        furniture: FurnitureParams | dict | None = None,
+        scan: bool = True,
     ) -> None:
         """``record`` keeps every step's state in ``trajectory`` (metrics, plots; on when rendering).
         ``groups``: where members stand, ``"calibrated"`` (default: real groups' size and irregularity) or
-        ``"paper"`` (the original's 1.0 m circle); ``groups_yaml``: the real-group data (default: shipped)."""
+        ``"paper"`` (the original's 1.0 m circle); ``groups_yaml``: the real-group data (default: shipped).
+        ``room_yaml``: a room YAML (``tools/import_map.py``): its room size, and its obstacles for rooms ``@map``
+        (the scenario's rooms: ``scenarios``); ``furniture``: how rooms ``@furnished`` are drawn
+        (``rooms.FurnitureParams``); ``scan``: the range scan in the observation (False: the 40 entries policies
+        trained before it read)."""
         from .batched import BatchedApproach
 
         if render_mode not in (None, "rgb_array"):
             raise UserError(f"render_mode {render_mode!r}: expected None or 'rgb_array'")
         if not isinstance(render_width, int) or not 64 <= render_width <= 4096:
             raise UserError(f"render width {render_width!r}: expected an integer in [64, 4096] pixels")
-        self.sim = BatchedApproach(1, scenario, world, robot, social, reward, task, groups, groups_yaml)
+        self.sim = BatchedApproach(1, scenario, world, robot, social, reward, task, groups, groups_yaml, room_yaml,
+                                   furniture, scan)
         sim = self.sim
         self.scenario, self.world_params, self.robot_params = sim.scenario, sim.world_params, sim.robot_params
         self.social, self.task, self.groups = sim.social, sim.task, sim.groups
         self.render_mode = render_mode
         self.render_width = render_width
         self.record = record or render_mode is not None
-        self.world = World(self.world_params, self.robot_params, self.social, self.groups, sim.keep)
+        self.world = World(self.world_params, self.robot_params, self.social, self.groups, sim.keep, sim.rooms[0])
         self.world.attach(sim.bases, sim.groups_state, 0)
         self.action_space = gym.spaces.Box(-1.0, 1.0, shape=(sim.n_act,), dtype=np.float32)
-        self.observation_space = gym.spaces.Box(-ob.OBS_LIMIT, ob.OBS_LIMIT, shape=(ob.OBS_SIZE,),
+        self.observation_space = gym.spaces.Box(-ob.OBS_LIMIT, ob.OBS_LIMIT, shape=(sim.obs_size,),
                                                 dtype=np.float32)
         self.dt = self.world_params.dt
         self.trajectory: list[dict[str, Any]] = []
@@ -159,9 +209,11 @@ class ApproachGroupEnv(gym.Env):
         super().reset(seed=seed)
         self.sim.rngs[0] = self.np_random  # the env's generator draws the episode
         info = self.sim.reset(0, options)
+        self.world.set_room(self.sim.rooms[0])
         self.world.t = 0.0
         self.world.invalidate()
-        self.trajectory = [{**self.sim.snapshot(0, 0.0), "keep_out": self.keep_out(0.0)}] if self.record else []
+        self.trajectory = [{**self.sim.snapshot(0, 0.0), **self.sim.room_info(0), "keep_out": self.keep_out(0.0)}
+                           ] if self.record else []
         self._top_cam = None
         return self.observe(), info
 
@@ -194,13 +246,9 @@ class ApproachGroupEnv(gym.Env):
         self.world.close()
 
 
-def _merge_yaml(kwargs: dict[str, Any], key: str, path: str | None, section: str | None = None) -> None:
-    """Overlay the fields of a calibration YAML onto the ``key`` parameters (explicit values still win)."""
-    if path is None:
-        return
-    from ..params import load_yaml
-
-    data = load_yaml(path)
+def merged(given: Any, key: str, path: str, data: dict[str, Any], section: str | None = None) -> dict[str, Any]:
+    """The fields of a calibration YAML's mapping ``data`` (its ``section``) under the ``key`` parameters ``given``
+    (a dataclass, a dict or None; explicit values win); a bad value names the file."""
     if section is not None:
         if section not in data or not isinstance(data[section], dict):
             raise ConfigError(f"{path}: expected a '{section}:' mapping (as tools/import_map.py writes)")
@@ -210,9 +258,17 @@ def _merge_yaml(kwargs: dict[str, Any], key: str, path: str | None, section: str
         from_dict(cls, data, key)
     except ConfigError as exc:
         raise ConfigError(f"{path}: {exc}") from None
-    given = kwargs.get(key) or {}
+    given = given or {}
     given = dataclasses.asdict(given) if dataclasses.is_dataclass(given) else dict(given)
-    kwargs[key] = {**data, **given}
+    return {**data, **given}
+
+
+def _merge_yaml(kwargs: dict[str, Any], key: str, path: str | None) -> None:
+    """Overlay the fields of a calibration YAML onto the ``key`` parameters (explicit values still win)."""
+    if path is not None:
+        from ..params import load_yaml
+
+        kwargs[key] = merged(kwargs.get(key), key, path, load_yaml(path))
 
 
 def make_env(obs_mode: str = "vector", camera_width: int = 84, camera_height: int = 84,
@@ -251,7 +307,8 @@ def core_kwargs(camera_width: int = 84, camera_height: int = 84, camera_yaml: st
     camera's projection (None without ``camera_yaml``)."""
     _merge_yaml(kwargs, "robot", robot_yaml)
     _merge_yaml(kwargs, "social", social_yaml)
-    _merge_yaml(kwargs, "world", room_yaml, "world")
+    if room_yaml is not None:  # the core env reads its room size and obstacles
+        kwargs["room_yaml"] = str(room_yaml)
     projection = None
     if camera_yaml is not None:
         from ..perception.camera import PinholeCamera, sim_projection_from_yaml

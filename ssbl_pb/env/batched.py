@@ -4,12 +4,15 @@
 ``humans.GroupArrays``, padded to ``MAX_HUMANS`` members, the task's here) and advances all of them with one call
 of ``kernels.step``. Training runs it with N copies (``training.vec_env.BatchedVecEnv``); the Gymnasium env
 ``ApproachGroupEnv`` is a batch of one with a PyBullet scene for rendering; so a copy seeded like a single env
-plays the same episode, by construction. Resets spawn in Python (``world.spawn_layout``, ``GroupArrays.spawn``).
+plays the same episode, by construction. Resets draw the room and spawn in Python (``rooms``, ``spawn.spawn_layout``,
+``GroupArrays.spawn``). Each copy's room is a row of ``room`` (``kernels.ROOM_X`` ...); the distance fields of
+furnished rooms live in ``fields``, one slot per copy, the map room's in one more slot shared by every copy.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import math
 from typing import Any
 
 import numpy as np
@@ -20,13 +23,17 @@ from ..params import RobotParams, SocialParams, WorldParams, from_dict
 from . import kernels
 from . import observation as ob
 from .approach import parse_env_params
-from .base import BaseArrays, BaseParams, wall_clearance
-from .humans import KEEP, RADIUS, GroupArrays, free_slot, sffm_params
+from .base import BaseArrays, BaseParams
+from .humans import KEEP, MAX_HUMANS, RADIUS, GroupArrays, free_slot, sffm_params
 from .layouts import GroupModel, slot_keep
+from .obstacles import CAP, CELL
 from .reward import TERMS, RewardWeights, weight_vector
+from .rooms import FurnitureParams, Room, furnished_room
 from .scenarios import apply_reset_options
+from .spawn import NoPlace, spawn_layout
 from .task import TaskParams
-from .world import MAX_HUMANS, spawn_layout
+
+SPAWN_TRIES = 20  # groups in the map room, or furnished rooms, tried for one episode (each 1000 places)
 
 
 class BatchedApproach:
@@ -35,14 +42,20 @@ class BatchedApproach:
     def __init__(self, num: int, scenario: str = "default", world: WorldParams | dict | None = None,
                  robot: RobotParams | dict | None = None, social: SocialParams | dict | None = None,
                  reward: RewardWeights | dict | None = None, task: TaskParams | dict | None = None,
-                 groups: str | GroupModel | None = None, groups_yaml: str | None = None) -> None:
+                 groups: str | GroupModel | None = None, groups_yaml: str | None = None,
+                 room_yaml: str | None = None, furniture: FurnitureParams | dict | None = None,
+                 scan: bool = True) -> None:
         if not isinstance(num, int) or num < 1:
             raise UserError(f"number of copies {num!r}: expected an integer >= 1")
+        if not isinstance(scan, bool):
+            raise UserError(f"scan = {scan!r}: expected true or false")
         self.num = num
         self.kwargs = {"scenario": scenario, "world": world, "robot": robot, "social": social, "reward": reward,
-                       "task": task, "groups": groups, "groups_yaml": groups_yaml}  # ``like`` builds more
-        self.scenario, self.world_params, self.robot_params, self.social, self.weights, self.task, self.groups = \
-            parse_env_params(scenario, world, robot, social, reward, task, groups, groups_yaml)
+                       "task": task, "groups": groups, "groups_yaml": groups_yaml, "room_yaml": room_yaml,
+                       "furniture": furniture, "scan": scan}  # ``like`` builds more
+        ep = parse_env_params(scenario, world, robot, social, reward, task, groups, groups_yaml, room_yaml, furniture)
+        self.scenario, self.world_params, self.robot_params, self.social, self.weights, self.task, self.groups = ep[:7]
+        self.furniture, self.map_room = ep.furniture, ep.map_room
         self.dt = self.world_params.dt
         self.n_act = 3 if self.task.turn else 2
         self.keep = slot_keep(self.social, self.robot_params.reach, self.task.intimate_zone,
@@ -62,9 +75,70 @@ class BatchedApproach:
         self.sums = np.zeros((num, len(TERMS) + 1))  # episode sums of the terms and of the reward
         self.terms = np.zeros((num, len(TERMS)))  # the last step's terms
         self.rewards = np.zeros(num)
-        self.flags = np.zeros((num, 5), dtype=bool)  # kernels.TERMINATED ... COLLISION
-        self._obs = np.zeros((num, ob.OBS_SIZE), dtype=np.float32)
+        self.flags = np.zeros((num, kernels.N_FLAGS), dtype=bool)  # kernels.TERMINATED ... OBSTACLE_COLLISION
+        self.obs_size = ob.obs_size(scan)  # Vector observation entries (with the range scan or without)
+        self._obs = np.zeros((num, self.obs_size), dtype=np.float32)
         self._all = np.arange(num)
+        self._init_rooms()
+
+    def _init_rooms(self) -> None:
+        """Room rows and the distance fields' slots (sized for the largest room the scenario may draw)."""
+        self.empty_room = Room(self.world_params.room_size)
+        self.rooms: list[Room] = [self.empty_room] * self.num
+        self.room = np.zeros((self.num, kernels.N_ROOM))
+        self.room[:, kernels.ROOM_X], self.room[:, kernels.ROOM_Y] = self.empty_room.size
+        self.room[:, kernels.FIELD], self.room[:, kernels.OBSTACLE] = -1, CAP
+        shape, slots = (1, 1), 1
+        if "furnished" in self.scenario.rooms:
+            n = int(math.ceil(self.furniture.size_max / CELL - 1e-9)) + 1
+            shape, slots = (n, n), self.num
+        if self.map_room is not None:
+            shape = tuple(max(a, b) for a, b in zip(shape, self.map_room.field.shape, strict=True))
+            slots = self.num + 1
+        self.fields = np.full((slots, *shape), CAP, dtype=np.float32)
+        if self.map_room is not None:
+            f = self.map_room.field
+            self.fields[self.num, :f.shape[0], :f.shape[1]] = f
+            self._check_map_room()
+
+    def _check_map_room(self) -> None:
+        """The map room must hold the scenario's largest group and the robot: ``NoPlace`` names the file."""
+        rng = np.random.default_rng(0)
+        for sc in self.scenario.members:
+            if sc.room == "map":
+                for form in sc.formations:
+                    self._spawn(rng, max(sc.sizes), form, sc.start, self.map_room)
+
+    def _spawn(self, rng: np.random.Generator, n: int, formation: str, start: str, room: Room
+               ) -> tuple[np.ndarray, Any, np.ndarray]:
+        """``spawn_layout`` in ``room``; in the map room tried with ``SPAWN_TRIES`` groups before ``NoPlace``
+        stands (a long row of members may find no place where a circle does)."""
+        tries = SPAWN_TRIES if room is self.map_room else 1
+        for attempt in range(tries):
+            try:
+                return spawn_layout(rng, self.world_params, self.robot_params, self.social, n, formation, start,
+                                    self.groups, room, self.keep)
+            except NoPlace:
+                if attempt == tries - 1:
+                    raise
+        raise AssertionError("unreachable")
+
+    def _draw_room(self, i: int, kind: str, rng: np.random.Generator) -> Room:
+        """Copy ``i``'s room for an episode in a room of ``kind`` (``scenarios.ROOMS``), set in its row."""
+        if kind == "furnished":
+            room = furnished_room(rng, self.furniture)
+            f, slot = room.field, i
+            self.fields[i] = CAP
+            self.fields[i, :f.shape[0], :f.shape[1]] = f
+        elif kind == "map":
+            room, slot = self.map_room, self.num
+        else:
+            room, slot = self.empty_room, -1
+        self.rooms[i] = room
+        row = self.room[i]
+        row[kernels.ROOM_X], row[kernels.ROOM_Y] = room.size
+        row[kernels.FIELD], row[kernels.FIELD_X0], row[kernels.FIELD_Y0] = slot, room.x0, room.y0
+        return room
 
     def like(self, num: int) -> BatchedApproach:
         """A batch of ``num`` copies with this one's parameters (weights as they are now)."""
@@ -99,7 +173,7 @@ class BatchedApproach:
         """The Vector observations (N, OBS_SIZE) of the current states (recomputing ``rows`` only, if given)."""
         g = self.groups_state
         kernels.observations(self._tp, self.pose, self.vel, g.count, g.pos, g.vel, g.centre, g.scalars, self.slot,
-                             self._obs, self._all if rows is None else rows)
+                             self.room, self.fields, self._obs, self._all if rows is None else rows)
         return self._obs.copy()
 
     # -- episodes ---------------------------------------------------------------------------------------
@@ -110,9 +184,16 @@ class BatchedApproach:
     def reset(self, i: int, options: dict | None = None) -> dict[str, Any]:
         """Start copy ``i``'s next episode (``reset(options=...)`` as ``ApproachGroupEnv``); returns its info."""
         rng = self.rngs[i]
-        n, formation, start = apply_reset_options(self.scenario.sample(rng), options)
-        centre, layout, pose = spawn_layout(rng, self.world_params, self.robot_params, self.social, n, formation,
-                                            start, self.groups)
+        sc = self.scenario.pick(rng)
+        n, formation, start = apply_reset_options(sc.sample(rng), options)
+        for attempt in range(SPAWN_TRIES):  # a furnished room with no place is drawn again
+            room = self._draw_room(i, sc.room, rng)
+            try:
+                centre, layout, pose = self._spawn(rng, n, formation, start, room)
+                break
+            except NoPlace:
+                if sc.room != "furnished" or attempt == SPAWN_TRIES - 1:
+                    raise
         self.bases.reset(i, pose)
         g = self.groups_state
         g.spawn(i, self.social, centre, layout, self.keep, pose[:2])
@@ -121,6 +202,7 @@ class BatchedApproach:
                                  True)
         self.clearance[i] = 0.0
         kernels.clearances(self._tp, self.pose[i], n, g.pos[i], self.clearance[i])
+        _, self.room[i, kernels.OBSTACLE] = kernels.static_clearance(self._tp, self.pose[i], self.room[i], self.fields)
         self.potential[i] = kernels.potential(self._tp, self.pose[i], self.slot[i], g.centre[i],
                                               g.scalars[i, RADIUS], 0.0)
         return {"n_humans": n, "formation": formation, "start": start}
@@ -136,7 +218,7 @@ class BatchedApproach:
         kernels.step(self._tp, self._bp, self._sp, self._w, a, b.pose, b.vel, b.queue, g.count, g.pos, g.vel, g.yaw,
                      g.centre0, g.centre, g.scalars, g.ring_offset, g.comfort, g.force, g.repulsion, g.robot_force,
                      self.steps, self.prev_accel, self.clearance, self.slot, self.potential, self.sums, self.terms,
-                     self.rewards, self.flags)
+                     self.rewards, self.flags, self.room, self.fields)
         return self.rewards.copy(), self.flags[:, kernels.TERMINATED].copy(), self.flags[:, kernels.TRUNCATED].copy()
 
     def keep_out(self, i: int, margin: float) -> float:
@@ -148,21 +230,27 @@ class BatchedApproach:
     def snapshot(self, i: int, t: float) -> dict[str, Any]:
         """Copy ``i``'s state at time ``t`` as recorded in trajectories (metrics, plots, videos): copies."""
         g, n = self.groups_state, int(self.groups_state.count[i])
-        x, y, yaw = (float(v) for v in self.pose[i])
-        rp = self.robot_params
-        walls = wall_clearance(x, y, yaw, rp.length / 2, rp.width / 2, *self.world_params.room_size)
+        wall, _ = kernels.static_clearance(self._tp, self.pose[i], self.room[i], self.fields)
         return {"t": t, "robot": self.pose[i].copy(), "robot_vel": self.vel[i].copy(), "members": g.pos[i, :n].copy(),
                 "members_yaw": g.yaw[i, :n].copy(), "centre": g.centre[i].copy(), "radius": float(self.radius[i]),
                 "slot": self.slot[i].copy(), "clearance": self.clearance[i, :n].copy(),
-                "wall": float(min(walls)),  # the footprint's clearance to the nearest wall
+                "wall": float(wall),  # the footprint's clearance to the nearest wall ...
+                "obstacle": float(min(wall, self.room[i, kernels.OBSTACLE])),  # ... and to anything static
                 # the SFFM's repulsion on the robot and on the members (metrics' social work)
                 "social_force": float(np.hypot(*g.robot_force[i, 2:]) + np.hypot(*g.repulsion[i, :n].T).sum())}
+
+    def room_info(self, i: int) -> dict[str, Any]:
+        """Copy ``i``'s room as the first state of a recorded trajectory carries it (plots draw it): its size (m)
+        and obstacles ((B, 5) ``(cx, cy, size_x, size_y, yaw)``)."""
+        room = self.rooms[i]
+        return {"room_size": room.size, "obstacles": room.boxes()}
 
     def outcome(self, i: int) -> dict[str, Any]:
         """Copy ``i``'s last step as the env's ``info`` reports it (at an episode's end: ``episode_terms``)."""
         f = self.flags[i]
         info: dict[str, Any] = {"terms": dict(zip(TERMS, self.terms[i].tolist(), strict=True)),
                                 "success": bool(f[kernels.SUCCESS]), "collision": bool(f[kernels.COLLISION]),
+                                "obstacle_collision": bool(f[kernels.OBSTACLE_COLLISION]),
                                 "violation": bool(f[kernels.VIOLATION]),
                                 "slot_distance": float(np.hypot(*(self.slot[i] - self.pose[i, :2])))}
         if f[kernels.TERMINATED] or f[kernels.TRUNCATED]:

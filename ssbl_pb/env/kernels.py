@@ -2,12 +2,14 @@
 
 ``step`` runs, per copy: the action as a base command (``observation.action_command``), the base
 (``base.base_step``), the members (``humans.group_step``: SFFM eqs. 8-10), the free slot (``humans.free_slot``),
-clearances (``base.footprint_distance``, ``base.wall_clearance``), the success rule (``task.joined``), the
-shaping potential (``reward.route_length``, ``reward.slot_potential``) and the reward terms
-(``reward.step_terms``, eqs. 11-15). ``observations`` writes the Vector observation (``observation.
-fill_observation``). Nothing here is a formula of its own: the single env is a batch of one
-(``ApproachGroupEnv`` runs ``batched.BatchedApproach(1)``) and training a batch of N, so both run this code.
-Parameters travel as packed float arrays (``task_params``; ``humans.sffm_params``; ``base.BaseParams``).
+clearances (``base.footprint_distance``, ``base.wall_clearance``, ``obstacles.footprint_clearance``), the success
+rule (``task.joined``), the shaping potential (``reward.route_length``, ``reward.slot_potential``) and the reward
+terms (``reward.step_terms``, eqs. 11-15). ``observations`` writes the Vector observation (``observation.
+fill_observation``, and the range scan ``obstacles.fill_scan`` when the observation has room for it). Nothing here
+is a formula of its own: the single env is a batch of one (``ApproachGroupEnv`` runs ``batched.BatchedApproach(1)``)
+and training a batch of N, so both run this code. Parameters travel as packed float arrays (``task_params``;
+``humans.sffm_params``; ``base.BaseParams``); each copy's room as a row of ``room`` (its size, which distance field
+of ``fields`` holds its obstacles, and the footprint's clearance to them after the last step).
 Compiled on first use and cached beside the source (``cache=True``).
 """
 
@@ -21,15 +23,19 @@ from numba import njit
 from ..params import RobotParams, SocialParams, WorldParams
 from .base import base_step, footprint_distance, wall_clearance, wrap_angle
 from .humans import KEEP, RADIUS, free_slot, group_step
-from .observation import action_command, fill_observation
+from .observation import BASE_SIZE, SCAN_RANGE, action_command, fill_observation
+from .obstacles import CAP, fill_scan, footprint_clearance
 from .reward import N_TERMS, proximity_cost, route_length, slot_potential, step_terms
 from .task import TaskParams, joined
 
 # the task's parameters as the compiled step reads them (``task_params``)
 (MAX_SPEED, MAX_YAW_RATE, HALF_LENGTH, HALF_WIDTH, HUMAN_RADIUS, DT, HEADING_GAIN, SLOT_TOL, STOP_SPEED,
- HEADING_TOL, INTIMATE, BAND, MAX_STEPS, KEEP_OUT_EXTRA, ROOM_X, ROOM_Y, TURN, N_TASK) = range(18)
-# per-copy flags of the last step
-TERMINATED, TRUNCATED, SUCCESS, VIOLATION, COLLISION = range(5)
+ HEADING_TOL, INTIMATE, BAND, MAX_STEPS, KEEP_OUT_EXTRA, TURN, N_TASK) = range(16)
+# per-copy flags of the last step (COLLISION: with anything; OBSTACLE_COLLISION: with a wall or an obstacle)
+TERMINATED, TRUNCATED, SUCCESS, VIOLATION, COLLISION, OBSTACLE_COLLISION, N_FLAGS = range(7)
+# per-copy room, columns of ``room``: size (m), index into ``fields`` (-1: no obstacles) and the field's first
+# node (m), the footprint's clearance to the obstacles after the last step (m, at most ``obstacles.CAP``)
+ROOM_X, ROOM_Y, FIELD, FIELD_X0, FIELD_Y0, OBSTACLE, N_ROOM = range(7)
 
 
 def task_params(world: WorldParams, robot: RobotParams, social: SocialParams, task: TaskParams) -> np.ndarray:
@@ -41,7 +47,7 @@ def task_params(world: WorldParams, robot: RobotParams, social: SocialParams, ta
                  HEADING_TOL: math.radians(task.heading_tolerance_deg), INTIMATE: task.intimate_zone,
                  BAND: task.proximity_band, MAX_STEPS: task.max_steps,
                  KEEP_OUT_EXTRA: social.human_radius + robot.reach + task.intimate_zone + task.route_margin,
-                 ROOM_X: world.room_size[0], ROOM_Y: world.room_size[1], TURN: float(task.turn)}.items():
+                 TURN: float(task.turn)}.items():
         p[k] = v
     return p
 
@@ -62,6 +68,19 @@ def clearances(tp: np.ndarray, pose: np.ndarray, n: int, pos: np.ndarray, out: n
 
 
 @njit(cache=True)
+def static_clearance(tp: np.ndarray, pose: np.ndarray, room: np.ndarray, fields: np.ndarray) -> tuple[float, float]:
+    """The footprint's clearance (m) to the nearest wall and to the nearest obstacle (``obstacles.CAP`` when none
+    is within it) for a copy whose ``room`` row is given."""
+    x, y, yaw = pose[0], pose[1], pose[2]
+    walls = wall_clearance(x, y, yaw, tp[HALF_LENGTH], tp[HALF_WIDTH], room[ROOM_X], room[ROOM_Y])
+    k = int(room[FIELD])
+    if k < 0:
+        return min(walls), CAP
+    return min(walls), footprint_clearance(fields[k], room[FIELD_X0], room[FIELD_Y0], x, y, yaw, tp[HALF_LENGTH],
+                                           tp[HALF_WIDTH])
+
+
+@njit(cache=True)
 def potential(tp: np.ndarray, pose: np.ndarray, slot: np.ndarray, centre: np.ndarray, radius: float,
               speed: float) -> float:
     """The shaping potential of a state: ``slot_potential`` of the way to the slot around the group."""
@@ -75,9 +94,10 @@ def step(tp: np.ndarray, bp: np.ndarray, sp: np.ndarray, weights: np.ndarray, ac
          myaw: np.ndarray, centre0: np.ndarray, centre: np.ndarray, gscal: np.ndarray, ring_off: np.ndarray,
          comfort: np.ndarray, force: np.ndarray, rep: np.ndarray, robot_force: np.ndarray, steps: np.ndarray,
          prev_accel: np.ndarray, clearance: np.ndarray, slot: np.ndarray, potentials: np.ndarray, sums: np.ndarray,
-         terms: np.ndarray, rewards: np.ndarray, flags: np.ndarray) -> None:
+         terms: np.ndarray, rewards: np.ndarray, flags: np.ndarray, room: np.ndarray, fields: np.ndarray) -> None:
     """One step of every copy (the arrays of ``batched.BatchedApproach``, updated in place); ``terms`` gets each
-    copy's unweighted reward terms, ``flags`` (terminated, truncated, success, violation, collision)."""
+    copy's unweighted reward terms, ``flags`` (terminated, truncated, success, violation, collision, obstacle
+    collision)."""
     dt = tp[DT]
     after = np.empty(pos.shape[1])
     for i in range(pose.shape[0]):
@@ -97,9 +117,10 @@ def step(tp: np.ndarray, bp: np.ndarray, sp: np.ndarray, weights: np.ndarray, ac
         slot[i, 0], slot[i, 1] = free_slot(n, pos[i], centre[i, 0], centre[i, 1], radius,
                                            gscal[i, KEEP], x, y, True)
         clearances(tp, pose[i], n, pos[i], after)
-        walls = wall_clearance(x, y, pose[i, 2], tp[HALF_LENGTH], tp[HALF_WIDTH], tp[ROOM_X], tp[ROOM_Y])
+        wall, room[i, OBSTACLE] = static_clearance(tp, pose[i], room[i], fields)
         nearest = after[:n].min()
-        collided = nearest <= 0.0 or min(walls) <= 0.0
+        static = wall <= 0.0 or room[i, OBSTACLE] <= 0.0
+        collided = nearest <= 0.0 or static
         violation = collided or nearest < tp[INTIMATE]
         speed = math.hypot(vel[i, 0], vel[i, 1])
         success = joined(violation, math.hypot(slot[i, 0] - x, slot[i, 1] - y), speed,
@@ -123,18 +144,25 @@ def step(tp: np.ndarray, bp: np.ndarray, sp: np.ndarray, weights: np.ndarray, ac
         flags[i, TERMINATED] = done
         flags[i, TRUNCATED] = not done and steps[i] >= tp[MAX_STEPS]
         flags[i, SUCCESS], flags[i, VIOLATION], flags[i, COLLISION] = success, violation, collided
+        flags[i, OBSTACLE_COLLISION] = static
 
 
 @njit(cache=True)
 def observations(tp: np.ndarray, pose: np.ndarray, vel: np.ndarray, count: np.ndarray, pos: np.ndarray,
-                 mvel: np.ndarray, centre: np.ndarray, gscal: np.ndarray, slot: np.ndarray, out: np.ndarray,
-                 rows: np.ndarray) -> None:
-    """The Vector observation of the copies in ``rows`` into ``out`` (float32 rows)."""
-    rx, ry = tp[ROOM_X] / 2, tp[ROOM_Y] / 2
+                 mvel: np.ndarray, centre: np.ndarray, gscal: np.ndarray, slot: np.ndarray, room: np.ndarray,
+                 fields: np.ndarray, out: np.ndarray, rows: np.ndarray) -> None:
+    """The Vector observation of the copies in ``rows`` into ``out`` (float32 rows; columns beyond
+    ``observation.BASE_SIZE`` get the range scan)."""
+    rays = out.shape[1] - BASE_SIZE
     for i in rows:
         x, y, yaw = pose[i, 0], pose[i, 1], pose[i, 2]
         frame = yaw if tp[TURN] > 0 else math.atan2(centre[i, 1] - y, centre[i, 0] - x)
         n = count[i]
+        rx, ry = room[i, ROOM_X], room[i, ROOM_Y]
         fill_observation(out[i], x, y, yaw, vel[i, 0], vel[i, 1], vel[i, 2], pos[i, :n], mvel[i, :n], centre[i, 0],
-                         centre[i, 1], gscal[i, RADIUS], slot[i, 0], slot[i, 1], (rx - x, x + rx, ry - y, y + ry),
-                         tp[MAX_SPEED], tp[MAX_YAW_RATE], frame)
+                         centre[i, 1], gscal[i, RADIUS], slot[i, 0], slot[i, 1],
+                         (rx / 2 - x, x + rx / 2, ry / 2 - y, y + ry / 2), tp[MAX_SPEED], tp[MAX_YAW_RATE], frame)
+        if rays > 0:
+            k = int(room[i, FIELD])
+            fill_scan(out[i], BASE_SIZE, rays, k >= 0, fields[max(k, 0)], room[i, FIELD_X0], room[i, FIELD_Y0], x,
+                      y, frame, SCAN_RANGE, rx, ry)

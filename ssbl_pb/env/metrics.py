@@ -20,6 +20,7 @@ from .task import TaskParams
 METRICS: dict[str, tuple[str, str, str]] = {
     "success": ("0/1", "higher", "Success (S)"),
     "collision": ("0/1", "lower", "Collision (C): human (HC) and wall (WC) collisions"),
+    "obstacle_collision": ("0/1", "lower", "Collision (C) with a wall or an obstacle (WC)"),
     "violation": ("0/1", "lower", "intimate-space violation (collision included); HuNavSim intimate intrusions"),
     "timeout": ("0/1", "lower", "Timeout (TO)"),
     "time_to_success_s": ("s", "lower", "Time (T) / time to reach goal"),
@@ -27,7 +28,8 @@ METRICS: dict[str, tuple[str, str, str]] = {
     "path_length_m": ("m", "lower", "Path length (PL)"),
     "spl": ("0-1", "higher", "Success weighted by Path Length (SPL)"),
     "min_clearance_m": ("m", "higher", "Minimum distance to human (DH min) / clearing distance, between bodies"),
-    "min_wall_clearance_m": ("m", "higher", "Clearing distance (CD min) to obstacles"),
+    "min_wall_clearance_m": ("m", "higher", "Clearing distance (CD min) to the walls"),
+    "min_obstacle_clearance_m": ("m", "higher", "Clearing distance (CD min) to walls and obstacles"),
     "min_ttc_s": ("s", "higher", "Minimum time to collision (TTC)"),
     "intimate_zone_time_s": ("s", "lower", "intimate space intrusions (HuNavSim), as time"),
     "personal_zone_time_s": ("s", "lower", "Space compliance (SC) / personal space intrusions, as time"),
@@ -78,10 +80,11 @@ def outside_fov(robot_xy: np.ndarray, members: np.ndarray, members_yaw: np.ndarr
 
 
 def episode_metrics(trajectory: list[dict[str, Any]], success: bool, collision: bool, violation: bool,
-                    task: TaskParams, dt: float, fov_half_angle_deg: float = 100.0, contact_radius: float = 0.5075
-                    ) -> dict[str, float]:
+                    task: TaskParams, dt: float, fov_half_angle_deg: float = 100.0, contact_radius: float = 0.5075,
+                    obstacle_collision: bool = False) -> dict[str, float]:
     """All per-episode metrics (see ``METRICS``) of one recorded episode; ``contact_radius`` is the centre
-    distance at which robot and member touch for the time to collision (body radii, 0.28 + 0.2275 m)."""
+    distance at which robot and member touch for the time to collision (body radii, 0.28 + 0.2275 m);
+    ``obstacle_collision``: the collision was with a wall or an obstacle."""
     robot = np.array([s["robot"] for s in trajectory])
     vel = np.array([s["robot_vel"][:2] for s in trajectory])
     members = np.array([s["members"] for s in trajectory])  # (T+1, n, 2)
@@ -120,6 +123,7 @@ def episode_metrics(trajectory: list[dict[str, Any]], success: bool, collision: 
     return {
         "success": float(success),
         "collision": float(collision),
+        "obstacle_collision": float(obstacle_collision),
         "violation": float(violation),
         "timeout": float(not success and not violation),
         "time_to_success_s": steps * dt if success else float("nan"),
@@ -128,6 +132,7 @@ def episode_metrics(trajectory: list[dict[str, Any]], success: bool, collision: 
         "spl": float(success) * shortest / max(path, shortest, 1e-9),
         "min_clearance_m": float(clear.min()),
         "min_wall_clearance_m": float(min(s.get("wall", math.inf) for s in trajectory)),
+        "min_obstacle_clearance_m": float(min(s.get("obstacle", s.get("wall", math.inf)) for s in trajectory)),
         "min_ttc_s": ttc,
         "intimate_zone_time_s": float((min_clear < task.intimate_zone).sum() * dt),
         "personal_zone_time_s": float((min_clear < task.personal_zone).sum() * dt),

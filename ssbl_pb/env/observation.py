@@ -20,9 +20,15 @@ idx   value                                                      scale
 14-38 up to 5 members, nearest first: position (2), velocity     / 5 m, / 1 m/s
       (2), present flag (1); absent members are zeros
 39    robot heading minus the frame's (how far it still turns)   / pi
+40-63 range scan: 24 rays over 360 deg, ray k at 15 k deg from    / 3 m
+      the frame's x (toward the group centre), from the robot's
+      centre to the nearest wall or obstacle (``obstacles``)
 ====  =========================================================  =========
 
 The original divides by half its 20 m arena (ref "Vector observation"); our default room is 10 m, so 5 m.
+The scan (ours, issue 18): 24 rays leave 15 deg between neighbours, 0.26 m apart at 1 m, so a 0.3 m pillar is seen
+from 1.1 m, beyond Pepper's braking distance (0.2 m from 0.35 m/s); 3 m is the range naoqi_driver gives Pepper's
+lasers and 9 s of driving at the default speed. Members are not in it (they have their own fields).
 """
 
 from __future__ import annotations
@@ -36,7 +42,10 @@ from .base import wrap_angle
 
 MAX_MEMBERS = 5
 MEMBER_FIELDS = 5
-OBS_SIZE = 14 + MAX_MEMBERS * MEMBER_FIELDS + 1
+BASE_SIZE = 14 + MAX_MEMBERS * MEMBER_FIELDS + 1
+SCAN_RAYS = 24
+SCAN_RANGE = 3.0  # m
+OBS_SIZE = BASE_SIZE + SCAN_RAYS
 POS_SCALE = 5.0
 OBS_LIMIT = 10.0
 
@@ -46,9 +55,9 @@ def fill_observation(o: np.ndarray, x: float, y: float, yaw: float, vx: float, v
                      members_pos: np.ndarray, members_vel: np.ndarray, cx: float, cy: float, radius: float,
                      sx: float, sy: float, walls: tuple[float, float, float, float], max_speed: float,
                      max_yaw_rate: float, frame_yaw: float) -> None:
-    """Write the observation (the table above) into ``o`` (OBS_SIZE,): the robot at (x, y, yaw) with world-frame
-    velocity (vx, vy, wz), the members (k, 2) in world metres, centre (cx, cy), slot (sx, sy), the distances to the
-    walls, in the frame turned by ``frame_yaw``."""
+    """Write the observation (the table above, up to index 39; any further entries become 0) into ``o``: the robot
+    at (x, y, yaw) with world-frame velocity (vx, vy, wz), the members (k, 2) in world metres, centre (cx, cy), slot
+    (sx, sy), the distances to the walls, in the frame turned by ``frame_yaw``."""
     c, s = math.cos(frame_yaw), math.sin(frame_yaw)
     o[:] = 0.0
     o[0], o[1] = (c * (sx - x) + s * (sy - y)) / POS_SCALE, (c * (sy - y) - s * (sx - x)) / POS_SCALE
@@ -89,20 +98,35 @@ def vector_observation(
     max_speed: float,
     max_yaw_rate: float,
     frame_yaw: float | None = None,
+    scan: np.ndarray | None = None,
 ) -> np.ndarray:
     """``fill_observation`` from arrays (world-frame metres, ``robot_vel`` (vx, vy, wz)); ``frame_yaw`` defaults
-    to the approach frame (toward ``centre``). The robot's deploy loop builds its observation with this."""
+    to the approach frame (toward ``centre``); ``scan``: the range scan's entries (``SCAN_RAYS``, already divided by
+    ``SCAN_RANGE``) to append, None for the 40-entry observation. The robot's deploy loop builds its observation
+    with this."""
     x, y, yaw = (float(v) for v in np.asarray(robot_pose, dtype=float)[:3])
-    if frame_yaw is None:  # the approach frame: from the robot toward the group centre
-        frame_yaw = math.atan2(float(centre[1] - robot_pose[1]), float(centre[0] - robot_pose[0]))
-    obs = np.zeros(OBS_SIZE, dtype=np.float32)
+    if frame_yaw is None:
+        frame_yaw = approach_yaw(robot_pose, centre)
+    obs = np.zeros(BASE_SIZE if scan is None else OBS_SIZE, dtype=np.float32)
     v = np.asarray(robot_vel, dtype=float)
     fill_observation(obs, x, y, yaw, float(v[0]), float(v[1]), float(v[2]),
                      np.asarray(members_pos, dtype=float).reshape(-1, 2),
                      np.asarray(members_vel, dtype=float).reshape(-1, 2), float(centre[0]), float(centre[1]),
                      float(radius), float(slot[0]), float(slot[1]), tuple(float(w) for w in walls[:4]),
                      float(max_speed), float(max_yaw_rate), float(frame_yaw))
+    if scan is not None:
+        obs[BASE_SIZE:] = np.asarray(scan, dtype=np.float32).reshape(SCAN_RAYS)
     return obs
+
+
+def obs_size(scan: bool) -> int:
+    """Entries of the Vector observation with or without the range scan."""
+    return OBS_SIZE if scan else BASE_SIZE
+
+
+def approach_yaw(robot_pose: np.ndarray, centre: np.ndarray) -> float:
+    """Orientation (rad) of the approach frame: from the robot toward the group centre."""
+    return math.atan2(float(centre[1] - robot_pose[1]), float(centre[0] - robot_pose[0]))
 
 
 def decode_members(obs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

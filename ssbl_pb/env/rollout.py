@@ -57,7 +57,8 @@ def run_episode(env: gym.Env, policy: Policy, seed: int, keep_trajectory: bool =
 def _result(core: Any, seed: int, trajectory: list[dict[str, Any]], info: dict[str, Any],
             keep_trajectory: bool) -> EpisodeResult:
     m = episode_metrics(trajectory, info["success"], info["collision"], info["violation"], core.task, core.dt,
-                        core.social.fov_half_angle_deg, core.social.human_radius + core.robot_params.radius)
+                        core.social.fov_half_angle_deg, core.social.human_radius + core.robot_params.radius,
+                        info.get("obstacle_collision", False))
     sums = info["episode_terms"]
     m["return"] = sums["reward"]
     for k in TERMS:
@@ -81,7 +82,8 @@ def run_batch(env: gym.Env, policy: Policy, seeds: list[int], keep: list[bool]) 
     for i, seed in enumerate(seeds):
         sim.seed(i, seed)
         infos.append(sim.reset(i))
-    trajectories = [[{**sim.snapshot(i, 0.0), "keep_out": sim.keep_out(i, 0.0)}] for i in range(len(seeds))]
+    trajectories = [[{**sim.snapshot(i, 0.0), **sim.room_info(i), "keep_out": sim.keep_out(i, 0.0)}]
+                    for i in range(len(seeds))]
     if hasattr(policy, "reset"):
         policy.reset()
     obs, state = sim.observations(), None

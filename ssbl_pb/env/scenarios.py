@@ -5,6 +5,11 @@ name fixes a formation (sizes 2-5 where the formation allows), ``real`` places g
 annotated real frames (``layouts.real_layout``), ``behind`` starts the robot behind a member, ``FORMATION-N``
 fixes both (e.g. ``circular-4``, ``real-3``), a comma-separated list mixes names uniformly, and ``mixed``
 samples every formation (``real`` included), size and start.
+
+A name may end in ``@ROOM`` for the room the episodes play in (``rooms``): ``@empty`` (the walls of
+``WorldParams.room_size``), ``@furnished`` (a new random furnished room every episode) or ``@map`` (the room YAML's
+obstacles, e.g. from ``tools/import_map.py``). Without it the room is the empty one, or the room YAML's when it has
+obstacles. ``mixed@furnished,default`` mixes furnished rooms with the paper's empty one.
 """
 
 from __future__ import annotations
@@ -17,6 +22,7 @@ from ..errors import UserError
 from .layouts import LAYOUTS
 
 STARTS = ("any", "behind")
+ROOMS = ("empty", "furnished", "map")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -27,6 +33,7 @@ class Scenario:
     sizes: tuple[int, ...]
     formations: tuple[str, ...]
     start: str = "any"
+    room: str = ""  # "" = the env's default room (``ScenarioMix``), else one of ``ROOMS``
 
     def sample(self, rng: np.random.Generator) -> tuple[int, str, str]:
         """(group size, formation, start) for one episode."""
@@ -46,7 +53,15 @@ MIXED = ("vis_a_vis", "l_shape", "side_by_side", "circular", "behind", "real")
 SCENARIO_NAMES = (*BASE_SCENARIOS, "mixed", "FORMATION-N", "a,b,...")
 
 
-def _one(name: str) -> list[Scenario]:
+def _one(name: str, default_room: str) -> list[Scenario]:
+    name, at, room = name.partition("@")
+    if at and room not in ROOMS:
+        raise UserError(f"scenario '{name}@{room}': room {room!r}, expected one of {list(ROOMS)}")
+    return [dataclasses.replace(sc, name=f"{sc.name}@{room or default_room}", room=room or default_room)
+            for sc in _groups(name.strip())]
+
+
+def _groups(name: str) -> list[Scenario]:
     if name in BASE_SCENARIOS:
         return [BASE_SCENARIOS[name]]
     if name == "mixed":
@@ -55,22 +70,31 @@ def _one(name: str) -> list[Scenario]:
     if form in LAYOUTS and size.isdigit() and 2 <= int(size) <= 5:
         return [Scenario(name, (int(size),), (form,))]
     raise UserError(f"scenario {name!r}: expected one of {list(BASE_SCENARIOS)}, 'mixed', FORMATION-N with "
-                     f"FORMATION in {list(LAYOUTS)} and N in 2..5, or a comma-separated list of these")
+                     f"FORMATION in {list(LAYOUTS)} and N in 2..5, each optionally @ROOM with ROOM in {list(ROOMS)}, "
+                     f"or a comma-separated list of these")
 
 
 class ScenarioMix:
-    """Samples uniformly among the scenarios named in ``spec``."""
+    """Samples uniformly among the scenarios named in ``spec`` (rooms without ``@ROOM``: ``default_room``)."""
 
-    def __init__(self, spec: str) -> None:
+    def __init__(self, spec: str, default_room: str = "empty") -> None:
         if not isinstance(spec, str) or not spec.strip():
             raise UserError(f"scenario {spec!r}: expected a non-empty name")
         self.spec = spec
-        self.members = [sc for part in spec.split(",") for sc in _one(part.strip())]
+        self.members = [sc for part in spec.split(",") for sc in _one(part.strip(), default_room)]
+
+    @property
+    def rooms(self) -> set[str]:
+        """The rooms its episodes may play in."""
+        return {sc.room for sc in self.members}
+
+    def pick(self, rng: np.random.Generator) -> Scenario:
+        """The scenario of one episode (draws from ``rng`` only when there is a choice)."""
+        return self.members[int(rng.integers(len(self.members)))] if len(self.members) > 1 else self.members[0]
 
     def sample(self, rng: np.random.Generator) -> tuple[int, str, str]:
         """(group size, formation, start) for one episode."""
-        sc = self.members[int(rng.integers(len(self.members)))] if len(self.members) > 1 else self.members[0]
-        return sc.sample(rng)
+        return self.pick(rng).sample(rng)
 
 
 RESET_OPTIONS = ("n_humans", "formation", "start")

@@ -6,9 +6,10 @@ as its circumscribed circle (0.32 m: turning cannot bring a corner closer), and 
 robot's closing speed on that member (relative to the member's own velocity) to
 what the base can still brake away before ``clearance_min``: ``v_allow = sqrt(2 a (c - c_min))`` with ``a`` a
 fraction of the base's acceleration limit. Anything faster toward the member is removed from the command; motion
-past or away from it is untouched. NAOqi's own move protection (ALMotion's security distances) does the same on
-the robot; the shield makes the simulated agent behave that way too, and lets the policy rely on it (it is on in
-training). Ours; the paper has no such layer.
+past or away from it is untouched. With the range scan in the observation, each ray's end is treated alike as a
+standing obstacle point, braked for before ``obstacle_clearance_min``. NAOqi's own move protection (ALMotion's
+security distances) does the same on the robot; the shield makes the simulated agent behave that way too, and lets
+the policy rely on it (it is on in training). Ours; the paper has no such layer.
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ import numpy as np
 from numba import njit
 
 from ..params import RobotParams, SocialParams, _check, _positive
-from .observation import MAX_MEMBERS, MEMBER_FIELDS, POS_SCALE
+from .observation import BASE_SIZE, MAX_MEMBERS, MEMBER_FIELDS, POS_SCALE, SCAN_RANGE
 from .task import TaskParams
 
 
@@ -34,10 +35,11 @@ class ShieldParams:
     half_length: float = 0.24  # m: footprint half extents
     half_width: float = 0.215
     human_radius: float = 0.28
+    obstacle_clearance_min: float = 0.1  # m from walls and obstacles (the scan): room to pass between desks
 
     def __post_init__(self) -> None:
         _positive("shield", self, "clearance_min", "brake_accel", "max_speed", "half_length", "half_width",
-                  "human_radius")
+                  "human_radius", "obstacle_clearance_min")
         _check(self.brake_accel <= 0.55, "shield", "brake_accel", self.brake_accel, "<= 0.55 m/s^2 (Pepper's max)")
 
     @classmethod
@@ -71,10 +73,24 @@ def footprint_clearance(points: np.ndarray, heading: float, p: ShieldParams) -> 
 
 
 @njit(cache=True)
+def _brake(vx: float, vy: float, ux: float, uy: float, other_vx: float, other_vy: float, clearance: float,
+           clearance_min: float, brake_accel: float) -> tuple[float, float]:
+    """(vx, vy) with its closing speed on something ``clearance`` away in the unit direction (ux, uy), moving at
+    (other_vx, other_vy), cut to ``sqrt(2 a (c - c_min))``."""
+    allow = math.sqrt(2.0 * brake_accel * max(clearance - clearance_min, 0.0))
+    closing = (vx - other_vx) * ux + (vy - other_vy) * uy
+    if closing > allow:
+        vx, vy = vx - (closing - allow) * ux, vy - (closing - allow) * uy
+    return vx, vy
+
+
+@njit(cache=True)
 def shield_row(obs: np.ndarray, action: np.ndarray, out: np.ndarray, clearance_min: float, brake_accel: float,
-               max_speed: float, half_length: float, half_width: float, human_radius: float) -> None:
+               max_speed: float, half_length: float, half_width: float, human_radius: float,
+               obstacle_clearance_min: float) -> None:
     """The action (approach frame, in [-1, 1]) with its excess closing speed on each member removed, into ``out``:
-    members nearest first, each limiting the closing speed to ``sqrt(2 a (c - c_min))``."""
+    members nearest first, each limiting the closing speed to ``sqrt(2 a (c - c_min))``; then the same for every
+    ray of the range scan that ends within its range (observations longer than ``BASE_SIZE``)."""
     out[:] = action
     reach = math.hypot(half_length, half_width)
     clear = np.full(MAX_MEMBERS, np.inf)
@@ -89,39 +105,53 @@ def shield_row(obs: np.ndarray, action: np.ndarray, out: np.ndarray, clearance_m
     speed = math.hypot(vx, vy)
     if speed > max_speed:  # the base caps the planar speed at max_speed
         vx, vy = vx * (max_speed / speed), vy * (max_speed / speed)
+    acted = False
     for j in np.argsort(clear, kind="mergesort"):
         if clear[j] == np.inf:
             break
         b = 14 + MEMBER_FIELDS * j
-        allow = math.sqrt(2.0 * brake_accel * max(clear[j] - clearance_min, 0.0))
-        closing = (vx - float(obs[b + 2])) * toward[j, 0] + (vy - float(obs[b + 3])) * toward[j, 1]
-        if closing > allow:
-            vx, vy = vx - (closing - allow) * toward[j, 0], vy - (closing - allow) * toward[j, 1]
-    if clear.min() < np.inf:
+        vx, vy = _brake(vx, vy, toward[j, 0], toward[j, 1], float(obs[b + 2]), float(obs[b + 3]), clear[j],
+                        clearance_min, brake_accel)
+        acted = True
+    rays = obs.shape[0] - BASE_SIZE
+    for k in range(rays):
+        r = float(obs[BASE_SIZE + k])
+        if r >= 0.999:  # nothing within range
+            continue
+        a = 2.0 * math.pi * k / rays
+        d, ux, uy = circle_clearance(r * SCAN_RANGE * math.cos(a), r * SCAN_RANGE * math.sin(a), reach, 0.0)
+        vx, vy = _brake(vx, vy, ux, uy, 0.0, 0.0, d, obstacle_clearance_min, brake_accel)
+        acted = True
+    if acted:
         out[0] = min(max(vx / max_speed, -1.0), 1.0)
         out[1] = min(max(vy / max_speed, -1.0), 1.0)
 
 
 @njit(cache=True)
 def _shield_rows(obs: np.ndarray, actions: np.ndarray, out: np.ndarray, clearance_min: float, brake_accel: float,
-                 max_speed: float, half_length: float, half_width: float, human_radius: float) -> None:
+                 max_speed: float, half_length: float, half_width: float, human_radius: float,
+                 obstacle_clearance_min: float) -> None:
     for i in range(obs.shape[0]):
         shield_row(obs[i], actions[i], out[i], clearance_min, brake_accel, max_speed, half_length, half_width,
-                   human_radius)
+                   human_radius, obstacle_clearance_min)
 
 
 def shield_actions(obs: np.ndarray, actions: np.ndarray, p: ShieldParams) -> np.ndarray:
     """``shield_row`` for N observations (N, OBS_SIZE) and actions (N, A) at once."""
     a = np.ascontiguousarray(actions, dtype=np.float32)
     out = np.empty_like(a)
-    _shield_rows(np.ascontiguousarray(obs, dtype=np.float32), a, out, p.clearance_min, p.brake_accel, p.max_speed,
-                 p.half_length, p.half_width, p.human_radius)
+    _shield_rows(np.ascontiguousarray(obs, dtype=np.float32), a, out, *_limits(p))
     return out
 
 
 def shield_action(obs: np.ndarray, action: np.ndarray, p: ShieldParams) -> np.ndarray:
     """``shield_row`` for one observation and action."""
     return shield_actions(np.asarray(obs)[None], np.asarray(action).reshape(1, -1), p)[0]
+
+
+def _limits(p: ShieldParams) -> tuple[float, ...]:
+    return (p.clearance_min, p.brake_accel, p.max_speed, p.half_length, p.half_width, p.human_radius,
+            p.obstacle_clearance_min)
 
 
 class SafetyShield:

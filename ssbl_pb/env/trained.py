@@ -13,7 +13,7 @@ import yaml
 
 from ..errors import UserError
 from ..policies import SHIPPED
-from .observation import OBS_SIZE
+from .observation import BASE_SIZE, OBS_SIZE
 from .policies import Policy
 
 MODEL_FILES = ("model.zip", "best/model.zip")  # a run directory: its final model, else its best one
@@ -106,7 +106,10 @@ class TrainedPolicy(Policy):
         self.recurrent = recurrent
         self.observation_space = model.observation_space
         self.filter = ActionFilter(smoothing) if smoothing < 1.0 else None
-        vector = isinstance(model.observation_space, gym.spaces.Box) and model.observation_space.shape == (OBS_SIZE,)
+        vector = (isinstance(model.observation_space, gym.spaces.Box)
+                  and model.observation_space.shape in ((OBS_SIZE,), (BASE_SIZE,)))
+        # a model trained before the range scan reads (and is shielded on) the first 40 entries only
+        self.base_only = vector and model.observation_space.shape == (BASE_SIZE,)
         if shield and not vector:
             raise ModelError("the safety shield needs a Vector-observation model")
         self.shield = SafetyShield(shield_params) if shield else None
@@ -121,6 +124,8 @@ class TrainedPolicy(Policy):
 
     def predict(self, observation: Any, state: Any = None, episode_start: Any = None,
                 deterministic: bool = True) -> tuple[np.ndarray, Any]:
+        if self.base_only:
+            observation = np.asarray(observation)[..., :BASE_SIZE]
         obs = self.normalize(observation)
         if self.recurrent:
             action, state = self.model.predict(obs, state=state, episode_start=episode_start,
@@ -142,6 +147,8 @@ def _channel_first(space: gym.Space) -> gym.Space:
 
 
 def _compatible(model_space: gym.Space, env_space: gym.Space) -> bool:
+    if isinstance(model_space, gym.spaces.Box) and model_space.shape == (BASE_SIZE,):  # before the range scan
+        return isinstance(env_space, gym.spaces.Box) and env_space.shape in ((BASE_SIZE,), (OBS_SIZE,))
     return model_space == env_space or model_space == _channel_first(env_space)
 
 

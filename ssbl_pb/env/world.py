@@ -4,8 +4,9 @@ Motion is kinematic: the base (``base.HolonomicBase``) and the members (``humans
 compiled formulas at the control period, and their poses are pushed to PyBullet only when PyBullet is asked
 something (rendering, contact queries), so PyBullet remains the scene and the renderer. The world owns its state,
 or shows a batch's (``attach``: the env's state lives in ``batched.BatchedApproach``). Collisions are computed
-exactly in the plane (Pepper's box footprint against the members' 0.28 m circles and the walls' inner faces);
-``pybullet_contacts`` cross-checks them with PyBullet's own geometry.
+exactly in the plane (Pepper's box footprint against the members' 0.28 m circles and the walls' inner faces), and
+against the room's obstacles through their distance field (``obstacles``; the scene is rebuilt when the episode's
+room changes, ``set_room``); ``pybullet_contacts`` cross-checks them with PyBullet's own geometry.
 """
 
 from __future__ import annotations
@@ -15,22 +16,28 @@ import math
 
 import numpy as np
 
-from ..params import ConfigError, RobotParams, SocialParams, WorldParams
+from ..params import RobotParams, SocialParams, WorldParams
 from ..urdf import urdf_path
 from . import cameras
 from .base import BaseArrays, HolonomicBase, footprint_distance, wall_clearance
 from .bullet import pybullet as p
 from .humans import MAX_HUMANS, Group, GroupArrays
-from .layouts import GroupModel, Layout
+from .layouts import GroupModel
+from .obstacles import footprint_clearance
+from .rooms import Room
+from .spawn import spawn_layout
 
 HUMAN_COLOURS = [(0.20, 0.70, 0.30, 1), (0.20, 0.40, 0.85, 1), (0.90, 0.50, 0.10, 1), (0.60, 0.30, 0.75, 1),
                  (0.85, 0.20, 0.25, 1)]
 _PARKED = (0.0, 0.0, -10.0)
+OBSTACLE_HEIGHT = 0.75  # m: a desk's or a table's height (the camera at 1.15 m sees over it, as a person does)
+OBSTACLE_COLOUR = [0.45, 0.33, 0.22, 1]  # wood brown: apart from the walls' grey and the members' colours
 
 
 @dataclasses.dataclass
 class Collision:
-    """One contact: ``kind`` is "human" (``index`` = member) or "wall" (``index`` 0..3 = +x, -x, +y, -y)."""
+    """One contact: ``kind`` is "human" (``index`` = member), "wall" (``index`` 0..3 = +x, -x, +y, -y) or "obstacle"
+    (``index`` 0)."""
 
     kind: str
     index: int
@@ -43,58 +50,26 @@ def box_circle_distance(pose: np.ndarray, half: tuple[float, float], centres: np
                      for px, py in np.asarray(centres, dtype=float).reshape(-1, 2).tolist()])
 
 
-def spawn_layout(rng: np.random.Generator, world: WorldParams, robot: RobotParams, social: SocialParams, n: int,
-                 formation: str, start: str = "any", groups: GroupModel | None = None
-                 ) -> tuple[np.ndarray, Layout, np.ndarray]:
-    """A group's centre (2,) and layout (``layouts.Layout``) and the robot's pose (x, y, yaw) for one episode.
-
-    The group (``groups``' layout for ``formation``, at a random place and rotation) keeps ``wall_margin`` from
-    the walls even once the robot has joined; the robot starts ``robot_spawn_min``..``robot_spawn_max`` from its
-    centre, anywhere around it or (``start="behind"``) behind a member, facing a random way.
-    """
-    if not isinstance(n, int | np.integer) or not 2 <= n <= MAX_HUMANS:
-        raise ConfigError(f"n_humans = {n!r}: expected an integer in [2, {MAX_HUMANS}]")
-    if start not in ("any", "behind"):
-        raise ConfigError(f"start = {start!r}: expected 'any' or 'behind'")
-    sx, sy = world.room_size
-    layout = (groups or GroupModel()).layout(formation, int(n), social, rng)
-    extent = max(layout.joined_radius, float(np.hypot(layout.offsets[:, 0], layout.offsets[:, 1]).max()))
-    margin = extent + social.human_radius + world.wall_margin
-    robot_margin = robot.length / 2 + world.wall_margin
-    angles = np.arctan2(layout.offsets[:, 1], layout.offsets[:, 0])
-    for _ in range(1000):
-        centre = np.array([rng.uniform(-sx / 2 + margin, sx / 2 - margin),
-                           rng.uniform(-sy / 2 + margin, sy / 2 - margin)])
-        if start == "behind":
-            k = int(rng.integers(n))
-            theta = angles[k] + rng.uniform(-0.3, 0.3)
-        else:
-            theta = rng.uniform(0, 2 * math.pi)
-        dist = rng.uniform(world.robot_spawn_min, world.robot_spawn_max)
-        xy = centre + dist * np.array([math.cos(theta), math.sin(theta)])
-        if abs(xy[0]) <= sx / 2 - robot_margin and abs(xy[1]) <= sy / 2 - robot_margin:
-            break
-    else:  # pragma: no cover - prevented by WorldParams.check_fits
-        raise ConfigError(f"world.room_size = {world.room_size}: could not place a group of {n} and "
-                          f"the robot after 1000 tries")
-    return centre, layout, np.array([xy[0], xy[1], rng.uniform(-math.pi, math.pi)])
-
-
 class World:
     """Pepper and one conversation group in a walled room; ``reset`` spawns, ``step`` advances by ``dt``."""
 
     def __init__(self, world: WorldParams | None = None, robot: RobotParams | None = None,
-                 social: SocialParams | None = None, groups: GroupModel | None = None, keep: float = 0.0) -> None:
+                 social: SocialParams | None = None, groups: GroupModel | None = None, keep: float = 0.0,
+                 room: Room | None = None) -> None:
         """``groups``: where members stand (``layouts.GroupModel``, calibrated by default); ``keep``: the distance
-        the robot's place keeps from every member's centre (``Group``, ``layouts.slot_keep``)."""
+        the robot's place keeps from every member's centre (``Group``, ``layouts.slot_keep``); ``room``: the room
+        to show (``set_room``; a room given here was checked by its owner, an env: the empty room of ``world``
+        must hold the group otherwise)."""
         self.params = world or WorldParams()
         self.robot_params = robot or RobotParams()
         self.social = social or SocialParams()
         self.groups = groups or GroupModel()
         self.keep = keep
-        self.params.check_fits(self.social)
+        if room is None:
+            self.params.check_fits(self.social)
         self.base = HolonomicBase(self.robot_params, self.params.dt)
         self.group: Group | None = None
+        self._room: Room | None = room
         self._attached = False
         self.client = p.connect(p.DIRECT)
         self.t = 0.0
@@ -108,22 +83,10 @@ class World:
     # -- scene --------------------------------------------------------------------------------------------
     def _build_scene(self) -> None:
         c = self.client
-        sx, sy = self.params.room_size
-        th, h = self.params.wall_thickness, self.params.wall_height
-        floor_col = p.createCollisionShape(p.GEOM_BOX, halfExtents=[sx / 2 + th, sy / 2 + th, 0.05],
-                                           physicsClientId=c)
-        floor_vis = p.createVisualShape(p.GEOM_BOX, halfExtents=[sx / 2 + th, sy / 2 + th, 0.05],
-                                        rgbaColor=[0.78, 0.76, 0.72, 1], physicsClientId=c)
-        self.floor_id = p.createMultiBody(0, floor_col, floor_vis, [0, 0, -0.05], physicsClientId=c)
-        self.wall_ids = []
-        for axis, sign in ((0, 1), (0, -1), (1, 1), (1, -1)):  # +x, -x, +y, -y
-            half = [th / 2, sy / 2 + th, h / 2] if axis == 0 else [sx / 2 + th, th / 2, h / 2]
-            pos = [0.0, 0.0, h / 2]
-            pos[axis] = sign * ((sx if axis == 0 else sy) / 2 + th / 2)
-            col = p.createCollisionShape(p.GEOM_BOX, halfExtents=half, physicsClientId=c)
-            vis = p.createVisualShape(p.GEOM_BOX, halfExtents=half, rgbaColor=[0.55, 0.55, 0.6, 1],
-                                      physicsClientId=c)
-            self.wall_ids.append(p.createMultiBody(0, col, vis, pos, physicsClientId=c))
+        self._static_ids: list[int] = []
+        self.floor_id, self.wall_ids, self.obstacle_ids = -1, [], []
+        self._built_room: Room | None = None
+        self._build_room()
         self.robot_id = p.loadURDF(str(urdf_path("pepper")), [0, 0, 0], useFixedBase=True,
                                    flags=p.URDF_USE_INERTIA_FROM_FILE, physicsClientId=c)
         self.human_ids = []
@@ -133,6 +96,46 @@ class World:
                 if link == 0:
                     p.changeVisualShape(hid, link, rgbaColor=HUMAN_COLOURS[i], physicsClientId=c)
             self.human_ids.append(hid)
+
+    def _box(self, half: list[float], pos: list[float], yaw: float, rgba: list[float]) -> int:
+        c = self.client
+        col = p.createCollisionShape(p.GEOM_BOX, halfExtents=half, physicsClientId=c)
+        vis = p.createVisualShape(p.GEOM_BOX, halfExtents=half, rgbaColor=rgba, physicsClientId=c)
+        body = p.createMultiBody(0, col, vis, pos, [0, 0, math.sin(yaw / 2), math.cos(yaw / 2)], physicsClientId=c)
+        self._static_ids.append(body)
+        return body
+
+    def _build_room(self) -> None:
+        """(Re)build the floor, the walls and the obstacles of ``room`` (the room of this episode)."""
+        for body in self._static_ids:
+            p.removeBody(body, physicsClientId=self.client)
+        self._static_ids = []
+        room = self.room
+        sx, sy = room.size
+        th, h = self.params.wall_thickness, self.params.wall_height
+        self.floor_id = self._box([sx / 2 + th, sy / 2 + th, 0.05], [0, 0, -0.05], 0.0, [0.78, 0.76, 0.72, 1])
+        self.wall_ids = []
+        for axis, sign in ((0, 1), (0, -1), (1, 1), (1, -1)):  # +x, -x, +y, -y
+            half = [th / 2, sy / 2 + th, h / 2] if axis == 0 else [sx / 2 + th, th / 2, h / 2]
+            pos = [0.0, 0.0, h / 2]
+            pos[axis] = sign * ((sx if axis == 0 else sy) / 2 + th / 2)
+            self.wall_ids.append(self._box(half, pos, 0.0, [0.55, 0.55, 0.6, 1]))
+        self.obstacle_ids = [self._box([bx / 2, by / 2, OBSTACLE_HEIGHT / 2], [x, y, OBSTACLE_HEIGHT / 2], yaw,
+                                       OBSTACLE_COLOUR) for x, y, bx, by, yaw in room.boxes().tolist()]
+        self._built_room = room
+
+    @property
+    def room(self) -> Room:
+        """The room of this episode (``set_room``; by default the empty room of ``WorldParams.room_size``)."""
+        if self._room is None:
+            self._room = Room(self.params.room_size)
+        return self._room
+
+    def set_room(self, room: Room | None) -> None:
+        """Use ``room`` (None: the empty room of ``WorldParams.room_size``) from now on; PyBullet's scene follows at
+        the next query."""
+        self._room = room
+        self._synced = False
 
     def close(self) -> None:
         """Disconnect from PyBullet (idempotent)."""
@@ -165,7 +168,7 @@ class World:
         n = self.params.n_humans if n_humans is None else n_humans
         form = self.params.formation if formation is None else formation
         centre, layout, pose = spawn_layout(rng, self.params, self.robot_params, self.social, n, form, start,
-                                            self.groups)
+                                            self.groups, self.room, self.keep)
         self.base.reset(pose)
         if self._attached:
             self.group.arrays.spawn(self.group.i, self.social, centre, layout, self.keep, pose[:2])
@@ -200,18 +203,30 @@ class World:
         """Distance (m) from the footprint's nearest corner to each wall's inner face (+x, -x, +y, -y)."""
         x, y, yaw = (float(v) for v in self.base.pose)
         return np.array(wall_clearance(x, y, yaw, self.robot_params.length / 2, self.robot_params.width / 2,
-                                       *self.params.room_size))
+                                       *self.room.size))
+
+    def obstacle_clearance(self) -> float:
+        """Gap (m) between the footprint and the nearest obstacle (``obstacles.footprint_clearance``; at most its
+        ``CAP``, inf in a room without obstacles)."""
+        room = self.room
+        if not room.furnished:
+            return math.inf
+        x, y, yaw = (float(v) for v in self.base.pose)
+        return float(footprint_clearance(room.field, room.x0, room.y0, x, y, yaw, self.robot_params.length / 2,
+                                         self.robot_params.width / 2))
 
     def in_contact(self, clearance: np.ndarray | None = None) -> bool:
         """Whether ``collisions`` would list anything (cheaper; ``clearance`` as there)."""
-        clearance = self.human_clearance() if clearance is None else clearance
-        return bool((len(clearance) and clearance.min() <= 0.0) or self.wall_clearance().min() <= 0.0)
+        return bool(self.collisions(clearance))
 
     def collisions(self, clearance: np.ndarray | None = None) -> list[Collision]:
-        """Robot-human and robot-wall contacts right now (``clearance``: a ``human_clearance()`` already made)."""
+        """Robot-human, robot-wall and robot-obstacle contacts right now (``clearance``: a ``human_clearance()``
+        already made); an obstacle contact has index 0."""
         clearance = self.human_clearance() if clearance is None else clearance
         out = [Collision("human", int(i)) for i in np.flatnonzero(clearance <= 0.0)]
         out += [Collision("wall", int(i)) for i in np.flatnonzero(self.wall_clearance() <= 0.0)]
+        if self.obstacle_clearance() <= 0.0:
+            out.append(Collision("obstacle", 0))
         return out
 
     # -- PyBullet side ------------------------------------------------------------------------------------
@@ -219,6 +234,8 @@ class World:
         """Push the current poses into PyBullet (done lazily before any render or contact query)."""
         if self._synced:
             return
+        if self._built_room is not self.room:
+            self._build_room()
         c = self.client
         x, y, yaw = self.base.pose
         p.resetBasePositionAndOrientation(self.robot_id, [x, y, 0.0], [0, 0, math.sin(yaw / 2), math.cos(yaw / 2)],
@@ -247,6 +264,9 @@ class World:
         for i, wid in enumerate(self.wall_ids):
             if p.getClosestPoints(self.robot_id, wid, distance, linkIndexA=-1, physicsClientId=c):
                 out.append(Collision("wall", i))
+        if any(p.getClosestPoints(self.robot_id, b, distance, linkIndexA=-1, physicsClientId=c)
+               for b in self.obstacle_ids):
+            out.append(Collision("obstacle", 0))
         return out
 
     def render_first_person(self, width: int = 84, height: int = 84, projection: list[float] | None = None,
@@ -261,7 +281,7 @@ class World:
                         size: float | None = None) -> cameras.TopDown:
         """A top-down camera over the room, or over a ``size`` x ``size`` square around ``centre``."""
         if centre is None or size is None:
-            return cameras.TopDown(*self.params.room_size, width)
+            return cameras.TopDown(*self.room.size, width)
         return cameras.TopDown(size, size, width, margin=0.0, centre=centre)
 
     def render_top_down(self, cam: cameras.TopDown) -> np.ndarray:

@@ -8,6 +8,7 @@ with its normalisation), ``checkpoints/``, ``learning_curve.csv/png``, ``eval.cs
 from __future__ import annotations
 
 import json
+import pickle
 import shutil
 import sys
 import time
@@ -255,8 +256,6 @@ def train(cfg: TrainConfig, run_dir: Path, overwrite: bool = False, init_from: P
 
 def _init_from(model: Any, venv: Any, source: Path) -> Any:
     """Copy a run's final policy weights and observation statistics into a fresh model and VecEnv."""
-    from stable_baselines3.common.vec_env import VecNormalize
-
     from ..env.trained import resolve_model
 
     src_model, src_norm, _ = resolve_model(str(source))
@@ -264,9 +263,16 @@ def _init_from(model: Any, venv: Any, source: Path) -> Any:
         raise RunError(f"{source}: no vecnormalize.pkl to start from")
     try:
         params = _algo(load_config(source / "config.yaml")).load(str(src_model), device="cpu").get_parameters()
-        model.set_parameters({"policy": _match_action_head(params["policy"], model.policy.state_dict())},
-                             exact_match=False)
-        new = VecNormalize.load(str(src_norm), venv.venv)
+        with open(src_norm, "rb") as fh:
+            new = pickle.load(fh)
+        inputs = (new.observation_space.shape, venv.venv.observation_space.shape)
+        policy = _match_action_head(params["policy"], model.policy.state_dict(), *widened(*inputs))
+        model.set_parameters({"policy": policy}, exact_match=False)
+        if widened(*inputs) != (0, 0):
+            _widen_normalisation(new, venv.venv)
+        new.set_venv(venv.venv)
+    except RunError:
+        raise
     except Exception as exc:
         raise RunError(f"{source}: cannot start from this run ({type(exc).__name__}: {exc})") from exc
     new.training, new.norm_reward = True, venv.norm_reward
@@ -274,10 +280,28 @@ def _init_from(model: Any, venv: Any, source: Path) -> Any:
     return new
 
 
-def _match_action_head(source: dict[str, Any], target: dict[str, Any]) -> dict[str, Any]:
+def widened(source: tuple[int, ...], target: tuple[int, ...]) -> tuple[int, int]:
+    """(old, new) input sizes when a Vector policy of ``source`` observation shape is fine-tuned on a longer
+    Vector observation ``target`` (the range scan appended, issue 18); (0, 0) otherwise."""
+    if len(source) == 1 and len(target) == 1 and source[0] < target[0]:
+        return source[0], target[0]
+    return 0, 0
+
+
+def _match_action_head(source: dict[str, Any], target: dict[str, Any], old_inputs: int = 0, new_inputs: int = 0
+                       ) -> dict[str, Any]:
     """Rename the action head's weights between a plain and a bounded-mean policy (``action_net.weight`` <->
-    ``action_net.0.weight``) so fine-tuning across the two keeps them; raise when layers still do not match."""
+    ``action_net.0.weight``) so fine-tuning across the two keeps them; with ``old_inputs`` < ``new_inputs``, the
+    layers reading the observation get zero weights for the entries appended to it (the fine-tuned policy starts
+    acting exactly as the source, blind to them); raise when layers still do not match."""
+    import torch
+
     out = dict(source)
+    for key, w in list(out.items()):
+        t = target.get(key)
+        if (old_inputs and t is not None and w.ndim == 2 and t.ndim == 2 and w.shape[0] == t.shape[0]
+                and (w.shape[1], t.shape[1]) == (old_inputs, new_inputs)):
+            out[key] = torch.cat([w, torch.zeros(w.shape[0], new_inputs - old_inputs, dtype=w.dtype)], dim=1)
     for key in list(out):
         for a, b in (("action_net.", "action_net.0."), ("action_net.0.", "action_net.")):
             if key.startswith(a) and key not in target and b + key[len(a):] in target:
@@ -289,6 +313,24 @@ def _match_action_head(source: dict[str, Any], target: dict[str, Any]) -> dict[s
         raise RunError(f"the source policy does not fit this config's network (missing {missing}, different shapes "
                        f"{bad}): use the same ppo.net_arch and observation mode")
     return out
+
+
+WIDEN_SAMPLES = 300  # steps of random actions per copy to measure the appended entries' mean and variance
+
+
+def _widen_normalisation(norm: Any, venv: Any) -> None:
+    """Extend a loaded ``VecNormalize``'s observation statistics to ``venv``'s longer Vector observation: the
+    appended entries get the mean and variance measured over ``WIDEN_SAMPLES`` steps of random actions (their
+    running statistics would otherwise move at the pace of the source's millions of counted steps)."""
+    old = norm.observation_space.shape[0]
+    rows = [venv.reset()]
+    for _ in range(WIDEN_SAMPLES):
+        rows.append(venv.step(np.stack([venv.action_space.sample() for _ in range(venv.num_envs)]))[0])
+    extra = np.concatenate(rows)[:, old:].astype(np.float64)
+    rms = norm.obs_rms
+    rms.mean = np.concatenate([rms.mean, extra.mean(axis=0)])
+    rms.var = np.concatenate([rms.var, np.maximum(extra.var(axis=0), 1e-4)])
+    norm.observation_space = venv.observation_space
 
 
 def latest_checkpoint(run_dir: Path) -> tuple[Path, Path, int]:

@@ -34,10 +34,11 @@ class BatchedVecEnv(VecEnv):
         self.filter = ActionFilter(smoothing) if smoothing < 1.0 else None
         self.shield = ShieldParams.from_env(b.robot_params, b.social, b.task) if shield else None
         self.render_mode = None
-        obs_space = gym.spaces.Box(-ob.OBS_LIMIT, ob.OBS_LIMIT, shape=(ob.OBS_SIZE,), dtype=np.float32)
+        size = b.obs_size  # with the range scan or without (``scan=False``)
+        obs_space = gym.spaces.Box(-ob.OBS_LIMIT, ob.OBS_LIMIT, shape=(size,), dtype=np.float32)
         act_space = gym.spaces.Box(-1.0, 1.0, shape=(b.n_act,), dtype=np.float32)
         super().__init__(num, obs_space, act_space)
-        self._obs = np.zeros((num, ob.OBS_SIZE), dtype=np.float32)
+        self._obs = np.zeros((num, size), dtype=np.float32)
         self._actions = np.zeros((num, b.n_act), dtype=np.float32)
 
     def _start(self, i: int) -> dict[str, Any]:

@@ -1,0 +1,196 @@
+"""Where an episode starts: the group's centre and layout and the robot's pose, in an empty or furnished room.
+
+In an empty room the group keeps ``wall_margin`` from the walls even once the robot has joined, and the robot
+starts ``robot_spawn_min``..``robot_spawn_max`` from its centre (anywhere around it, or behind a member). In a
+room with obstacles the group also stands clear of them with room for the robot at its place, and the robot
+starts clear of every obstacle at a place from which it can drive to the group (``Approach``). Empty rooms draw
+exactly the random numbers they drew before obstacles existed, so their episodes are unchanged.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from ..params import ConfigError, RobotParams, SocialParams, WorldParams
+from .humans import MAX_HUMANS, free_slot
+from .layouts import GroupModel, Layout
+from .obstacles import CELL, boxes_distance, field_at
+from .rooms import Room
+from .shield import ShieldParams
+from .task import TaskParams
+
+ROBOT_TRIES = 20  # robot starts tried per group centre in a room with obstacles
+# m the footprint's reach keeps from obstacles at the start and on its way to the group: the safety shield's
+# margin (``ShieldParams.obstacle_clearance_min``), so the way is one the shielded robot can drive through
+START_CLEARANCE = ShieldParams().obstacle_clearance_min
+GROUP_CLEARANCE = 0.2  # m beyond the members' bodies and the robot at its place kept free of obstacles (a step)
+
+
+class NoPlace(ConfigError):
+    """No place for the group and the robot was found in the room."""
+
+
+def spawn_layout(rng: np.random.Generator, world: WorldParams, robot: RobotParams, social: SocialParams, n: int,
+                 formation: str, start: str = "any", groups: GroupModel | None = None, room: Room | None = None,
+                 keep: float = 0.0) -> tuple[np.ndarray, Layout, np.ndarray]:
+    """A group's centre (2,) and layout (``layouts.Layout``) and the robot's pose (x, y, yaw) for one episode in
+    ``room`` (default: the empty ``world.room_size``); ``keep`` as ``humans.Group``'s. ``NoPlace`` when 1000 group
+    places fail. With obstacles, ``Approach.fits`` must also hold."""
+    if not isinstance(n, int | np.integer) or not 2 <= n <= MAX_HUMANS:
+        raise ConfigError(f"n_humans = {n!r}: expected an integer in [2, {MAX_HUMANS}]")
+    if start not in ("any", "behind"):
+        raise ConfigError(f"start = {start!r}: expected 'any' or 'behind'")
+    sx, sy = world.room_size if room is None else room.size
+    furnished = room is not None and room.furnished
+    layout = (groups or GroupModel()).layout(formation, int(n), social, rng)
+    extent = max(layout.joined_radius, float(np.hypot(layout.offsets[:, 0], layout.offsets[:, 1]).max()))
+    margin = extent + social.human_radius + world.wall_margin
+    robot_margin = robot.length / 2 + world.wall_margin
+    angles = np.arctan2(layout.offsets[:, 1], layout.offsets[:, 0])
+    approach = Approach(layout, social, robot, keep, room) if furnished else None
+    for _ in range(1000):
+        centre = np.array([rng.uniform(-sx / 2 + margin, sx / 2 - margin),
+                           rng.uniform(-sy / 2 + margin, sy / 2 - margin)])
+        if approach is not None and boxes_distance(centre[0], centre[1], room.rows) < approach.members:
+            continue
+        for _ in range(ROBOT_TRIES if furnished else 1):
+            if start == "behind":
+                k = int(rng.integers(n))
+                theta = angles[k] + rng.uniform(-0.3, 0.3)
+            else:
+                theta = rng.uniform(0, 2 * math.pi)
+            dist = rng.uniform(world.robot_spawn_min, world.robot_spawn_max)
+            xy = centre + dist * np.array([math.cos(theta), math.sin(theta)])
+            inside = abs(xy[0]) <= sx / 2 - robot_margin and abs(xy[1]) <= sy / 2 - robot_margin
+            if inside and (approach is None or approach.fits(centre, xy)):
+                return centre, layout, np.array([xy[0], xy[1], rng.uniform(-math.pi, math.pi)])
+    where = f"the room {room.source}" if room is not None else f"world.room_size = {world.room_size}"
+    raise NoPlace(f"{where}: no place for a group of {n} ({formation}) and the robot after 1000 tries (the group "
+                  f"needs free space around it and its joining place, and the robot a start {world.robot_spawn_min}-"
+                  f"{world.robot_spawn_max} m away from which it can drive there)")
+
+
+class Approach:
+    """Whether a group of ``layout`` at some centre and a robot starting at some place fit a room with obstacles:
+    the members' bodies keep ``GROUP_CLEARANCE`` from every obstacle (``members``: the free radius they need); the
+    robot at its place (the slot at rest, toward the robot) and on the way in along the slot's ray keeps its
+    footprint's reach plus ``GROUP_CLEARANCE`` from obstacles and walls; the robot's start keeps its reach plus
+    ``START_CLEARANCE``, and a path keeping that clearance leads from the start to where that way in begins, around
+    the group (its keep-out disc: the members' bodies plus the footprint's reach and the intimate zone, as the
+    shaping's route keeps, ``reward.route_length``)."""
+
+    def __init__(self, layout: Layout, social: SocialParams, robot: RobotParams, keep: float, room: Room) -> None:
+        self.offsets, self.room, self.reach = layout.offsets, room, robot.reach
+        ring = np.hypot(self.offsets[:, 0], self.offsets[:, 1])
+        self.members = float(ring.max()) + social.human_radius + GROUP_CLEARANCE
+        self.radius, self.keep = layout.radius, 0.0 if layout.paper else keep
+        self.joined = layout.joined_radius
+        self.keep_out = float(ring.max()) + social.human_radius + robot.reach + TaskParams().intimate_zone
+
+    def fits(self, centre: np.ndarray, xy: np.ndarray) -> bool:
+        room, reach = self.room, self.reach
+        if _clearance(room, xy) < reach + START_CLEARANCE:
+            return False
+        n = len(self.offsets)
+        sx, sy = free_slot(n, centre + self.offsets, centre[0], centre[1], self.radius, self.keep, xy[0], xy[1], True)
+        u = np.array([sx - centre[0], sy - centre[1]])
+        place = max(float(np.hypot(*u)), self.joined)
+        u /= max(float(np.hypot(*u)), 1e-9)
+        way_in = self.keep_out + 2 * CELL
+        for d in np.arange(place, way_in + 1e-9, 0.1):
+            if _clearance(room, centre + d * u) < reach + GROUP_CLEARANCE:
+                return False
+        entry = centre + way_in * u
+        return _around_group(room, reach + START_CLEARANCE, centre, self.keep_out, xy, entry)
+
+
+def _clearance(room: Room, xy: np.ndarray) -> float:
+    """Distance (m) from a point to the nearest obstacle or wall (the field's cap at most)."""
+    walls = min(room.size[0] / 2 - abs(xy[0]), room.size[1] / 2 - abs(xy[1]))
+    return min(walls, room.clearance_at(xy[0], xy[1]))
+
+
+def _around_group(room: Room, reach: float, centre: np.ndarray, keep_out: float, a: np.ndarray, b: np.ndarray
+                  ) -> bool:
+    """Whether ``a`` and ``b`` connect keeping ``reach`` from obstacles and walls and staying out of the disc of
+    ``keep_out`` around ``centre`` (through the field's nodes, 4-connected: ``Room.free_component``'s rule)."""
+    ia, ja = int(round((a[1] - room.y0) / CELL)), int(round((a[0] - room.x0) / CELL))
+    ib, jb = int(round((b[1] - room.y0) / CELL)), int(round((b[0] - room.x0) / CELL))
+    return _connected(room.field, room.x0, room.y0, room.size[0], room.size[1], reach, centre[0], centre[1],
+                      keep_out, ia, ja, ib, jb)
+
+
+@njit(cache=True)
+def _connected(field: np.ndarray, x0: float, y0: float, size_x: float, size_y: float, clearance: float,
+               cx: float, cy: float, keep_out: float, ia: int, ja: int, ib: int, jb: int) -> bool:
+    """Breadth-first search over the field's nodes from (ia, ja) to (ib, jb) through nodes at least ``clearance``
+    from obstacles and walls and farther than ``keep_out`` from (cx, cy); stops when it arrives (a reset checks
+    one start, so a search that ends early beats labelling the whole room)."""
+    ny, nx = field.shape
+
+    def free(i: int, j: int) -> bool:
+        if i < 0 or j < 0 or i >= ny or j >= nx or field[i, j] < clearance:
+            return False
+        x, y = x0 + j * CELL, y0 + i * CELL
+        return (abs(x) <= size_x / 2 - clearance and abs(y) <= size_y / 2 - clearance
+                and (x - cx) ** 2 + (y - cy) ** 2 > keep_out ** 2)
+
+    if not free(ia, ja) or not free(ib, jb):
+        return False
+    # the straight way first: free by two more cells all along it, the staircase of nodes beside it (within a
+    # cell's diagonal) is free too (distances change by at most that over it), so the search would arrive; most
+    # starts see their way in, and this costs ~1 % of the search
+    steps = max(abs(ib - ia), abs(jb - ja), 1)
+    straight = True
+    for k in range(steps + 1):
+        t = k / steps
+        y, x = y0 + (ia + (ib - ia) * t) * CELL, x0 + (ja + (jb - ja) * t) * CELL
+        margin = clearance + 2 * CELL
+        if (field_at(field, x0, y0, x, y) < margin or abs(x) > size_x / 2 - margin or abs(y) > size_y / 2 - margin
+                or math.hypot(x - cx, y - cy) < keep_out + 2 * CELL):
+            straight = False
+            break
+    if straight:
+        return True
+    seen = np.zeros((ny, nx), dtype=np.bool_)
+    queue = np.empty(ny * nx, dtype=np.int64)
+    queue[0], seen[ia, ja] = ia * nx + ja, True
+    head, tail = 0, 1
+    while head < tail:
+        k = queue[head]
+        head += 1
+        i, j = k // nx, k % nx
+        if i == ib and j == jb:
+            return True
+        for di, dj in ((1, 0), (-1, 0), (0, 1), (0, -1)):
+            u, v = i + di, j + dj
+            if free(u, v) and not seen[u, v]:
+                seen[u, v] = True
+                queue[tail] = u * nx + v
+                tail += 1
+    return False
+
+
+def fitting_sizes(room: Room, world: WorldParams | None = None, robot: RobotParams | None = None,
+                  social: SocialParams | None = None, tries: int = 3) -> list[int]:
+    """Group sizes (2-5, calibrated vis-a-vis groups) for which ``spawn_layout`` finds a place in ``room`` (with the
+    default robot and social parameters; ``tries`` seeded attempts each), for telling a user what a room holds."""
+    from .layouts import slot_keep
+    from .task import TaskParams
+
+    world, robot, social = world or WorldParams(), robot or RobotParams(), social or SocialParams()
+    task = TaskParams()
+    keep = slot_keep(social, robot.reach, task.intimate_zone, task.route_margin)
+    out = []
+    for n in range(2, MAX_HUMANS + 1):
+        for seed in range(tries):
+            try:
+                spawn_layout(np.random.default_rng(seed), world, robot, social, n, "vis_a_vis", room=room, keep=keep)
+            except NoPlace:
+                continue
+            out.append(n)
+            break
+    return out
