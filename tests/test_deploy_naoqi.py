@@ -59,13 +59,18 @@ def test_each_fault_stops_the_base_and_names_itself(fault, tmp_path):
     res = run_fault(fault, tmp_path, stale=2.0)  # a loaded CI machine may deliver a frame 1 s late
     assert res["exit_code"] == EXPECTED[fault], res
     assert not res.get("hung"), res
-    if fault != "robot_killed":  # the virtual Pepper lived on: its own log shows the base stopped for good
+    summary = tmp_path / "deploy" / "summary.json"
+    if fault == "robot_frozen":
+        # a frozen peer cannot answer: deploy sends stopMove, says it is unconfirmed and exits. Whether the peer,
+        # resumed after deploy left, still runs the calls queued before (so its log would show the stop) is up to
+        # libqi's dispatch and was seen both ways on a loaded machine: not asserted (docs/deploy.md)
+        assert json.loads(summary.read_text())["stop"].startswith("stop not confirmed"), res
+    elif fault != "robot_killed":  # the virtual Pepper lived on: its own log shows the base stopped for good
         assert res["stop_commanded_s"] is not None and res["standstill_s"] is not None, res
     if fault == "camera_frozen":
         assert res["stop_commanded_s"] > 0.9  # by the staleness limit, not before
     if fault == "deploy_killed":
         assert res["stop_commanded_s"] > 0.4  # by the watchdog's limit, not before
-    summary = tmp_path / "deploy" / "summary.json"
     if fault in ("robot_killed", "camera_frozen", "robot_frozen", "sigint", "sigterm"):
         outcome = {"robot_killed": "connection_lost", "camera_frozen": "stale_frame",
                    "robot_frozen": "robot_not_responding"}.get(fault, fault)
