@@ -361,8 +361,11 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def load_log(path: str | Path) -> tuple[dict[str, Any], list[dict[str, Any]], list[dict[str, Any]]]:
-    """A virtual Pepper log: its start row, its state rows and its other rows (calls, time jumps)."""
-    rows = [json.loads(line) for line in Path(path).read_text().splitlines() if line.strip()]
+    """A virtual Pepper log: its start row, its state rows and its other rows (calls, time jumps); a last line
+    still being written is left out."""
+    text = Path(path).read_text()
+    lines = text.splitlines() if text.endswith("\n") else text.splitlines()[:-1]
+    rows = [json.loads(line) for line in lines if line.strip()]
     start = next(r for r in rows if r["kind"] == "start")
     return start, [r for r in rows if r["kind"] == "state"], [r for r in rows if r["kind"] not in ("start", "state")]
 
