@@ -141,3 +141,12 @@ def test_a_robot_without_the_camera_service_is_refused(tmp_path):
 def test_connecting_to_nothing_raises_a_user_error():
     with pytest.raises(RobotError, match="cannot connect"):
         NaoqiRobot("tcp://127.0.0.1:1")
+
+
+def test_load_log_leaves_out_a_line_still_being_written(tmp_path):
+    log = tmp_path / "vp.jsonl"
+    log.write_text('{"kind": "start", "wall": 0}\n{"kind": "state", "wall": 1, "cmd": [0, 0, 0]}\n{"kind": "sta')
+    start, states, calls = load_log(log)
+    assert start["wall"] == 0 and [s["wall"] for s in states] == [1] and calls == []
+    log.write_text(log.read_text() + 'te", "wall": 2, "cmd": [0, 0, 0]}\n')  # now complete: read
+    assert [s["wall"] for s in load_log(log)[1]] == [1, 2]

@@ -233,10 +233,8 @@ class RowTrial:
         return f"{self.row.slug},seed={self.seed}"
 
     def definition(self) -> dict[str, Any]:
-        enc = dict(self.encoders)
         return {"kind": "table1_row", "row": self.row.label, "seed": self.seed,
-                "budget": dataclasses.asdict(self.budget),
-                "encoder": enc.get(self.row.encoder) if self.row.encoder in enc else None}
+                "budget": dataclasses.asdict(self.budget), "encoder": dict(self.encoders).get(self.row.encoder)}
 
     def __call__(self, trial_dir: Path) -> dict[str, Any]:
         import torch

@@ -181,13 +181,11 @@ def run_fault(fault: str, folder: Path, seed: int = 11, policy: str = "straight"
             if fault == "robot_frozen":
                 vp.send_signal(signal.SIGCONT)
             settle = time.time() + 4.0  # let the log show what the base did next: braking from 0.35 m/s takes 1.2 s
-            while time.time() < settle and fault != "robot_killed":
+            while fault != "robot_killed" and time.time() < settle:
                 time.sleep(0.25)
                 if stop_times(vp_log, t_event)["standstill_s"] is not None:
                     time.sleep(0.5)  # and that it stays still
                     break
-            if fault == "robot_killed":
-                time.sleep(1.5)
         finally:
             if dog is not None:
                 dog.terminate()
