@@ -78,14 +78,35 @@ def test_footprint_clearance_matches_the_exact_gap(room):
 
 def test_ray_range_to_faces_and_walls(room):
     f, x0, y0 = room.field, room.x0, room.y0
-    assert ray_range(True, f, x0, y0, 0.0, 0.0, 1.0, 0.0, 3.0, 6.0, 5.0) == pytest.approx(0.8, abs=0.01)  # desk
-    assert ray_range(True, f, x0, y0, 0.0, 0.0, 0.0, 1.0, 3.0, 6.0, 5.0) == pytest.approx(2.5, abs=0.01)  # wall
-    assert ray_range(True, f, x0, y0, 0.0, 0.0, 0.0, -1.0, 3.0, 6.0, 5.0) == pytest.approx(1.6, abs=0.01)  # pillar
+    assert ray_range(True, f, x0, y0, 0.0, 0.0, 1.0, 0.0, 3.0, 6.0, 5.0, 0.0) == pytest.approx(0.8, abs=0.01)  # desk
+    assert ray_range(True, f, x0, y0, 0.0, 0.0, 0.0, 1.0, 3.0, 6.0, 5.0, 0.0) == pytest.approx(2.5, abs=0.01)  # wall
+    assert ray_range(True, f, x0, y0, 0.0, 0.0, 0.0, -1.0, 3.0, 6.0, 5.0, 0.0) == pytest.approx(1.6, abs=0.01)  # pillar
     # 20 deg up: the ray meets the desk's face (x = 0.8) below its corner, 0.8 / cos(20 deg) away
     ux, uy = math.cos(math.radians(20)), math.sin(math.radians(20))
-    assert ray_range(True, f, x0, y0, 0.0, 0.0, ux, uy, 3.0, 6.0, 5.0) == pytest.approx(0.8 / ux, abs=0.01)
-    assert ray_range(False, f, x0, y0, 0.0, 0.0, 1.0, 0.0, 2.0, 6.0, 5.0) == pytest.approx(2.0)  # range limit
-    assert ray_range(False, f, x0, y0, 0.0, 0.0, -1.0, 0.0, 5.0, 6.0, 5.0) == pytest.approx(3.0)  # walls only
+    assert ray_range(True, f, x0, y0, 0.0, 0.0, ux, uy, 3.0, 6.0, 5.0, 0.0) == pytest.approx(0.8 / ux, abs=0.01)
+    assert ray_range(False, f, x0, y0, 0.0, 0.0, 1.0, 0.0, 2.0, 6.0, 5.0, 0.0) == pytest.approx(2.0)  # range limit
+    assert ray_range(False, f, x0, y0, 0.0, 0.0, -1.0, 0.0, 5.0, 6.0, 5.0, 0.0) == pytest.approx(3.0)  # walls only
+
+
+def test_sector_range_sees_what_a_single_ray_misses(room):
+    # a 5 cm speckle 1 m away, 5 deg off the ray: the ray passes it, the 7.5 deg half-sector holds it
+    a = math.radians(5)
+    speck = Room((6.0, 5.0), box_rows(np.array([[math.cos(a), math.sin(a), 0.05, 0.05, 0.0]])), "speck")
+    f, x0, y0 = speck.field, speck.x0, speck.y0
+    assert ray_range(True, f, x0, y0, 0.0, 0.0, 1.0, 0.0, 3.0, 6.0, 5.0, 0.0) == pytest.approx(3.0)  # the wall
+    got = ray_range(True, f, x0, y0, 0.0, 0.0, 1.0, 0.0, 3.0, 6.0, 5.0, math.radians(7.5))
+    near = math.hypot(0.971, 0.062)  # the speckle's nearest corner
+    assert got == pytest.approx(near, abs=0.03)
+    # walls: a wall 2.5 m away seen 80 deg off its normal by a single ray is 2.5 / cos(80 deg) far; the sector
+    # reaching 10 deg toward the normal sees it at 2.5 / cos(70 deg)
+    ux, uy = math.cos(math.radians(10)), math.sin(math.radians(10))
+    assert obs.wall_range(0.0, 0.0, ux, uy, 100.0, 5.0, 0.0) == pytest.approx(2.5 / math.cos(math.radians(80)))
+    assert obs.wall_range(0.0, 0.0, ux, uy, 100.0, 5.0, math.radians(10)) == pytest.approx(
+        2.5 / math.cos(math.radians(70)))
+    assert obs.wall_range(0.0, 0.0, 0.0, 1.0, 6.0, 5.0, 0.2) == pytest.approx(2.5)  # facing the wall
+    # a face straight ahead reads its distance, not the cone's first touch short of it
+    assert ray_range(True, room.field, room.x0, room.y0, 0.0, 0.0, 1.0, 0.0, 3.0, 6.0, 5.0,
+                     math.radians(7.5)) == pytest.approx(0.8, abs=0.01)  # the desk's face
 
 
 def test_furnished_rooms_are_seeded_and_in_bounds():
@@ -101,3 +122,14 @@ def test_furnished_rooms_are_seeded_and_in_bounds():
         assert np.all(centres <= np.array(r.size) / 2)
     assert p.size_min <= min(sizes) and max(sizes) <= p.size_max
     assert p.density_min - 0.01 <= min(counts) and max(counts) <= p.density_max + 0.01
+
+
+def test_a_room_too_small_for_the_group_is_no_place_not_a_crash():
+    # a 3 x 3 m furnished room cannot hold a group of 5 (it needs ~4 m): NoPlace, so a reset draws another room
+    # (it was numpy's "high - low < 0" from deep inside a training run)
+    from ssbl_pb.env.spawn import NoPlace, spawn_layout
+    from ssbl_pb.params import SocialParams, WorldParams
+
+    small = Room((3.0, 3.0), box_rows(np.array([[1.2, 1.2, 0.2, 0.2, 0.0]])), "small")
+    with pytest.raises(NoPlace, match="too small for a group of 5"):
+        spawn_layout(np.random.default_rng(0), WorldParams(), RobotParams(), SocialParams(), 5, "circular", room=small)

@@ -59,6 +59,27 @@ def test_closing_speed_is_limited_to_what_the_base_can_still_brake():
     assert out[0] == pytest.approx(-0.1 / 0.35)
 
 
+def test_every_sector_keeps_its_limit_between_obstacles_on_two_sides():
+    # the scan (m) of a robot that drove into a desk in the meeting room: obstacles ahead-left (sectors 0-4) and
+    # behind-right (15-17). Braking for each sector in turn gave back speed toward the earlier ones (0.14 m/s
+    # toward sector 0 when driving at 270 deg); the shielded command closes on none faster than it can brake.
+    from ssbl_pb.env.observation import BASE_SIZE, SCAN_RANGE, SCAN_RAYS
+
+    scan = np.array([0.39, 0.4, 0.33, 0.34, 0.37, 0.5, 1.37, 3, 3, 2.3, 3, 3, 3, 3, 3, 0.49, 0.44, 0.44, 0.83, 1.16,
+                     1.57, 3, 3, 3])
+    obs = obs_with(np.zeros((0, 2)))
+    obs[BASE_SIZE:] = scan / SCAN_RANGE
+    for angle in np.linspace(0.0, 2.0 * math.pi, 72, endpoint=False):
+        v = shield_action(obs, np.array([math.cos(angle), math.sin(angle)]), P) * P.max_speed
+        for k, r in enumerate(scan):
+            a = 2.0 * math.pi * k / SCAN_RAYS
+            allow = math.sqrt(2.0 * P.brake_accel * max(r - REACH - P.obstacle_clearance_min, 0.0))
+            assert v[0] * math.cos(a) + v[1] * math.sin(a) <= allow + 1e-6, (math.degrees(angle), k)
+    # backing away from both (toward the open sectors 7-14) passes untouched
+    away = np.array([math.cos(math.radians(150)), math.sin(math.radians(150))]) * 0.8
+    assert np.allclose(shield_action(obs, away, P), away, atol=1e-6)
+
+
 def test_safety_shield_shields_every_row_of_a_batch():
     near = obs_with(np.array([[0.24 + 0.28 + 0.6, 0.0]]))
     far = obs_with(np.array([[3.0, 1.0]]))

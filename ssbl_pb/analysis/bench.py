@@ -24,7 +24,8 @@ def rate(fn: Callable[[], None], n: int, repeats: int = 5) -> float:
 
 def simulator_rates(n_steps: int = 20_000, n_frames: int = 500, seed: int = 0) -> dict[str, float]:
     """raw_step_per_s, raw_render_fps_84, world_step_per_s, camera_fps_84, camera_fps_128, env_step_per_s,
-    env_furnished_step_per_s (random furnished rooms), batched_env_step_per_s (env steps of the 8-copy training
+    env_furnished_step_per_s (random furnished rooms), env_furnished_waypoints_step_per_s (the same with
+    ``waypoints``), batched_env_step_per_s (env steps of the 8-copy training
     env, smoothing and shield included)."""
     from ..env.approach import ApproachGroupEnv
     from ..env.cameras import first_person_view, perspective
@@ -59,6 +60,9 @@ def simulator_rates(n_steps: int = 20_000, n_frames: int = 500, seed: int = 0) -
     out["env_step_per_s"] = env_rate(ApproachGroupEnv(), actions, seed)
     # issue 18: a new randomly furnished room every episode (its drawing and spawning timed with the steps)
     out["env_furnished_step_per_s"] = env_rate(ApproachGroupEnv(scenario="default@furnished"), actions, seed)
+    # ... and with the way round the furniture planned each episode and looked up each step (the shipped policy's)
+    out["env_furnished_waypoints_step_per_s"] = env_rate(
+        ApproachGroupEnv(scenario="default@furnished", waypoints=True), actions, seed)
 
     from ..training.vec_env import BatchedVecEnv
 

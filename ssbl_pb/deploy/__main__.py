@@ -179,6 +179,7 @@ def main(argv: list[str] | None = None) -> int:
 
 def _run(args: argparse.Namespace, url: str, folder: Path, robot: Any, params: Any, robot_params: Any, social: Any,
          task: Any, policy: Any, frames: Any) -> int:
+    from ..env.trained import policy_env_kwargs
     from ..perception.camera import PinholeCamera
     from .loop import DeployLoop, Setup, status_printer
     from .perceive import Perception
@@ -191,8 +192,9 @@ def _run(args: argparse.Namespace, url: str, folder: Path, robot: Any, params: A
                        "robot": dataclasses.asdict(robot_params), "watchdog": robot.watchdog is not None,
                        "started": time.strftime("%Y-%m-%d %H:%M:%S"), **frames.info()})
     log = RunLog(folder)
-    loop = DeployLoop(Setup(robot, policy, perception, frames, robot_params, social, task, args.groups), params, log,
-                      status=None if args.quiet else status_printer())
+    waypoints = args.policy not in BASELINES and bool(policy_env_kwargs(args.policy).get("waypoints", False))
+    loop = DeployLoop(Setup(robot, policy, perception, frames, robot_params, social, task, args.groups, waypoints),
+                      params, log, status=None if args.quiet else status_printer())
     try:
         outcome, message = loop.run()
     finally:

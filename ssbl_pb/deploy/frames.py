@@ -24,6 +24,7 @@ import numpy as np
 from ..calib.room_map import OccupancyMap, read_map
 from ..env import observation as ob
 from ..env.obstacles import box_rows, fill_scan
+from ..env.planner import in_sight, plan_map, way_clearances, way_in_for_group, waypoint
 from ..env.rooms import Room, read_obstacles
 from ..errors import UserError
 from ..params import WorldParams, load_yaml
@@ -89,6 +90,9 @@ class Frames:
     def __init__(self, room: RoomMap | None = None, start_map: np.ndarray | None = None) -> None:
         self.room = room
         self.start_map = None if start_map is None else np.asarray(start_map, dtype=float)
+        self._plan: np.ndarray | None = None  # ``way_to``'s plan, for the group and slot in ``_plan_key``
+        self._plan_key: np.ndarray | None = None
+        self._plan_radius = 0.0
         self.room_from_odom: np.ndarray | None = None  # pose of the odometry frame in the room frame
 
     def check_start(self) -> None:
@@ -145,6 +149,31 @@ class Frames:
         fill_scan(out, 0, ob.SCAN_RAYS, obstacles is not None, field, x0, y0, float(room_pose[0]),
                   float(room_pose[1]), float(frame_yaw), ob.SCAN_RANGE, *self.room.room_size)
         return out
+
+    def way_to(self, room_pose: np.ndarray, members: np.ndarray, centre: np.ndarray, slot: np.ndarray, reach: float,
+               body_reach: float) -> np.ndarray:
+        """What the observation's slot entries show for a policy trained with waypoints (``env.planner``, room
+        frame): the slot, or the point along the way around the map's obstacles while the slot is out of sight.
+        The plan is made again when the group's centre or slot estimate moved 0.2 m (~1 ms)."""
+        obstacles = None if self.room is None else self.room.obstacles
+        if obstacles is None:
+            return slot
+        key = np.concatenate([centre, slot])
+        if self._plan_key is None or float(np.abs(key - self._plan_key).max()) > 0.2:
+            if self._plan is None:
+                self._plan = np.empty_like(obstacles.field)
+            keep_out, wx, wy, radius = way_in_for_group(members, centre, slot, body_reach)
+            made = plan_map(obstacles.field, obstacles.x0, obstacles.y0, *self.room.room_size,
+                            way_clearances(reach)[0], float(centre[0]), float(centre[1]), keep_out, wx, wy,
+                            self._plan)
+            self._plan_radius, self._plan_key = (radius if made else 0.0), key
+        x, y = float(room_pose[0]), float(room_pose[1])
+        if (self._plan_radius <= 0 or math.hypot(x - centre[0], y - centre[1]) <= self._plan_radius
+                or in_sight(obstacles.field, obstacles.x0, obstacles.y0, x, y, float(slot[0]), float(slot[1]),
+                            way_clearances(reach)[1])):
+            return slot
+        wx, wy, found = waypoint(self._plan, obstacles.x0, obstacles.y0, x, y)
+        return np.array([wx, wy]) if found else slot
 
     def info(self) -> dict[str, Any]:
         return {"map": None if self.room is None else str(self.room.path),

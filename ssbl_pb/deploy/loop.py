@@ -85,6 +85,7 @@ class Setup:
     social: SocialParams = dataclasses.field(default_factory=SocialParams)
     task: TaskParams = dataclasses.field(default_factory=TaskParams)
     groups: str = "calibrated"  # the group model the policy was trained with (``env.layouts.GROUP_MODELS``)
+    waypoints: bool = False  # the policy was trained with waypoints in furnished rooms (``env.planner``)
 
 
 class DeployLoop:
@@ -135,8 +136,13 @@ class DeployLoop:
         cy, sy = math.cos(room[2]), math.sin(room[2])
         vel_room = np.array([cy * vel[0] - sy * vel[1], sy * vel[0] + cy * vel[1], vel[2]])
         centre_room, slot_room = fr.room_points(np.array([centre, slot]))
+        members_room = fr.room_points(pos)
+        if s.waypoints:
+            reach = s.robot_params.reach
+            slot_room = fr.way_to(room, members_room, centre_room, slot_room, reach,
+                                  s.social.human_radius + reach + s.task.intimate_zone)
         frame = ob.approach_yaw(room, centre_room)
-        obs = ob.vector_observation(room, vel_room, fr.room_points(pos), mvel_room, centre_room, radius, slot_room,
+        obs = ob.vector_observation(room, vel_room, members_room, mvel_room, centre_room, radius, slot_room,
                                     fr.walls(room), s.robot_params.max_speed, s.robot_params.max_yaw_rate, frame,
                                     fr.scan(room, frame))
         start = np.array([self._policy_state is None])

@@ -134,6 +134,7 @@ class ApproachGroupEnv(gym.Env):
         room_yaml: str | None = None,
         furniture: FurnitureParams | dict | None = None,
         scan: bool = True,
+        waypoints: bool = False,
     ) -> None:
         """``record`` keeps every step's state in ``trajectory`` (metrics, plots; on when rendering).
         ``groups``: where members stand, ``"calibrated"`` (default: real groups' size and irregularity) or
@@ -141,7 +142,8 @@ class ApproachGroupEnv(gym.Env):
         ``room_yaml``: a room YAML (``tools/import_map.py``): its room size, and its obstacles for rooms ``@map``
         (the scenario's rooms: ``scenarios``); ``furniture``: how rooms ``@furnished`` are drawn
         (``rooms.FurnitureParams``); ``scan``: the range scan in the observation (False: the 40 entries policies
-        trained before it read)."""
+        trained before it read); ``waypoints``: in rooms with obstacles, the slot's entries show the way around
+        them while the slot is out of sight (``planner``; off for policies trained before it)."""
         from .batched import BatchedApproach
 
         if render_mode not in (None, "rgb_array"):
@@ -149,7 +151,7 @@ class ApproachGroupEnv(gym.Env):
         if not isinstance(render_width, int) or not 64 <= render_width <= 4096:
             raise UserError(f"render width {render_width!r}: expected an integer in [64, 4096] pixels")
         self.sim = BatchedApproach(1, scenario, world, robot, social, reward, task, groups, groups_yaml, room_yaml,
-                                   furniture, scan)
+                                   furniture, scan, waypoints)
         sim = self.sim
         self.scenario, self.world_params, self.robot_params = sim.scenario, sim.world_params, sim.robot_params
         self.social, self.task, self.groups = sim.social, sim.task, sim.groups

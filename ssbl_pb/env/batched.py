@@ -27,6 +27,7 @@ from .base import BaseArrays, BaseParams
 from .humans import KEEP, MAX_HUMANS, RADIUS, GroupArrays, free_slot, sffm_params
 from .layouts import GroupModel, slot_keep
 from .obstacles import CAP, CELL
+from .planner import way_in_for_group
 from .reward import TERMS, RewardWeights, weight_vector
 from .rooms import FurnitureParams, Room, furnished_room
 from .scenarios import apply_reset_options
@@ -44,15 +45,17 @@ class BatchedApproach:
                  reward: RewardWeights | dict | None = None, task: TaskParams | dict | None = None,
                  groups: str | GroupModel | None = None, groups_yaml: str | None = None,
                  room_yaml: str | None = None, furniture: FurnitureParams | dict | None = None,
-                 scan: bool = True) -> None:
+                 scan: bool = True, waypoints: bool = False) -> None:
         if not isinstance(num, int) or num < 1:
             raise UserError(f"number of copies {num!r}: expected an integer >= 1")
-        if not isinstance(scan, bool):
-            raise UserError(f"scan = {scan!r}: expected true or false")
+        for name, flag in (("scan", scan), ("waypoints", waypoints)):
+            if not isinstance(flag, bool):
+                raise UserError(f"{name} = {flag!r}: expected true or false")
         self.num = num
         self.kwargs = {"scenario": scenario, "world": world, "robot": robot, "social": social, "reward": reward,
                        "task": task, "groups": groups, "groups_yaml": groups_yaml, "room_yaml": room_yaml,
-                       "furniture": furniture, "scan": scan}  # ``like`` builds more
+                       "furniture": furniture, "scan": scan, "waypoints": waypoints}  # ``like`` builds more
+        self.waypoints = waypoints  # rooms with obstacles: the slot's entries show the way around them (planner)
         ep = parse_env_params(scenario, world, robot, social, reward, task, groups, groups_yaml, room_yaml, furniture)
         self.scenario, self.world_params, self.robot_params, self.social, self.weights, self.task, self.groups = ep[:7]
         self.furniture, self.map_room = ep.furniture, ep.map_room
@@ -96,6 +99,9 @@ class BatchedApproach:
             shape = tuple(max(a, b) for a, b in zip(shape, self.map_room.field.shape, strict=True))
             slots = self.num + 1
         self.fields = np.full((slots, *shape), CAP, dtype=np.float32)
+        # each copy's way to its group (``planner.plan_map``), where it has obstacles and ``waypoints`` is on
+        self.plans = np.full((self.num, *shape) if self.waypoints and shape != (1, 1) else (1, 1, 1), np.inf,
+                             dtype=np.float32)
         if self.map_room is not None:
             f = self.map_room.field
             self.fields[self.num, :f.shape[0], :f.shape[1]] = f
@@ -173,7 +179,7 @@ class BatchedApproach:
         """The Vector observations (N, OBS_SIZE) of the current states (recomputing ``rows`` only, if given)."""
         g = self.groups_state
         kernels.observations(self._tp, self.pose, self.vel, g.count, g.pos, g.vel, g.centre, g.scalars, self.slot,
-                             self.room, self.fields, self._obs, self._all if rows is None else rows)
+                             self.room, self.fields, self.plans, self._obs, self._all if rows is None else rows)
         return self._obs.copy()
 
     # -- episodes ---------------------------------------------------------------------------------------
@@ -201,11 +207,24 @@ class BatchedApproach:
         self.slot[i] = free_slot(n, g.pos[i], *g.centre[i], g.scalars[i, RADIUS], g.scalars[i, KEEP], *pose[:2],
                                  True)
         self.clearance[i] = 0.0
+        self.room[i, kernels.PLAN] = 0.0
+        if self.waypoints and room.furnished:
+            self._plan(i)
         kernels.clearances(self._tp, self.pose[i], n, g.pos[i], self.clearance[i])
         _, self.room[i, kernels.OBSTACLE] = kernels.static_clearance(self._tp, self.pose[i], self.room[i], self.fields)
         self.potential[i] = kernels.potential(self._tp, self.pose[i], self.slot[i], g.centre[i],
                                               g.scalars[i, RADIUS], 0.0)
         return {"n_humans": n, "formation": formation, "start": start}
+
+    def _plan(self, i: int) -> None:
+        """Copy ``i``'s way in and keep-out disc for its plan (``planner.way_in_for_group``), made in
+        ``kernels.observations`` the first time the slot is out of sight."""
+        g, n, row = self.groups_state, int(self.groups_state.count[i]), self.room[i]
+        keep_out, row[kernels.WAY_X], row[kernels.WAY_Y], row[kernels.PLAN] = way_in_for_group(
+            g.pos[i, :n], g.centre[i], self.slot[i],
+            self.social.human_radius + self.robot_params.reach + self.task.intimate_zone)
+        row[kernels.KEEP_OUT], (row[kernels.PLAN_CX], row[kernels.PLAN_CY]) = keep_out, g.centre[i]
+        row[kernels.PLANNED] = 0.0
 
     def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Advance every copy by one control period (actions (N, A) in [-1, 1]).

@@ -23,19 +23,24 @@ from numba import njit
 from ..params import RobotParams, SocialParams, WorldParams
 from .base import base_step, footprint_distance, wall_clearance, wrap_angle
 from .humans import KEEP, RADIUS, free_slot, group_step
-from .observation import BASE_SIZE, SCAN_RANGE, action_command, fill_observation
+from .observation import BASE_SIZE, POS_SCALE, SCAN_RANGE, action_command, fill_observation
 from .obstacles import CAP, fill_scan, footprint_clearance
+from .planner import in_sight, plan_map, way_clearances, waypoint
 from .reward import N_TERMS, proximity_cost, route_length, slot_potential, step_terms
 from .task import TaskParams, joined
 
 # the task's parameters as the compiled step reads them (``task_params``)
 (MAX_SPEED, MAX_YAW_RATE, HALF_LENGTH, HALF_WIDTH, HUMAN_RADIUS, DT, HEADING_GAIN, SLOT_TOL, STOP_SPEED,
- HEADING_TOL, INTIMATE, BAND, MAX_STEPS, KEEP_OUT_EXTRA, TURN, N_TASK) = range(16)
+ HEADING_TOL, INTIMATE, BAND, MAX_STEPS, KEEP_OUT_EXTRA, TURN, PLAN_CLEARANCE, SIGHT_CLEARANCE, N_TASK) = range(18)
 # per-copy flags of the last step (COLLISION: with anything; OBSTACLE_COLLISION: with a wall or an obstacle)
 TERMINATED, TRUNCATED, SUCCESS, VIOLATION, COLLISION, OBSTACLE_COLLISION, N_FLAGS = range(7)
 # per-copy room, columns of ``room``: size (m), index into ``fields`` (-1: no obstacles) and the field's first
-# node (m), the footprint's clearance to the obstacles after the last step (m, at most ``obstacles.CAP``)
-ROOM_X, ROOM_Y, FIELD, FIELD_X0, FIELD_Y0, OBSTACLE, N_ROOM = range(7)
+# node (m), the footprint's clearance to the obstacles after the last step (m, at most ``obstacles.CAP``), and
+# (m) beyond which the copy's row of ``plans`` shows the way to the group (``planner``; 0: off), whether that
+# plan is made (0: not yet, made the first time it is needed; 1: made; -1: no way), and what it is made from:
+# the way in (m), the group's keep-out radius and its centre at the start (m)
+(ROOM_X, ROOM_Y, FIELD, FIELD_X0, FIELD_Y0, OBSTACLE, PLAN, PLANNED, WAY_X, WAY_Y, KEEP_OUT, PLAN_CX, PLAN_CY,
+ N_ROOM) = range(14)
 
 
 def task_params(world: WorldParams, robot: RobotParams, social: SocialParams, task: TaskParams) -> np.ndarray:
@@ -47,7 +52,8 @@ def task_params(world: WorldParams, robot: RobotParams, social: SocialParams, ta
                  HEADING_TOL: math.radians(task.heading_tolerance_deg), INTIMATE: task.intimate_zone,
                  BAND: task.proximity_band, MAX_STEPS: task.max_steps,
                  KEEP_OUT_EXTRA: social.human_radius + robot.reach + task.intimate_zone + task.route_margin,
-                 TURN: float(task.turn)}.items():
+                 TURN: float(task.turn), PLAN_CLEARANCE: way_clearances(robot.reach)[0],
+                 SIGHT_CLEARANCE: way_clearances(robot.reach)[1]}.items():
         p[k] = v
     return p
 
@@ -150,9 +156,11 @@ def step(tp: np.ndarray, bp: np.ndarray, sp: np.ndarray, weights: np.ndarray, ac
 @njit(cache=True)
 def observations(tp: np.ndarray, pose: np.ndarray, vel: np.ndarray, count: np.ndarray, pos: np.ndarray,
                  mvel: np.ndarray, centre: np.ndarray, gscal: np.ndarray, slot: np.ndarray, room: np.ndarray,
-                 fields: np.ndarray, out: np.ndarray, rows: np.ndarray) -> None:
+                 fields: np.ndarray, plans: np.ndarray, out: np.ndarray, rows: np.ndarray) -> None:
     """The Vector observation of the copies in ``rows`` into ``out`` (float32 rows; columns beyond
-    ``observation.BASE_SIZE`` get the range scan)."""
+    ``observation.BASE_SIZE`` get the range scan). A copy with a plan (``room[i, PLAN]``) whose straight way to
+    the slot is not free sees the plan's waypoint in the slot's entries (``planner``); the plan is made the first
+    time it is needed."""
     rays = out.shape[1] - BASE_SIZE
     for i in rows:
         x, y, yaw = pose[i, 0], pose[i, 1], pose[i, 2]
@@ -162,7 +170,19 @@ def observations(tp: np.ndarray, pose: np.ndarray, vel: np.ndarray, count: np.nd
         fill_observation(out[i], x, y, yaw, vel[i, 0], vel[i, 1], vel[i, 2], pos[i, :n], mvel[i, :n], centre[i, 0],
                          centre[i, 1], gscal[i, RADIUS], slot[i, 0], slot[i, 1],
                          (rx / 2 - x, x + rx / 2, ry / 2 - y, y + ry / 2), tp[MAX_SPEED], tp[MAX_YAW_RATE], frame)
+        k = int(room[i, FIELD])
         if rays > 0:
-            k = int(room[i, FIELD])
             fill_scan(out[i], BASE_SIZE, rays, k >= 0, fields[max(k, 0)], room[i, FIELD_X0], room[i, FIELD_Y0], x,
                       y, frame, SCAN_RANGE, rx, ry)
+        if room[i, PLAN] > 0 and k >= 0 and math.hypot(x - centre[i, 0], y - centre[i, 1]) > room[i, PLAN]:
+            x0, y0 = room[i, FIELD_X0], room[i, FIELD_Y0]
+            if not in_sight(fields[k], x0, y0, x, y, slot[i, 0], slot[i, 1], tp[SIGHT_CLEARANCE]):
+                if room[i, PLANNED] == 0:  # first needed: most episodes never lose sight of their slot
+                    made = plan_map(fields[k], x0, y0, rx, ry, tp[PLAN_CLEARANCE], room[i, PLAN_CX], room[i, PLAN_CY],
+                                    room[i, KEEP_OUT], room[i, WAY_X], room[i, WAY_Y], plans[i])
+                    room[i, PLANNED] = 1.0 if made else -1.0
+                wx, wy, found = waypoint(plans[i], x0, y0, x, y) if room[i, PLANNED] > 0 else (x, y, False)
+                if found:
+                    c, s = math.cos(frame), math.sin(frame)
+                    out[i, 0] = (c * (wx - x) + s * (wy - y)) / POS_SCALE
+                    out[i, 1] = (c * (wy - y) - s * (wx - x)) / POS_SCALE

@@ -5,12 +5,14 @@ centre, y to its left. The robot turns to face the centre (as in the original, w
 this is its body frame once it has turned; actions use the same frame, so a turning robot's commands do not
 swing around with it. (With ``TaskParams.turn`` the policy steers and the frame is the body frame.) The same
 vector is built from the simulator's state or from the tracker's output on the real robot.
-Layout (``OBS_SIZE`` = 40):
+Layout (``OBS_SIZE`` = 64; 40 without the range scan):
 
 ====  =========================================================  =========
 idx   value                                                      scale
 ====  =========================================================  =========
-0-1   free slot position                                         / 5 m
+0-1   free slot position (with ``waypoints``, in a room with     / 5 m
+      obstacles, the way around them while the slot is out of
+      sight: ``planner``)
 2-3   conversation centre position                               / 5 m
 4     o-space radius                                             / 5 m
 5-6   robot velocity (forward, left)                             / max speed
@@ -20,15 +22,16 @@ idx   value                                                      scale
 14-38 up to 5 members, nearest first: position (2), velocity     / 5 m, / 1 m/s
       (2), present flag (1); absent members are zeros
 39    robot heading minus the frame's (how far it still turns)   / pi
-40-63 range scan: 24 rays over 360 deg, ray k at 15 k deg from    / 3 m
-      the frame's x (toward the group centre), from the robot's
-      centre to the nearest wall or obstacle (``obstacles``)
+40-63 range scan: 24 sectors of 15 deg over 360 deg, sector k    / 3 m
+      centred 15 k deg from the frame's x (toward the group
+      centre): the nearest wall or obstacle within it, from the
+      robot's centre (``obstacles.ray_range``)
 ====  =========================================================  =========
 
 The original divides by half its 20 m arena (ref "Vector observation"); our default room is 10 m, so 5 m.
-The scan (ours, issue 18): 24 rays leave 15 deg between neighbours, 0.26 m apart at 1 m, so a 0.3 m pillar is seen
-from 1.1 m, beyond Pepper's braking distance (0.2 m from 0.35 m/s); 3 m is the range naoqi_driver gives Pepper's
-lasers and 9 s of driving at the default speed. Members are not in it (they have their own fields).
+The scan (ours, issue 18): each sector reports the nearest obstacle anywhere in it (a single ray per 15 deg
+slipped past a map's 5 cm speckle); 3 m is the range naoqi_driver gives Pepper's lasers and 9 s of driving at the
+default speed. Members are not in it (they have their own fields).
 """
 
 from __future__ import annotations

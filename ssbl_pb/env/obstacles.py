@@ -8,8 +8,8 @@ near a box's corner, up to half a cell too near where two faces are equally near
 
 * ``footprint_clearance``: the gap between Pepper's footprint and the nearest obstacle (collisions end the episode,
   the obstacle-clearance metric);
-* ``ray_range`` / ``fill_scan``: the range scan of the Vector observation (rays marched through the field and
-  cut at the room's walls);
+* ``ray_range`` / ``fill_scan``: the range scan of the Vector observation (a cone per sector traced through the
+  field, and the room's walls);
 * spawning asks ``boxes_distance`` (exact, every box) whether a group's disc is free.
 
 The room's four walls are not in the field: they stay exact (``base.wall_clearance``). A room without obstacles
@@ -140,45 +140,68 @@ def footprint_clearance(field: np.ndarray, x0: float, y0: float, x: float, y: fl
 
 
 @njit(cache=True)
-def wall_range(x: float, y: float, ux: float, uy: float, room_x: float, room_y: float) -> float:
-    """Distance (m) along the unit direction (ux, uy) from (x, y) to the wall of a ``room_x`` x ``room_y`` room
-    centred on the origin (0 from outside it)."""
+def wall_range(x: float, y: float, ux: float, uy: float, room_x: float, room_y: float, spread: float) -> float:
+    """Distance (m) from (x, y) to the nearest wall point within ``spread`` rad of the unit direction (ux, uy), in a
+    ``room_x`` x ``room_y`` room centred on the origin (0 from outside it): for each wall its perpendicular distance
+    over the cosine of the sector's angle nearest its normal."""
     t = np.inf
-    if ux > 1e-12:
-        t = min(t, (room_x / 2 - x) / ux)
-    elif ux < -1e-12:
-        t = min(t, (-room_x / 2 - x) / ux)
-    if uy > 1e-12:
-        t = min(t, (room_y / 2 - y) / uy)
-    elif uy < -1e-12:
-        t = min(t, (-room_y / 2 - y) / uy)
-    return max(t, 0.0)
+    for w in range(4):
+        nx, ny = (1.0, 0.0) if w == 0 else (-1.0, 0.0) if w == 1 else (0.0, 1.0) if w == 2 else (0.0, -1.0)
+        gap = (room_x / 2 - nx * x) if w < 2 else (room_y / 2 - ny * y)
+        off = max(math.acos(min(max(ux * nx + uy * ny, -1.0), 1.0)) - spread, 0.0)
+        if off < math.pi / 2 - 1e-9:
+            t = min(t, max(gap, 0.0) / math.cos(off))
+    return t
 
 
 @njit(cache=True)
 def ray_range(use_field: bool, field: np.ndarray, x0: float, y0: float, x: float, y: float, ux: float, uy: float,
-              max_range: float, room_x: float, room_y: float) -> float:
-    """Range (m) from (x, y) along (ux, uy) to the first obstacle or wall, at most ``max_range``: the ray is
-    marched through the field (each step as long as the free distance, at least ``MIN_STEP``) and cut at the
-    walls; without ``use_field`` (no obstacles) only the walls count."""
-    limit = min(max_range, wall_range(x, y, ux, uy, room_x, room_y))
+              max_range: float, room_x: float, room_y: float, spread: float) -> float:
+    """Range (m) from (x, y) to the nearest obstacle or wall within ``spread`` rad of the direction (ux, uy) (a
+    sector, as a laser's beams min-pooled into one reading; 0: a single ray), at most ``max_range``. Obstacles: a
+    cone traced through the field: at axis distance ``t`` the sector is ``t tan(spread)`` wide, each step as long
+    as the free distance beyond that width allows (at least ``MIN_STEP``); where the cone touches an obstacle, the
+    range of the touched point (found down the field's gradient; never less than the axis distance reached) is
+    returned: the axis distance alone read a wall straight ahead 12 % short with 24 sectors. The cone's tip is
+    round (a disc around the axis point), so it may touch a point ahead before a nearer one at the sector's edge:
+    the range is then at most ``tan(spread)`` (13 %) beyond the sector's nearest point, measured 3 % in a map room. Without ``use_field`` (no
+    obstacles) only the walls count. A single ray (the scan before) slipped between small obstacles (a map's 5 cm
+    speckle) until the robot's footprint was on them."""
+    limit = min(max_range, wall_range(x, y, ux, uy, room_x, room_y, spread))
     if not use_field:
         return limit
+    widen = math.tan(spread)
     t = 0.0
     while t < limit:
-        d = field_at(field, x0, y0, x + ux * t, y + uy * t)
-        if d < HIT:
-            return t
-        t += max(d, MIN_STEP)
+        px, py = x + ux * t, y + uy * t
+        f = field_at(field, x0, y0, px, py)
+        if f - t * widen < HIT:
+            return t if widen == 0.0 else min(max(_nearest_range(field, x0, y0, x, y, px, py, f), t), limit)
+        t += max((f - t * widen) / (1.0 + widen), MIN_STEP)
     return limit
+
+
+@njit(cache=True)
+def _nearest_range(field: np.ndarray, x0: float, y0: float, x: float, y: float, px: float, py: float,
+                   f: float) -> float:
+    """Range from (x, y) to the obstacle point nearest (px, py), ``f`` away down the field's gradient (central
+    differences over one cell): where a cone stopped, the point it touched."""
+    gx = field_at(field, x0, y0, px + CELL, py) - field_at(field, x0, y0, px - CELL, py)
+    gy = field_at(field, x0, y0, px, py + CELL) - field_at(field, x0, y0, px, py - CELL)
+    norm = math.hypot(gx, gy)
+    if norm < 1e-9:
+        return math.hypot(px - x, py - y)
+    return math.hypot(px - f * gx / norm - x, py - f * gy / norm - y)
 
 
 @njit(cache=True)
 def fill_scan(o: np.ndarray, start: int, rays: int, use_field: bool, field: np.ndarray, x0: float, y0: float, x: float,
               y: float, frame_yaw: float, max_range: float, room_x: float, room_y: float) -> None:
-    """``rays`` ranges over 360 deg into ``o[start:start + rays]``, ray k at ``frame_yaw + 2 pi k / rays`` (ray 0
-    along the frame's x), each divided by ``max_range`` (1 = nothing within range)."""
+    """``rays`` sector ranges over 360 deg into ``o[start:start + rays]``, sector k centred on ``frame_yaw + 2 pi k /
+    rays`` (sector 0 along the frame's x) and ``2 pi / rays`` wide, each divided by ``max_range`` (1 = nothing within
+    range)."""
+    spread = math.pi / rays
     for k in range(rays):
         a = frame_yaw + 2.0 * math.pi * k / rays
         o[start + k] = ray_range(use_field, field, x0, y0, x, y, math.cos(a), math.sin(a), max_range, room_x,
-                                 room_y) / max_range
+                                 room_y, spread) / max_range

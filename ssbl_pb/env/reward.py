@@ -14,13 +14,17 @@ the start of the step and member j moving by ``du_j`` under its own total force 
 * proximity (ours): ``-sum_j max(0, c_j - c'_j) ramp(c'_j)``, the metres by which the robot closes the clearance
   ``c`` to member j while within ``band`` of the intimate zone, weighted by ``ramp`` (0 at ``intimate + band``,
   1 at ``intimate``). Standing still costs nothing, driving at a member does (see ``proximity_cost``).
+* displacement (ours): ``-sum_j |du_j|``, the members' path length this step (m), whatever moved them: the
+  ``human_displacement_m`` metric (SocNavBench) as a cost. R5 prices the members' work against their own forces
+  and its repulsion part ``|F_rep|`` (quadratic in the intrusion), which a robot standing a few cm inside a
+  member's personal zone barely pays while the member keeps stepping away (issue 14).
 * effort: ``-|v|^2 dt``, and smoothness ``-|j| dt`` with ``j = (a_t - a_{t-1}) / dt`` the base's jerk (ours,
   see below; L1 so that small jerks still cost).
 
 Total (eq. 15): ``w_e (w1 R1 + w2 R2 + w3 R3) + w4 R4 + w_a (w5 R5 + w_rep R5_rep) + w_effort E + w_smooth S
-+ w_slot P + w_prox C - penalty``. The success bonus stands outside ``w_e`` as in the original code, which adds +1 on
-success on top of the weighted per-step reward (eq. 15 writes it inside; with ``w_e = 0.0035`` it would be
-negligible). ``P`` is the change of ``slot_potential`` (progress toward the free slot and braking near
++ w_slot P + w_prox C + w_disp D - penalty``. The success bonus stands outside ``w_e`` as in the original code,
+which adds +1 on success on top of the weighted per-step reward (eq. 15 writes it inside; with ``w_e = 0.0035``
+it would be negligible). ``P`` is the change of ``slot_potential`` (progress toward the free slot and braking near
 it; ours) and ``penalty`` applies on a collision or an intrusion into a member's intimate zone.
 """
 
@@ -36,8 +40,8 @@ from ..params import _check, _nonneg
 from .base import wrap_angle
 
 TERMS = ("r1_group_forming", "r2_non_increasing", "r3_time", "r4_success", "r5_altruism", "r5_repulsion",
-         "effort", "smoothness", "slot_progress", "proximity", "violation")
-R1, R2, R3, R4, R5, R5_REP, EFFORT, SMOOTH, SLOT, PROX, VIOLATION = range(len(TERMS))
+         "effort", "smoothness", "slot_progress", "proximity", "violation", "displacement")
+R1, R2, R3, R4, R5, R5_REP, EFFORT, SMOOTH, SLOT, PROX, VIOLATION, DISP = range(len(TERMS))
 N_TERMS = len(TERMS)
 
 
@@ -72,6 +76,7 @@ class RewardWeights:
     w_slot: float = 1.0  # change of slot_potential (per metre of progress toward the free slot)
     w_prox: float = 3.0  # closing in on a member near its intimate zone (per metre closed at the zone's edge)
     violation_penalty: float = 1.0  # collision or intimate-zone intrusion (ends the episode)
+    w_disp: float = 0.0  # members' displacement (per metre they moved; 0: off, as trained before issue 14's fix)
 
     def __post_init__(self) -> None:
         for f in dataclasses.fields(self):
@@ -155,10 +160,11 @@ def step_terms(robot_force: np.ndarray, robot_du: np.ndarray, member_forces: np.
     ``remaining`` is the episode's time left (s) after this step, charged to R3 when it ends in a violation."""
     dx, dy = robot_du[0], robot_du[1]
     along = robot_force[0] * dx + robot_force[1] * dy  # F . du, and v . F has the same sign
-    alt, rep = 0.0, 0.0
+    alt, rep, moved = 0.0, 0.0, 0.0
     for j in range(member_forces.shape[0]):
         alt += member_forces[j, 0] * member_du[j, 0] + member_forces[j, 1] * member_du[j, 1]
         rep += math.hypot(member_repulsion[j, 0], member_repulsion[j, 1])
+        moved += math.hypot(member_du[j, 0], member_du[j, 1])
     t = np.empty(N_TERMS)
     t[R1], t[R2], t[R3] = along, dt if along > 0.0 else 0.0, -(dt + remaining) if violation else -dt
     t[R4] = 1.0 if success else 0.0
@@ -166,6 +172,7 @@ def step_terms(robot_force: np.ndarray, robot_du: np.ndarray, member_forces: np.
     t[EFFORT] = -(dx * dx + dy * dy) / dt
     t[SMOOTH] = -math.hypot(accel[0] - prev_accel[0], accel[1] - prev_accel[1])
     t[SLOT], t[PROX], t[VIOLATION] = potential_after - potential_before, -proximity, -1.0 if violation else 0.0
+    t[DISP] = -moved
     return t
 
 
@@ -187,10 +194,10 @@ def total_reward(t: dict[str, float], w: RewardWeights) -> float:
     return (w.w_e * ego + w.w4 * t["r4_success"] + w.w_a * (w.w5 * t["r5_altruism"] + w.w_rep * t["r5_repulsion"])
             + w.w_effort * t["effort"] + w.w_smooth * t["smoothness"] + w.w_slot * t["slot_progress"]
             + w.w_prox * t["proximity"]
-            + w.violation_penalty * t["violation"])
+            + w.violation_penalty * t["violation"] + w.w_disp * t["displacement"])
 
 
 def weight_vector(w: RewardWeights) -> np.ndarray:
     """Eq. 15 as weights on ``TERMS``: the terms (in ``TERMS`` order) dotted with it give ``total_reward``."""
     return np.array([w.w_e * w.w1, w.w_e * w.w2, w.w_e * w.w3, w.w4, w.w_a * w.w5, w.w_a * w.w_rep, w.w_effort,
-                     w.w_smooth, w.w_slot, w.w_prox, w.violation_penalty])
+                     w.w_smooth, w.w_slot, w.w_prox, w.violation_penalty, w.w_disp])

@@ -84,13 +84,42 @@ def _brake(vx: float, vy: float, ux: float, uy: float, other_vx: float, other_vy
     return vx, vy
 
 
+RAY_PASSES = 4  # rounds of braking sector by sector: each keeps the motion along the obstacles (no dead stop)
+
+
+@njit(cache=True)
+def _scale_to_rays(obs: np.ndarray, vx: float, vy: float, reach: float, clearance_min: float,
+                   brake_accel: float) -> tuple[float, float]:
+    """(vx, vy) scaled down until no ray's closing speed exceeds its limit. Braking ray by ray in turn is not
+    enough where obstacles stand on two sides (a passage between desks): removing the speed toward one side adds
+    speed toward the other, and 2.5 % of the meeting room's episodes ended on an obstacle the scan saw. Every
+    ray's limit is >= 0 (obstacles stand still), so a slower motion in the same direction keeps them all. Runs after
+    ``RAY_PASSES`` rounds of braking, which leave little or nothing to scale."""
+    rays = obs.shape[0] - BASE_SIZE
+    scale = 1.0
+    for k in range(rays):
+        r = float(obs[BASE_SIZE + k])
+        if r >= 0.999:
+            continue
+        a = 2.0 * math.pi * k / rays
+        d, ux, uy = circle_clearance(r * SCAN_RANGE * math.cos(a), r * SCAN_RANGE * math.sin(a), reach, 0.0)
+        closing = vx * ux + vy * uy
+        allow = math.sqrt(2.0 * brake_accel * max(d - clearance_min, 0.0))
+        if closing > allow:
+            scale = min(scale, allow / closing)
+    return vx * scale, vy * scale
+
+
 @njit(cache=True)
 def shield_row(obs: np.ndarray, action: np.ndarray, out: np.ndarray, clearance_min: float, brake_accel: float,
                max_speed: float, half_length: float, half_width: float, human_radius: float,
                obstacle_clearance_min: float) -> None:
     """The action (approach frame, in [-1, 1]) with its excess closing speed on each member removed, into ``out``:
     members nearest first, each limiting the closing speed to ``sqrt(2 a (c - c_min))``; then the same for every
-    ray of the range scan that ends within its range (observations longer than ``BASE_SIZE``)."""
+    ray of the range scan that ends within its range (observations longer than ``BASE_SIZE``), in up to
+    ``RAY_PASSES`` rounds (each round's braking may give back speed toward an earlier sector; a few rounds settle on
+    a motion along the obstacles), and finally the speed scaled down to keep every ray's limit at once
+    (``_scale_to_rays``: a safety net that, alone, stopped the robot dead beside a desk)."""
     out[:] = action
     reach = math.hypot(half_length, half_width)
     clear = np.full(MAX_MEMBERS, np.inf)
@@ -114,14 +143,20 @@ def shield_row(obs: np.ndarray, action: np.ndarray, out: np.ndarray, clearance_m
                         clearance_min, brake_accel)
         acted = True
     rays = obs.shape[0] - BASE_SIZE
-    for k in range(rays):
-        r = float(obs[BASE_SIZE + k])
-        if r >= 0.999:  # nothing within range
-            continue
-        a = 2.0 * math.pi * k / rays
-        d, ux, uy = circle_clearance(r * SCAN_RANGE * math.cos(a), r * SCAN_RANGE * math.sin(a), reach, 0.0)
-        vx, vy = _brake(vx, vy, ux, uy, 0.0, 0.0, d, obstacle_clearance_min, brake_accel)
-        acted = True
+    for _ in range(RAY_PASSES):
+        before = (vx, vy)
+        for k in range(rays):
+            r = float(obs[BASE_SIZE + k])
+            if r >= 0.999:  # nothing within range
+                continue
+            a = 2.0 * math.pi * k / rays
+            d, ux, uy = circle_clearance(r * SCAN_RANGE * math.cos(a), r * SCAN_RANGE * math.sin(a), reach, 0.0)
+            vx, vy = _brake(vx, vy, ux, uy, 0.0, 0.0, d, obstacle_clearance_min, brake_accel)
+            acted = True
+        if (vx, vy) == before:
+            break
+    if acted and rays > 0:
+        vx, vy = _scale_to_rays(obs, vx, vy, reach, obstacle_clearance_min, brake_accel)
     if acted:
         out[0] = min(max(vx / max_speed, -1.0), 1.0)
         out[1] = min(max(vy / max_speed, -1.0), 1.0)

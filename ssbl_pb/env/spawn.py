@@ -18,6 +18,7 @@ from ..params import ConfigError, RobotParams, SocialParams, WorldParams
 from .humans import MAX_HUMANS, free_slot
 from .layouts import GroupModel, Layout
 from .obstacles import CELL, boxes_distance, field_at
+from .planner import ENTRY_BEYOND, entry_point
 from .rooms import Room
 from .shield import ShieldParams
 from .task import TaskParams
@@ -51,6 +52,10 @@ def spawn_layout(rng: np.random.Generator, world: WorldParams, robot: RobotParam
     robot_margin = robot.length / 2 + world.wall_margin
     angles = np.arctan2(layout.offsets[:, 1], layout.offsets[:, 0])
     approach = Approach(layout, social, robot, keep, room) if furnished else None
+    where = f"the room {room.source}" if room is not None else f"world.room_size = {world.room_size}"
+    if 2 * margin > min(sx, sy):  # a small furnished room and a wide real group: draw another room
+        raise NoPlace(f"{where}: {min(sx, sy)} m across is too small for a group of {n} ({formation}) that needs "
+                      f"{2 * margin:.2f} m")
     for _ in range(1000):
         centre = np.array([rng.uniform(-sx / 2 + margin, sx / 2 - margin),
                            rng.uniform(-sy / 2 + margin, sy / 2 - margin)])
@@ -67,7 +72,6 @@ def spawn_layout(rng: np.random.Generator, world: WorldParams, robot: RobotParam
             inside = abs(xy[0]) <= sx / 2 - robot_margin and abs(xy[1]) <= sy / 2 - robot_margin
             if inside and (approach is None or approach.fits(centre, xy)):
                 return centre, layout, np.array([xy[0], xy[1], rng.uniform(-math.pi, math.pi)])
-    where = f"the room {room.source}" if room is not None else f"world.room_size = {world.room_size}"
     raise NoPlace(f"{where}: no place for a group of {n} ({formation}) and the robot after 1000 tries (the group "
                   f"needs free space around it and its joining place, and the robot a start {world.robot_spawn_min}-"
                   f"{world.robot_spawn_max} m away from which it can drive there)")
@@ -99,11 +103,10 @@ class Approach:
         u = np.array([sx - centre[0], sy - centre[1]])
         place = max(float(np.hypot(*u)), self.joined)
         u /= max(float(np.hypot(*u)), 1e-9)
-        way_in = self.keep_out + 2 * CELL
-        for d in np.arange(place, way_in + 1e-9, 0.1):
+        for d in np.arange(place, self.keep_out + ENTRY_BEYOND + 1e-9, 0.1):
             if _clearance(room, centre + d * u) < reach + GROUP_CLEARANCE:
                 return False
-        entry = centre + way_in * u
+        entry = np.array(entry_point(centre[0], centre[1], sx, sy, self.keep_out))
         return _around_group(room, reach + START_CLEARANCE, centre, self.keep_out, xy, entry)
 
 

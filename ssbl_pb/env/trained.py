@@ -47,17 +47,23 @@ def resolve_model(spec: str) -> tuple[Path, Path | None, dict[str, Any]]:
     return model, (norm if norm.is_file() else None), (config or {})
 
 
+OBSERVATION_KEYS = ("waypoints",)  # env arguments that change what a policy observes
+
+
 def policy_env_kwargs(spec: str) -> dict[str, Any]:
-    """The env a trained model needs beyond the defaults: for a model on a frozen autoencoder (config
+    """The env a trained model needs beyond the defaults: what its observation was made of (config ``env``'s
+    ``OBSERVATION_KEYS``: the waypoints in furnished rooms); for a model on a frozen autoencoder (config
     ``encoder`` conv / saev), its camera mode, image size and encoder checkpoint (looked up beside the model,
-    then beside its run directory, then as written); ``{}`` for any other policy."""
+    then beside its run directory, then as written); ``{}`` for a baseline."""
     from .policies import BASELINES
 
     if spec in BASELINES:
         return {}
     model, _, config = resolve_model(spec)
+    env = config.get("env") or {}
+    seen = {k: env[k] for k in OBSERVATION_KEYS if k in env}
     if config.get("encoder") not in ("conv", "saev"):
-        return {}
+        return seen
     name = config.get("encoder_checkpoint") or ""
     if not name:
         from ..policies import SHIPPED_ENCODERS
@@ -68,7 +74,8 @@ def policy_env_kwargs(spec: str) -> dict[str, Any]:
         raise ModelError(f"{model}: its encoder checkpoint {name!r} (config encoder_checkpoint) is not beside the "
                          f"model nor at that path")
     size = int(config.get("camera_size", 84))
-    return {"obs_mode": config["obs_mode"], "camera_width": size, "camera_height": size, "encoder": str(found[0])}
+    return {**seen, "obs_mode": config["obs_mode"], "camera_width": size, "camera_height": size,
+            "encoder": str(found[0])}
 
 
 def copy_policy(spec: str, dest: Path) -> list[str]:

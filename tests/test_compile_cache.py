@@ -1,0 +1,26 @@
+"""The compiled env's cache folder follows every source of ssbl_pb.env, not only the compiled function's file."""
+
+import os
+import subprocess
+import sys
+
+from ssbl_pb.env.compile_cache import source_key
+
+
+def test_an_edit_of_any_module_changes_the_key(tmp_path):
+    (tmp_path / "kernels.py").write_text("def step(): return reward()\n")
+    (tmp_path / "reward.py").write_text("def reward(): return 1.0\n")
+    before = source_key(tmp_path)
+    assert source_key(tmp_path) == before
+    (tmp_path / "reward.py").write_text("def reward(): return 2.0\n")  # kernels.py untouched
+    assert source_key(tmp_path) != before
+
+
+def test_the_env_caches_by_key_and_leaves_a_users_folder_alone(tmp_path):
+    code = "import os, ssbl_pb.env; print(os.environ['NUMBA_CACHE_DIR'])"
+    env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR", "_SSBL_PB_NUMBA_CACHE")}
+    ours = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
+    assert os.path.basename(ours.stdout.strip()).startswith("numba-")
+    theirs = subprocess.run([sys.executable, "-c", code], env={**env, "NUMBA_CACHE_DIR": str(tmp_path)},
+                            capture_output=True, text=True, check=True)
+    assert theirs.stdout.strip() == str(tmp_path)

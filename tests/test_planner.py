@@ -1,0 +1,112 @@
+"""The way to the group through furnished rooms (env/planner.py): distances by hand, waypoints around a wall, and
+the observation's slot entries with and without waypoints, in the env and in deploy."""
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ssbl_pb.deploy.frames import Frames, RoomMap
+from ssbl_pb.env import planner
+from ssbl_pb.env.observation import POS_SCALE
+from ssbl_pb.env.obstacles import CELL, box_rows
+from ssbl_pb.env.rooms import Room
+
+# a 6 x 6 m room split by a wall along x = 0 from y = -3 to y = 1.5: the way round is through the gap above it
+WALL = Room((6.0, 6.0), box_rows(np.array([[0.0, -0.75, 0.2, 4.5, 0.0]])), "wall")
+EMPTY = Room((6.0, 6.0), box_rows(np.array([[2.9, 2.9, 0.05, 0.05, 0.0]])), "corner")  # a speck in a corner
+
+
+def plan(room: Room, goal: tuple[float, float], clearance: float = 0.4) -> np.ndarray:
+    out = np.empty_like(room.field)
+    assert planner.plan_map(room.field, room.x0, room.y0, *room.size, clearance, 10.0, 10.0, 0.0, *goal, out)
+    return out
+
+
+def node(room: Room, x: float, y: float) -> tuple[int, int]:
+    return int(round((y - room.y0) / CELL)), int(round((x - room.x0) / CELL))
+
+
+def test_distances_are_octile_in_an_open_room_and_go_round_a_wall():
+    d = plan(EMPTY, (1.0, 0.0))
+    # 1 m along x and 0.5 m along y from the goal: 10 diagonal (1.5 cells each) and 10 straight steps of 5 cm
+    assert d[node(EMPTY, 2.0, 0.5)] == pytest.approx(10 * 1.5 * CELL + 10 * CELL, abs=1e-6)
+    assert d[node(EMPTY, 1.0, 0.0)] == 0.0
+    assert not np.isfinite(d[node(EMPTY, 2.9, 0.0)])  # within the clearance of the wall
+    w = plan(WALL, (1.0, -1.0))
+    # from (-1, -1), 2 m away straight through the wall: the way round passes the gap above y = 1.5 + 0.4
+    assert w[node(WALL, -1.0, -1.0)] > 2 * math.hypot(1.0, 2.9) - 0.01
+    assert w[node(WALL, 0.0, 0.0)] == np.inf  # inside the wall
+
+
+def test_waypoint_leads_toward_the_gap_and_in_sight_sees_the_wall():
+    w = plan(WALL, (1.0, -1.0))
+    wx, wy, found = planner.waypoint(w, WALL.x0, WALL.y0, -1.0, -1.0)
+    assert found
+    assert math.hypot(wx + 1.0, wy + 1.0) <= planner.AHEAD + 1e-6
+    assert wy > -1.0 + 0.9 * planner.AHEAD * math.sqrt(0.5)  # up toward the gap, not at the wall
+    assert not planner.in_sight(WALL.field, WALL.x0, WALL.y0, -1.0, -1.0, 1.0, -1.0, 0.32)
+    assert planner.in_sight(WALL.field, WALL.x0, WALL.y0, -1.0, 2.5, 1.0, 2.5, 0.32)  # above the wall
+    # at the goal there is nowhere further to go: the slot is shown instead
+    assert not planner.waypoint(w, WALL.x0, WALL.y0, 1.0, -1.0)[2]
+
+
+def test_a_cut_off_way_in_has_no_plan():
+    out = np.empty_like(WALL.field)
+    # the way in inside the wall and farther than 0.5 m from any free node: no plan
+    assert not planner.plan_map(WALL.field, WALL.x0, WALL.y0, 6.0, 6.0, 0.9, 10.0, 10.0, 0.0, 0.0, -1.5, out)
+
+
+def _slot_entries(sim, obs):
+    x, y = sim.pose[0, :2]
+    frame = math.atan2(sim.centre[0, 1] - y, sim.centre[0, 0] - x)
+    c, s = math.cos(frame), math.sin(frame)
+    sx, sy = sim.slot[0] - sim.pose[0, :2]
+    return np.array([c * sx + s * sy, c * sy - s * sx]) / POS_SCALE, obs[:2]
+
+
+def test_the_env_shows_the_way_while_the_slot_is_out_of_sight():
+    from ssbl_pb.env.approach import make_env
+    from ssbl_pb.env.kernels import PLAN, PLANNED
+
+    shown = 0
+    plain = make_env(scenario="default@furnished")
+    with_way = make_env(scenario="default@furnished", waypoints=True)
+    for seed in range(40):
+        o_plain, _ = plain.reset(seed=seed)
+        slot, got = _slot_entries(plain.unwrapped.sim, o_plain)
+        assert np.allclose(got, slot, atol=1e-5)  # without waypoints: always the slot
+        o, _ = with_way.reset(seed=seed)
+        sim = with_way.unwrapped.sim
+        room = sim.rooms[0]
+        x, y = sim.pose[0, :2]
+        slot, got = _slot_entries(sim, o)
+        blocked = not planner.in_sight(room.field, room.x0, room.y0, x, y, *sim.slot[0], sim.robot_params.reach)
+        assert sim.room[0, PLAN] > 0  # a plan to make (spawning guarantees a way in) ...
+        assert sim.room[0, PLANNED] == (1.0 if blocked else 0.0)  # ... made only where the slot is out of sight
+        if blocked:
+            shown += 1
+            assert not np.allclose(got, slot, atol=1e-3)
+            assert np.hypot(*got) * POS_SCALE == pytest.approx(planner.AHEAD, abs=0.15)
+        else:
+            assert np.allclose(got, slot, atol=1e-5)
+    assert shown >= 3  # furnished rooms do hide the slot at some starts
+
+
+def test_deploy_shows_the_same_waypoint_from_the_map():
+    room = RoomMap(Path("wall.yaml"), WALL.size, np.zeros(3), None, WALL)
+    frames = Frames(room, np.zeros(3))
+    members = np.array([[2.0, -1.8], [2.0, -0.2]])  # a pair right of the wall, its place on its left
+    centre, slot = members.mean(axis=0), np.array([1.0, -1.0])
+    pose = np.array([-1.5, -1.0, 0.0])
+    got = frames.way_to(pose, members, centre, slot, 0.32, 0.5)
+    out = np.empty_like(WALL.field)
+    keep_out, wx, wy, radius = planner.way_in_for_group(members, centre, slot, 0.5)
+    assert (keep_out, wx, wy) == pytest.approx((1.3, 2.0 - 1.3 - planner.ENTRY_BEYOND, -1.0))
+    assert radius == pytest.approx(1.3 + planner.ENTRY_BEYOND + planner.WAY_IN_ZONE)
+    assert planner.plan_map(WALL.field, WALL.x0, WALL.y0, *WALL.size, 0.42, *centre, keep_out, wx, wy, out)
+    wx, wy, found = planner.waypoint(out, WALL.x0, WALL.y0, -1.5, -1.0)
+    assert found and np.allclose(got, [wx, wy])
+    assert wy > -1.0  # up toward the gap
+    assert np.allclose(Frames().way_to(pose, members, centre, slot, 0.32, 0.5), slot)  # no map: the slot
