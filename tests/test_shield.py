@@ -80,6 +80,20 @@ def test_every_sector_keeps_its_limit_between_obstacles_on_two_sides():
     assert np.allclose(shield_action(obs, away, P), away, atol=1e-6)
 
 
+def test_a_command_stopped_by_an_obstacle_slides_along_it_and_one_stopped_by_a_member_does_not():
+    from ssbl_pb.env.observation import BASE_SIZE, SCAN_RANGE
+
+    obs = obs_with(np.zeros((0, 2)))
+    obs[BASE_SIZE:] = 1.0
+    obs[BASE_SIZE + 0] = (REACH + P.obstacle_clearance_min) / SCAN_RANGE  # a speck dead ahead, at the margin
+    out = shield_action(obs, np.array([1.0, 0.0]), P)
+    assert abs(out[1]) >= 0.25 and abs(out[0]) < 1e-6  # it slides sideways, neither toward the speck nor back
+    assert shield_action(obs, np.array([0.2, 0.0]), P) == pytest.approx([0.0, 0.0], abs=1e-6)  # slow: it stops
+    # a member dead ahead at the intimate zone's edge: no sliding round a person
+    member = obs_with(np.array([[REACH + 0.28 + P.clearance_min, 0.0]]))
+    assert shield_action(member, np.array([1.0, 0.0]), P) == pytest.approx([0.0, 0.0], abs=1e-6)
+
+
 def test_safety_shield_shields_every_row_of_a_batch():
     near = obs_with(np.array([[0.24 + 0.28 + 0.6, 0.0]]))
     far = obs_with(np.array([[3.0, 1.0]]))
