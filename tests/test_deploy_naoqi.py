@@ -150,3 +150,13 @@ def test_load_log_leaves_out_a_line_still_being_written(tmp_path):
     assert start["wall"] == 0 and [s["wall"] for s in states] == [1] and calls == []
     log.write_text(log.read_text() + 'te", "wall": 2, "cmd": [0, 0, 0]}\n')  # now complete: read
     assert [s["wall"] for s in load_log(log)[1]] == [1, 2]
+
+
+def test_the_benchmark_report_keeps_a_run_that_ended_on_a_fault_before_its_first_tick():
+    from ssbl_pb.deploy.bench import markdown
+
+    runs = [{"seed": 1, "outcome": "success", "true_success": True, "true_slot_m": 0.1, "true_heading_deg": 2.0,
+             "true_min_clearance_m": 0.62, "tick_ms_median": 1.0, "tick_ms_p99": 3.0, "estimate_age_ms_median": 90},
+            {"seed": 2, "outcome": "robot_not_responding", "true_success": False}]  # frozen before any tick
+    text = markdown({"approaches": runs, "scenario": "default", "policy": "vector"})
+    assert "**1/2**" in text and "smallest true clearance 0.62 m" in text and "| 2 | robot_not_responding | no |" in text

@@ -279,6 +279,8 @@ def markdown(res: dict[str, Any]) -> str:
         ok = sum(r.get("true_success", False) for r in runs)
         claimed = sum(r.get("outcome") == "success" for r in runs)
         intimate = sum(r.get("true_min_clearance_m", 9) < 0.45 for r in runs)
+        # a run that ended on a fault before its first tick has no clearance
+        cleared = [r["true_min_clearance_m"] for r in runs if r.get("true_min_clearance_m") is not None]
 
         def med(key: str) -> float:
             vals = sorted(r[key] for r in runs if r.get(key) is not None)
@@ -289,7 +291,7 @@ def markdown(res: dict[str, Any]) -> str:
                 f"`{res['scenario']}`, {res.get('groups') or 'calibrated'} groups, policy `{res['policy']}`): "
                 f"success by the simulator's own rule and ground truth in **{ok}/{len(runs)}** (deploy claimed "
                 f"{claimed}); intimate-zone entries: **{intimate}**; "
-                f"smallest true clearance {min(r['true_min_clearance_m'] for r in runs):.2f} m.",
+                f"smallest true clearance {min(cleared, default=float('nan')):.2f} m.",
                 f"Control tick (start to command sent): median of run medians {med('tick_ms_median'):.1f} ms, worst "
                 f"run p99 {p99:.1f} ms; estimate age median {med('estimate_age_ms_median'):.0f} ms.", "",
                 "| seed | outcome | true success | slot (m) | heading (deg) | min clearance (m) | tick median / p99 "

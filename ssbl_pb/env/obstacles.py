@@ -177,18 +177,19 @@ def ray_range(use_field: bool, field: np.ndarray, x0: float, y0: float, x: float
     Without ``use_field`` (no obstacles) only the walls count. A single ray (the scan before) slipped between small
     obstacles (a map's 5 cm speckle) until the robot's footprint was on them."""
     return _sector_range(use_field, field, x0, y0, x, y, ux, uy, max_range, room_x, room_y, math.tan(spread),
-                         math.cos(spread), math.sin(spread))
+                         math.cos(spread), math.sin(spread), 0.0)
 
 
 @njit(cache=True)
 def _sector_range(use_field: bool, field: np.ndarray, x0: float, y0: float, x: float, y: float, ux: float,
                   uy: float, max_range: float, room_x: float, room_y: float, widen: float, cos_s: float,
-                  sin_s: float) -> float:
-    """``ray_range`` with the spread's tangent, cosine and sine given (a scan computes them once)."""
+                  sin_s: float, free: float) -> float:
+    """``ray_range`` with the spread's tangent, cosine and sine given (a scan computes them once) and ``free``, the
+    radius around (x, y) known to hold no obstacle: the cone starts where its round tip reaches that far."""
     limit = min(max_range, _wall_range(x, y, ux, uy, room_x, room_y, cos_s, sin_s))
     if not use_field:
         return limit
-    t = 0.0
+    t = max(free, 0.0) / (1.0 + widen)
     while t < limit:
         px, py = x + ux * t, y + uy * t
         f = field_at(field, x0, y0, px, py)
@@ -219,7 +220,8 @@ def fill_scan(o: np.ndarray, start: int, rays: int, use_field: bool, field: np.n
     range)."""
     spread = math.pi / rays
     widen, cos_s, sin_s = math.tan(spread), math.cos(spread), math.sin(spread)
+    free = field_at(field, x0, y0, x, y) - HIT if use_field else 0.0  # no obstacle within this of the robot
     for k in range(rays):
         a = frame_yaw + 2.0 * math.pi * k / rays
         o[start + k] = _sector_range(use_field, field, x0, y0, x, y, math.cos(a), math.sin(a), max_range, room_x,
-                                     room_y, widen, cos_s, sin_s) / max_range
+                                     room_y, widen, cos_s, sin_s, free) / max_range
