@@ -58,8 +58,8 @@ def test_joins_the_group_and_logs_a_dynamics_log(tmp_path, groups):
     log.close()
     assert outcome == "success" and loop.exit_code == 0, message
     truth = robot.truth()
-    # the simulator's own success distance; deploy's estimate of a paper pair's slot is 0.2-0.35 m off (its 1.0 m
-    # circle from a colour detector; docs/benchmarks.md "Deploy"), so there deploy's success can end beyond it
+    # the simulator's own success distance; deploy's estimate of a paper pair's slot is 0.18-0.35 m off (its 1.0 m
+    # circle on a detected pair; docs/benchmarks.md "Deploy against the virtual Pepper"), so deploy may stop past 0.3
     assert math.dist(truth["pose"][:2], truth["slot"]) < (0.3 if groups == "calibrated" else 0.4)
     assert loop.group.paper == (groups == "paper")  # deploy models the groups the env spawned
     assert robot.world.group.keep == (0.0 if groups == "paper" else loop.group.keep)
