@@ -110,3 +110,14 @@ def test_deploy_shows_the_same_waypoint_from_the_map():
     assert found and np.allclose(got, [wx, wy])
     assert wy > -1.0  # up toward the gap
     assert np.allclose(Frames().way_to(pose, members, centre, slot, 0.32, 0.5), slot)  # no map: the slot
+
+
+def test_bad_flags_name_themselves():
+    from ssbl_pb.env.approach import make_env
+    from ssbl_pb.env.reward import RewardWeights
+    from ssbl_pb.errors import UserError
+
+    with pytest.raises(UserError, match="waypoints = 'yes': expected true or false"):
+        make_env(scenario="default@furnished", waypoints="yes")
+    with pytest.raises(UserError, match="w_disp"):
+        RewardWeights(w_disp=-1.0)
