@@ -50,6 +50,9 @@ def test_each_term_by_hand():
     assert t1["displacement"] == 0.0 and t2["displacement"] == pytest.approx(-0.01)
     pushed = reward_terms(**{**s2, "member_du": np.array([[0.03, 0.04], [0.0, -0.02]])}, dt=DT)
     assert pushed["displacement"] == pytest.approx(-0.07)
+    # arrival: minus the speed at the step's end, on the success step only
+    assert reward_terms(**s1, dt=DT, speed=0.08)["arrival"] == 0.0
+    assert reward_terms(**s2, dt=DT, speed=0.08)["arrival"] == pytest.approx(-0.08)
     # effort: -|v|^2 dt, v = du / dt
     assert t1["effort"] == pytest.approx(-(0.3**2) * DT)
     assert t2["effort"] == pytest.approx(-(0.2**2 + 0.1**2) * DT)
@@ -61,16 +64,17 @@ def test_each_term_by_hand():
 
 def test_total_is_eq15_with_our_terms():
     w = RewardWeights(w1=2.0, w2=3.0, w3=5.0, w4=7.0, w5=11.0, w_rep=13.0, w_e=0.5, w_a=0.25, w_effort=17.0,
-                      w_smooth=19.0, w_slot=23.0, w_prox=31.0, violation_penalty=29.0, w_disp=37.0)
+                      w_smooth=19.0, w_slot=23.0, w_prox=31.0, violation_penalty=29.0, w_disp=37.0,
+                      w_arrive=41.0)
     s1, s2 = two_steps()
-    t = reward_terms(**s2, dt=DT, proximity=0.01)
+    t = reward_terms(**s2, dt=DT, proximity=0.01, speed=0.05)
     ego = 2.0 * t["r1_group_forming"] + 3.0 * t["r2_non_increasing"] + 5.0 * t["r3_time"]
     expected = (0.5 * ego + 7.0 * 1.0 + 0.25 * (11.0 * t["r5_altruism"] + 13.0 * t["r5_repulsion"])
                 + 17.0 * t["effort"] + 19.0 * t["smoothness"] + 23.0 * t["slot_progress"] - 31.0 * 0.01
-                - 37.0 * 0.01)
+                - 37.0 * 0.01 - 41.0 * 0.05)
     assert total_reward(t, w) == pytest.approx(expected)
     # the proximity cost enters with weight -w_prox, and only it differs when proximity is 0
-    without = total_reward(reward_terms(**s2, dt=DT), w)
+    without = total_reward(reward_terms(**s2, dt=DT, speed=0.05), w)
     assert total_reward(t, w) - without == pytest.approx(-31.0 * 0.01)
     assert total_reward(reward_terms(**s1, dt=DT), w) != pytest.approx(without)  # the steps differ
 

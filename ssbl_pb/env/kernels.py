@@ -137,7 +137,7 @@ def step(tp: np.ndarray, bp: np.ndarray, sp: np.ndarray, weights: np.ndarray, ac
         clearance[i, :n] = after[:n]
         t = step_terms(robot_force[i, :2], pose[i, :2] - robot_before, force[i, :n], pos[i, :n] - members_before,
                        rep[i, :n], dt, accel, prev_accel[i], potential_before, potentials[i], success, violation,
-                       prox, (tp[MAX_STEPS] - steps[i]) * dt)
+                       prox, (tp[MAX_STEPS] - steps[i]) * dt, speed)
         r = 0.0
         for k in range(N_TERMS):
             r += t[k] * weights[k]

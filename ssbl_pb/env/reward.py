@@ -18,14 +18,17 @@ the start of the step and member j moving by ``du_j`` under its own total force 
   ``human_displacement_m`` metric (SocNavBench) as a cost. R5 prices the members' work against their own forces
   and its repulsion part ``|F_rep|`` (quadratic in the intrusion), which a robot standing a few cm inside a
   member's personal zone barely pays while the member keeps stepping away (issue 14).
+* arrival (ours): ``-|v|`` (m/s) on the step that completes the approach, the ``arrival_speed`` metric as a cost:
+  the success rule only asks for less than ``stop_speed``, so a robot braking at its limit arrives at 0.07-0.1
+  m/s whatever the shaping's braking term did before (the paper's hypothesis: slow down into the group).
 * effort: ``-|v|^2 dt``, and smoothness ``-|j| dt`` with ``j = (a_t - a_{t-1}) / dt`` the base's jerk (ours,
   see below; L1 so that small jerks still cost).
 
 Total (eq. 15): ``w_e (w1 R1 + w2 R2 + w3 R3) + w4 R4 + w_a (w5 R5 + w_rep R5_rep) + w_effort E + w_smooth S
-+ w_slot P + w_prox C + w_disp D - penalty``. The success bonus stands outside ``w_e`` as in the original code,
-which adds +1 on success on top of the weighted per-step reward (eq. 15 writes it inside; with ``w_e = 0.0035``
-it would be negligible). ``P`` is the change of ``slot_potential`` (progress toward the free slot and braking near
-it; ours) and ``penalty`` applies on a collision or an intrusion into a member's intimate zone.
++ w_slot P + w_prox C + w_disp D + w_arrive A - penalty``. The success bonus stands outside ``w_e`` as in the
+original code, which adds +1 on success on top of the weighted per-step reward (eq. 15 writes it inside; with
+``w_e = 0.0035`` it would be negligible). ``P`` is the change of ``slot_potential`` (progress toward the free slot
+and braking near it; ours) and ``penalty`` applies on a collision or an intrusion into a member's intimate zone.
 """
 
 from __future__ import annotations
@@ -40,8 +43,8 @@ from ..params import _check, _nonneg
 from .base import wrap_angle
 
 TERMS = ("r1_group_forming", "r2_non_increasing", "r3_time", "r4_success", "r5_altruism", "r5_repulsion",
-         "effort", "smoothness", "slot_progress", "proximity", "violation", "displacement")
-R1, R2, R3, R4, R5, R5_REP, EFFORT, SMOOTH, SLOT, PROX, VIOLATION, DISP = range(len(TERMS))
+         "effort", "smoothness", "slot_progress", "proximity", "violation", "displacement", "arrival")
+R1, R2, R3, R4, R5, R5_REP, EFFORT, SMOOTH, SLOT, PROX, VIOLATION, DISP, ARRIVAL = range(len(TERMS))
 N_TERMS = len(TERMS)
 
 
@@ -77,6 +80,7 @@ class RewardWeights:
     w_prox: float = 3.0  # closing in on a member near its intimate zone (per metre closed at the zone's edge)
     violation_penalty: float = 1.0  # collision or intimate-zone intrusion (ends the episode)
     w_disp: float = 0.0  # members' displacement (per metre they moved; 0: off, as trained before issue 14's fix)
+    w_arrive: float = 0.0  # speed on arrival (per m/s on the success step; 0: off, as trained before issue 14)
 
     def __post_init__(self) -> None:
         for f in dataclasses.fields(self):
@@ -155,9 +159,10 @@ def proximity_cost(clearance_before: np.ndarray, clearance_after: np.ndarray, in
 def step_terms(robot_force: np.ndarray, robot_du: np.ndarray, member_forces: np.ndarray, member_du: np.ndarray,
                member_repulsion: np.ndarray, dt: float, accel: np.ndarray, prev_accel: np.ndarray,
                potential_before: float, potential_after: float, success: bool, violation: bool,
-               proximity: float, remaining: float) -> np.ndarray:
+               proximity: float, remaining: float, speed: float) -> np.ndarray:
     """The unweighted terms of one step in ``TERMS`` order (the module docstring gives each formula and unit);
-    ``remaining`` is the episode's time left (s) after this step, charged to R3 when it ends in a violation."""
+    ``remaining`` is the episode's time left (s) after this step, charged to R3 when it ends in a violation;
+    ``speed`` the robot's at the step's end (m/s), charged when it succeeds."""
     dx, dy = robot_du[0], robot_du[1]
     along = robot_force[0] * dx + robot_force[1] * dy  # F . du, and v . F has the same sign
     alt, rep, moved = 0.0, 0.0, 0.0
@@ -173,18 +178,20 @@ def step_terms(robot_force: np.ndarray, robot_du: np.ndarray, member_forces: np.
     t[SMOOTH] = -math.hypot(accel[0] - prev_accel[0], accel[1] - prev_accel[1])
     t[SLOT], t[PROX], t[VIOLATION] = potential_after - potential_before, -proximity, -1.0 if violation else 0.0
     t[DISP] = -moved
+    t[ARRIVAL] = -speed if success else 0.0
     return t
 
 
 def reward_terms(robot_force: np.ndarray, robot_du: np.ndarray, member_forces: np.ndarray, member_du: np.ndarray,
                  member_repulsion: np.ndarray, dt: float, accel: np.ndarray, prev_accel: np.ndarray,
                  potential_before: float, potential_after: float, success: bool, violation: bool,
-                 proximity: float = 0.0, remaining: float = 0.0) -> dict[str, float]:
+                 proximity: float = 0.0, remaining: float = 0.0, speed: float = 0.0) -> dict[str, float]:
     """``step_terms`` by name."""
     f = [np.asarray(v, dtype=float).reshape(-1, 2) for v in (member_forces, member_du, member_repulsion)]
     t = step_terms(np.asarray(robot_force, dtype=float), np.asarray(robot_du, dtype=float), *f, float(dt),
                    np.asarray(accel, dtype=float), np.asarray(prev_accel, dtype=float), float(potential_before),
-                   float(potential_after), bool(success), bool(violation), float(proximity), float(remaining))
+                   float(potential_after), bool(success), bool(violation), float(proximity), float(remaining),
+                   float(speed))
     return dict(zip(TERMS, t.tolist(), strict=True))
 
 
@@ -194,10 +201,10 @@ def total_reward(t: dict[str, float], w: RewardWeights) -> float:
     return (w.w_e * ego + w.w4 * t["r4_success"] + w.w_a * (w.w5 * t["r5_altruism"] + w.w_rep * t["r5_repulsion"])
             + w.w_effort * t["effort"] + w.w_smooth * t["smoothness"] + w.w_slot * t["slot_progress"]
             + w.w_prox * t["proximity"]
-            + w.violation_penalty * t["violation"] + w.w_disp * t["displacement"])
+            + w.violation_penalty * t["violation"] + w.w_disp * t["displacement"] + w.w_arrive * t["arrival"])
 
 
 def weight_vector(w: RewardWeights) -> np.ndarray:
     """Eq. 15 as weights on ``TERMS``: the terms (in ``TERMS`` order) dotted with it give ``total_reward``."""
     return np.array([w.w_e * w.w1, w.w_e * w.w2, w.w_e * w.w3, w.w4, w.w_a * w.w5, w.w_a * w.w_rep, w.w_effort,
-                     w.w_smooth, w.w_slot, w.w_prox, w.violation_penalty, w.w_disp])
+                     w.w_smooth, w.w_slot, w.w_prox, w.violation_penalty, w.w_disp, w.w_arrive])
