@@ -160,7 +160,7 @@ def test_pybullet_sees_the_obstacles(room_yaml):
 
 
 def test_the_way_around_the_group_agrees_with_labelling_the_free_space():
-    """Spawning's search (a breadth-first search that stops on arrival) answers as labelling the room's free space
+    """Spawning's search (best-first, stops on arrival) answers as labelling the room's free space
     outside the group's disc does (scipy's 4-connected labels)."""
     from scipy import ndimage
 

@@ -129,7 +129,7 @@ def _around_group(room: Room, reach: float, centre: np.ndarray, keep_out: float,
 @njit(cache=True)
 def _connected(field: np.ndarray, x0: float, y0: float, size_x: float, size_y: float, clearance: float,
                cx: float, cy: float, keep_out: float, ia: int, ja: int, ib: int, jb: int) -> bool:
-    """Breadth-first search over the field's nodes from (ia, ja) to (ib, jb) through nodes at least ``clearance``
+    """Whether a path over the field's nodes leads from (ia, ja) to (ib, jb) through nodes at least ``clearance``
     from obstacles and walls and farther than ``keep_out`` from (cx, cy); stops when it arrives (a reset checks
     one start, so a search that ends early beats labelling the whole room)."""
     ny, nx = field.shape
@@ -158,13 +158,20 @@ def _connected(field: np.ndarray, x0: float, y0: float, size_x: float, size_y: f
             break
     if straight:
         return True
+    # greedy best-first search: nodes in buckets by their Manhattan distance to (ib, jb), nearest first (the
+    # breadth-first search it replaced visited most of the room when the group stood in the way; the answer, a
+    # path or none, is the same for any search that visits every reachable node before giving up)
     seen = np.zeros((ny, nx), dtype=np.bool_)
-    queue = np.empty(ny * nx, dtype=np.int64)
-    queue[0], seen[ia, ja] = ia * nx + ja, True
-    head, tail = 0, 1
-    while head < tail:
-        k = queue[head]
-        head += 1
+    top = np.full(ny + nx, -1, dtype=np.int64)  # per distance, the last node pushed (a stack) ...
+    below = np.empty(ny * nx, dtype=np.int64)  # ... and per node, the node pushed before it in its bucket
+    lo = abs(ia - ib) + abs(ja - jb)
+    top[lo], below[ia * nx + ja], seen[ia, ja] = ia * nx + ja, -1, True
+    while lo < ny + nx:
+        k = top[lo]
+        if k < 0:
+            lo += 1
+            continue
+        top[lo] = below[k]
         i, j = k // nx, k % nx
         if i == ib and j == jb:
             return True
@@ -172,8 +179,9 @@ def _connected(field: np.ndarray, x0: float, y0: float, size_x: float, size_y: f
             u, v = i + di, j + dj
             if free(u, v) and not seen[u, v]:
                 seen[u, v] = True
-                queue[tail] = u * nx + v
-                tail += 1
+                d = abs(u - ib) + abs(v - jb)
+                below[u * nx + v], top[d] = top[d], u * nx + v
+                lo = min(lo, d)
     return False
 
 
