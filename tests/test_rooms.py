@@ -166,7 +166,12 @@ def test_the_way_around_the_group_agrees_with_labelling_the_free_space():
 
     from ssbl_pb.env.obstacles import CELL
     from ssbl_pb.env.rooms import FurnitureParams, furnished_room
-    from ssbl_pb.env.spawn import _around_group
+    from ssbl_pb.env.spawn import _connected
+
+    def _around_group(room, reach, c, keep_out, a, b):
+        ia, ja, ib, jb = (int(round((v - o) / CELL)) for v, o in ((a[1], room.y0), (a[0], room.x0), (b[1], room.y0),
+                                                                  (b[0], room.x0)))
+        return _connected(room.field, room.x0, room.y0, *room.size, reach, *c, keep_out, ia, ja, ib, jb)
 
     reach, rng, answers = RobotParams().reach, np.random.default_rng(0), []
     for _ in range(15):

@@ -18,7 +18,7 @@ from ..params import ConfigError, RobotParams, SocialParams, WorldParams
 from .humans import MAX_HUMANS, free_slot
 from .layouts import GroupModel, Layout
 from .obstacles import CELL, boxes_distance, field_at
-from .planner import ENTRY_BEYOND, entry_point
+from .planner import ENTRY_BEYOND
 from .rooms import Room
 from .shield import ShieldParams
 from .task import TaskParams
@@ -95,35 +95,44 @@ class Approach:
         self.keep_out = float(ring.max()) + social.human_radius + robot.reach + TaskParams().intimate_zone
 
     def fits(self, centre: np.ndarray, xy: np.ndarray) -> bool:
-        room, reach = self.room, self.reach
-        if _clearance(room, xy) < reach + START_CLEARANCE:
-            return False
-        n = len(self.offsets)
-        sx, sy = free_slot(n, centre + self.offsets, centre[0], centre[1], self.radius, self.keep, xy[0], xy[1], True)
-        u = np.array([sx - centre[0], sy - centre[1]])
-        place = max(float(np.hypot(*u)), self.joined)
-        u /= max(float(np.hypot(*u)), 1e-9)
-        for d in np.arange(place, self.keep_out + ENTRY_BEYOND + 1e-9, 0.1):
-            if _clearance(room, centre + d * u) < reach + GROUP_CLEARANCE:
-                return False
-        entry = np.array(entry_point(centre[0], centre[1], sx, sy, self.keep_out))
-        return _around_group(room, reach + START_CLEARANCE, centre, self.keep_out, xy, entry)
+        room = self.room
+        return _fits(room.field, room.x0, room.y0, room.size[0], room.size[1], self.offsets, float(centre[0]),
+                     float(centre[1]), self.radius, self.keep, float(xy[0]), float(xy[1]), self.reach, self.joined,
+                     self.keep_out)
 
 
-def _clearance(room: Room, xy: np.ndarray) -> float:
+@njit(cache=True)
+def _clearance(field: np.ndarray, x0: float, y0: float, size_x: float, size_y: float, x: float, y: float) -> float:
     """Distance (m) from a point to the nearest obstacle or wall (the field's cap at most)."""
-    walls = min(room.size[0] / 2 - abs(xy[0]), room.size[1] / 2 - abs(xy[1]))
-    return min(walls, room.clearance_at(xy[0], xy[1]))
+    return min(size_x / 2 - abs(x), size_y / 2 - abs(y), field_at(field, x0, y0, x, y))
 
 
-def _around_group(room: Room, reach: float, centre: np.ndarray, keep_out: float, a: np.ndarray, b: np.ndarray
-                  ) -> bool:
-    """Whether ``a`` and ``b`` connect keeping ``reach`` from obstacles and walls and staying out of the disc of
-    ``keep_out`` around ``centre`` (through the field's nodes, 4-connected: ``Room.free_component``'s rule)."""
-    ia, ja = int(round((a[1] - room.y0) / CELL)), int(round((a[0] - room.x0) / CELL))
-    ib, jb = int(round((b[1] - room.y0) / CELL)), int(round((b[0] - room.x0) / CELL))
-    return _connected(room.field, room.x0, room.y0, room.size[0], room.size[1], reach, centre[0], centre[1],
-                      keep_out, ia, ja, ib, jb)
+@njit(cache=True)
+def _fits(field: np.ndarray, x0: float, y0: float, size_x: float, size_y: float, offsets: np.ndarray, cx: float,
+          cy: float, radius: float, keep: float, rx: float, ry: float, reach: float, joined: float,
+          keep_out: float) -> bool:
+    """``Approach.fits`` for the group centred at (cx, cy) and the robot starting at (rx, ry)."""
+    if _clearance(field, x0, y0, size_x, size_y, rx, ry) < reach + START_CLEARANCE:
+        return False
+    n = offsets.shape[0]
+    pos = np.empty((n, 2))
+    for j in range(n):
+        pos[j, 0], pos[j, 1] = cx + offsets[j, 0], cy + offsets[j, 1]
+    sx, sy = free_slot(n, pos, cx, cy, radius, keep, rx, ry, True)
+    norm = math.hypot(sx - cx, sy - cy)
+    place = max(norm, joined)
+    ux, uy = (sx - cx) / max(norm, 1e-9), (sy - cy) / max(norm, 1e-9)
+    # the way in along the slot's ray, every 0.1 m from the place out past the keep-out disc (numpy's arange)
+    stop, delta = keep_out + ENTRY_BEYOND + 1e-9, (place + 0.1) - place
+    for k in range(max(int(math.ceil((stop - place) / 0.1)), 0)):
+        d = place + k * delta
+        if _clearance(field, x0, y0, size_x, size_y, cx + d * ux, cy + d * uy) < reach + GROUP_CLEARANCE:
+            return False
+    # where the way in starts (``planner.entry_point``), reached around the group
+    ex, ey = cx + ux * (keep_out + ENTRY_BEYOND), cy + uy * (keep_out + ENTRY_BEYOND)
+    clearance = reach + START_CLEARANCE
+    return _connected(field, x0, y0, size_x, size_y, clearance, cx, cy, keep_out, int(round((ry - y0) / CELL)),
+                      int(round((rx - x0) / CELL)), int(round((ey - y0) / CELL)), int(round((ex - x0) / CELL)))
 
 
 @njit(cache=True)
