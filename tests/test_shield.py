@@ -190,3 +190,28 @@ def test_evaluation_shield_follows_a_calibrated_robot(tmp_path):
     assert policy.shield.params.brake_accel == pytest.approx(0.1)  # 2/3 of the calibrated limit
     _, policy = Setup("vector")()
     assert policy.shield.params.brake_accel == pytest.approx(0.2)
+
+
+def test_braking_for_an_obstacle_never_gives_back_speed_toward_a_member():
+    # a narrow way: a member ahead-left, a desk ahead-right (sectors 21-23 at 0.45 m). Braking for the desk after
+    # the member removed speed toward the desk and with it gave speed back toward the member; every command now
+    # closes on each of them no faster than the base can brake.
+    from ssbl_pb.env.observation import BASE_SIZE, SCAN_RANGE, SCAN_RAYS
+
+    member = np.array([[0.6, 0.75]])
+    obs = obs_with(member)
+    scan = np.full(SCAN_RAYS, SCAN_RANGE)
+    scan[[21, 22, 23]] = 0.45
+    obs[BASE_SIZE:] = scan / SCAN_RANGE
+    d = math.hypot(*member[0])
+    ux, uy = member[0] / d
+    allow_member = math.sqrt(2.0 * P.brake_accel * max(d - REACH - 0.28 - P.clearance_min, 0.0))
+    worst = 0.0
+    for angle in np.linspace(0.0, 2.0 * math.pi, 72, endpoint=False):
+        v = shield_action(obs, np.array([math.cos(angle), math.sin(angle)]), P) * P.max_speed
+        worst = max(worst, v[0] * ux + v[1] * uy - allow_member)
+        for k, r in enumerate(scan):
+            a = 2.0 * math.pi * k / SCAN_RAYS
+            allow = math.sqrt(2.0 * P.brake_accel * max(r - REACH - P.obstacle_clearance_min, 0.0))
+            assert v[0] * math.cos(a) + v[1] * math.sin(a) <= allow + 1e-6, (math.degrees(angle), k)
+    assert worst <= 1e-6

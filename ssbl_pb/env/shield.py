@@ -88,13 +88,14 @@ RAY_PASSES = 4  # rounds of braking sector by sector: each keeps the motion alon
 
 
 @njit(cache=True)
-def _scale_to_rays(obs: np.ndarray, vx: float, vy: float, reach: float, clearance_min: float,
-                   brake_accel: float) -> tuple[float, float]:
-    """(vx, vy) scaled down until no ray's closing speed exceeds its limit. Braking ray by ray in turn is not
-    enough where obstacles stand on two sides (a passage between desks): removing the speed toward one side adds
-    speed toward the other, and 2.5 % of the meeting room's episodes ended on an obstacle the scan saw. Every
-    ray's limit is >= 0 (obstacles stand still), so a slower motion in the same direction keeps them all. Runs after
-    ``RAY_PASSES`` rounds of braking, which leave little or nothing to scale."""
+def _scale_to_limits(obs: np.ndarray, vx: float, vy: float, clear: np.ndarray, toward: np.ndarray, reach: float,
+                     clearance_min: float, brake_accel: float, obstacle_clearance_min: float) -> tuple[float, float]:
+    """(vx, vy) scaled down until no ray's and no member's closing speed exceeds its limit. Braking for each in
+    turn is not enough where they stand on two sides (a passage between desks, or between a member and a desk):
+    removing the speed toward one side adds speed toward the other, and 2.5 % of the meeting room's episodes ended
+    on an obstacle the scan saw. Every ray's limit is >= 0 (obstacles stand still), so a slower motion in the same
+    direction keeps them all; a member walking at the robot may ask for more than stopping (then the robot stops).
+    Runs after ``RAY_PASSES`` rounds of braking, which leave little or nothing to scale."""
     rays = obs.shape[0] - BASE_SIZE
     scale = 1.0
     for k in range(rays):
@@ -104,28 +105,38 @@ def _scale_to_rays(obs: np.ndarray, vx: float, vy: float, reach: float, clearanc
         a = 2.0 * math.pi * k / rays
         d, ux, uy = circle_clearance(r * SCAN_RANGE * math.cos(a), r * SCAN_RANGE * math.sin(a), reach, 0.0)
         closing = vx * ux + vy * uy
-        allow = math.sqrt(2.0 * brake_accel * max(d - clearance_min, 0.0))
+        allow = math.sqrt(2.0 * brake_accel * max(d - obstacle_clearance_min, 0.0))
         if closing > allow:
             scale = min(scale, allow / closing)
+    for j in range(clear.shape[0]):
+        if clear[j] == np.inf:
+            continue
+        b = 14 + MEMBER_FIELDS * j
+        ux, uy = toward[j, 0], toward[j, 1]
+        closing, theirs = vx * ux + vy * uy, float(obs[b + 2]) * ux + float(obs[b + 3]) * uy
+        allow = math.sqrt(2.0 * brake_accel * max(clear[j] - clearance_min, 0.0))
+        if closing - theirs > allow and closing > 0.0:
+            scale = min(scale, max(allow + theirs, 0.0) / closing)
     return vx * scale, vy * scale
 
 
 @njit(cache=True)
 def _shielded(obs: np.ndarray, vx: float, vy: float, clear: np.ndarray, toward: np.ndarray, reach: float,
               clearance_min: float, brake_accel: float, obstacle_clearance_min: float) -> tuple[float, float, bool]:
-    """(vx, vy) braked for the members (nearest first), then for the scan's sectors in up to ``RAY_PASSES`` rounds
-    and scaled to keep every sector's limit; and whether anything was near enough to brake for."""
+    """(vx, vy) braked for the members (nearest first) and for the scan's sectors, in up to ``RAY_PASSES`` rounds,
+    then scaled to keep every member's and sector's limit; and whether anything was near enough to brake for."""
     acted = False
-    for j in np.argsort(clear, kind="mergesort"):
-        if clear[j] == np.inf:
-            break
-        b = 14 + MEMBER_FIELDS * j
-        vx, vy = _brake(vx, vy, toward[j, 0], toward[j, 1], float(obs[b + 2]), float(obs[b + 3]), clear[j],
-                        clearance_min, brake_accel)
-        acted = True
     rays = obs.shape[0] - BASE_SIZE
+    order = np.argsort(clear, kind="mergesort")
     for _ in range(RAY_PASSES):
         before = (vx, vy)
+        for j in order:
+            if clear[j] == np.inf:
+                break
+            b = 14 + MEMBER_FIELDS * j
+            vx, vy = _brake(vx, vy, toward[j, 0], toward[j, 1], float(obs[b + 2]), float(obs[b + 3]), clear[j],
+                            clearance_min, brake_accel)
+            acted = True
         for k in range(rays):
             r = float(obs[BASE_SIZE + k])
             if r >= 0.999:  # nothing within range
@@ -136,8 +147,9 @@ def _shielded(obs: np.ndarray, vx: float, vy: float, clear: np.ndarray, toward: 
             acted = True
         if (vx, vy) == before:
             break
-    if acted and rays > 0:
-        vx, vy = _scale_to_rays(obs, vx, vy, reach, obstacle_clearance_min, brake_accel)
+    if acted:
+        vx, vy = _scale_to_limits(obs, vx, vy, clear, toward, reach, clearance_min, brake_accel,
+                                  obstacle_clearance_min)
     return vx, vy, acted
 
 
@@ -151,9 +163,9 @@ def shield_row(obs: np.ndarray, action: np.ndarray, out: np.ndarray, clearance_m
     """The action (approach frame, in [-1, 1]) with its excess closing speed on each member removed, into ``out``:
     members nearest first, each limiting the closing speed to ``sqrt(2 a (c - c_min))``; then the same for every
     ray of the range scan that ends within its range (observations longer than ``BASE_SIZE``), in up to
-    ``RAY_PASSES`` rounds (each round's braking may give back speed toward an earlier sector; a few rounds settle on
-    a motion along the obstacles), and finally the speed scaled down to keep every ray's limit at once
-    (``_scale_to_rays``: a safety net that, alone, stopped the robot dead beside a desk).
+    ``RAY_PASSES`` rounds of both (each braking may give back speed toward an earlier member or sector; a few rounds
+    settle on a motion along them), and finally the speed scaled down to keep every limit at once
+    (``_scale_to_limits``: a safety net that, alone, stopped the robot dead beside a desk).
 
     A command aimed straight at an obstacle keeps nothing, and a deterministic policy asks for it again at the
     next step: the robot stood still until its time ran out (most time-outs in the map rooms). So when the scan
