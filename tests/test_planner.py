@@ -121,3 +121,24 @@ def test_bad_flags_name_themselves():
         make_env(scenario="default@furnished", waypoints="yes")
     with pytest.raises(UserError, match="w_disp"):
         RewardWeights(w_disp=-1.0)
+
+
+def test_the_furnitures_detour_extends_the_episode():
+    """``kernels.detour_steps``: the way round the wall minus the way through the empty room (same grid metric),
+    at the top speed; nothing where the way is straight."""
+    from ssbl_pb.env import kernels
+    from ssbl_pb.env.approach import ApproachGroupEnv
+
+    tp = ApproachGroupEnv().unwrapped.sim._tp
+    row = np.zeros(kernels.N_ROOM)
+    row[[kernels.ROOM_X, kernels.ROOM_Y, kernels.FIELD_X0, kernels.FIELD_Y0]] = (*WALL.size, WALL.x0, WALL.y0)
+    row[[kernels.WAY_X, kernels.WAY_Y, kernels.KEEP_OUT, kernels.PLAN_CX, kernels.PLAN_CY]] = (1.0, -1.0, 0.0,
+                                                                                              10.0, 10.0)
+    row[[kernels.START_X, kernels.START_Y]] = (-1.0, -1.0)
+    clearance, step = tp[kernels.PLAN_CLEARANCE], tp[kernels.MAX_SPEED] * tp[kernels.DT]
+    through = plan(EMPTY, (1.0, -1.0), clearance)[node(EMPTY, -1.0, -1.0)]  # 2 m straight on the grid
+    round_ = plan(WALL, (1.0, -1.0), clearance)[node(WALL, -1.0, -1.0)]
+    assert through == pytest.approx(2.0) and round_ > 5.0
+    assert kernels.detour_steps(tp, row, WALL.field) == math.ceil((round_ - through) / step)
+    row[[kernels.START_X, kernels.START_Y]] = (2.0, -1.0)  # the same side of the wall: no detour
+    assert kernels.detour_steps(tp, row, WALL.field) == 0

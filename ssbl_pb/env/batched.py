@@ -89,6 +89,7 @@ class BatchedApproach:
         self.empty_room = Room(self.world_params.room_size)
         self.rooms: list[Room] = [self.empty_room] * self.num
         self.room = np.zeros((self.num, kernels.N_ROOM))
+        self.room[:, kernels.STEP_LIMIT] = self.task.max_steps
         self.room[:, kernels.ROOM_X], self.room[:, kernels.ROOM_Y] = self.empty_room.size
         self.room[:, kernels.FIELD], self.room[:, kernels.OBSTACLE] = -1, CAP
         shape, slots = (1, 1), 1
@@ -207,8 +208,10 @@ class BatchedApproach:
         self.slot[i] = free_slot(n, g.pos[i], *g.centre[i], g.scalars[i, RADIUS], g.scalars[i, KEEP], *pose[:2],
                                  True)
         self.clearance[i] = 0.0
-        self.room[i, kernels.PLAN] = 0.0
-        if self.waypoints and room.furnished:
+        row = self.room[i]
+        row[kernels.PLAN], row[kernels.START_X], row[kernels.START_Y] = 0.0, pose[0], pose[1]
+        row[kernels.STEP_LIMIT], row[kernels.DETOUR_ADDED] = self.task.max_steps, 0.0
+        if room.furnished:
             self._plan(i)
         kernels.clearances(self._tp, self.pose[i], n, g.pos[i], self.clearance[i])
         _, self.room[i, kernels.OBSTACLE] = kernels.static_clearance(self._tp, self.pose[i], self.room[i], self.fields)
@@ -217,13 +220,15 @@ class BatchedApproach:
         return {"n_humans": n, "formation": formation, "start": start}
 
     def _plan(self, i: int) -> None:
-        """Copy ``i``'s way in and keep-out disc for its plan (``planner.way_in_for_group``), made in
-        ``kernels.observations`` the first time the slot is out of sight."""
+        """Copy ``i``'s way in and keep-out disc (``planner.way_in_for_group``): for its plan with ``waypoints``
+        (made in ``kernels.observations`` the first time the slot is out of sight), and for the furniture's detour
+        (``kernels.detour_steps``)."""
         g, n, row = self.groups_state, int(self.groups_state.count[i]), self.room[i]
-        keep_out, row[kernels.WAY_X], row[kernels.WAY_Y], row[kernels.PLAN] = way_in_for_group(
+        keep_out, row[kernels.WAY_X], row[kernels.WAY_Y], show = way_in_for_group(
             g.pos[i, :n], g.centre[i], self.slot[i],
             self.social.human_radius + self.robot_params.reach + self.task.intimate_zone)
         row[kernels.KEEP_OUT], (row[kernels.PLAN_CX], row[kernels.PLAN_CY]) = keep_out, g.centre[i]
+        row[kernels.PLAN] = show if self.waypoints else 0.0
         row[kernels.PLANNED] = 0.0
 
     def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
