@@ -12,7 +12,7 @@ from ssbl_pb.env.approach import ApproachGroupEnv, make_env
 from ssbl_pb.env.obstacles import boxes_distance
 from ssbl_pb.env.spawn import GROUP_CLEARANCE, START_CLEARANCE
 from ssbl_pb.errors import UserError
-from ssbl_pb.params import ConfigError, RobotParams
+from ssbl_pb.params import ConfigError, RobotParams, WorldParams
 
 ROOM = """world:
   room_size: [8.0, 7.0]
@@ -106,10 +106,27 @@ def test_room_yaml_obstacles_are_the_default_room(room_yaml):
     env = make_env(room_yaml=room_yaml, scenario="mixed")
     env.reset(seed=0)
     sim = env.unwrapped.sim
-    assert sim.rooms[0] is sim.map_room and sim.rooms[0].size == (8.0, 7.0) and len(sim.rooms[0].rows) == 3
+    assert sim.rooms[0] is sim.map_rooms[0] and sim.rooms[0].size == (8.0, 7.0) and len(sim.rooms[0].rows) == 3
     env = make_env(room_yaml=room_yaml, scenario="mixed@empty")
     env.reset(seed=0)
     assert not env.unwrapped.sim.rooms[0].furnished and env.unwrapped.sim.rooms[0].size == (8.0, 7.0)
+
+
+def test_several_room_yamls_are_drawn_per_episode(room_yaml, tmp_path):
+    """A list of room YAMLs (training in several rooms): each ``@map`` episode is in one of them, each room of its
+    own size; the empty room keeps the world's size; a room without obstacles in the list is named."""
+    other = tmp_path / "other.yaml"
+    other.write_text("world:\n  room_size: [9.0, 6.0]\nobstacles:\n  boxes:\n  - [3.5, 2.0, 1.0, 0.5, 0]\n")
+    env = make_env(room_yaml=[room_yaml, str(other)], scenario="default@map,default@empty")
+    sizes = set()
+    for seed in range(16):
+        env.reset(seed=seed)
+        sizes.add(env.unwrapped.sim.rooms[0].size)
+    assert sizes == {(8.0, 7.0), (9.0, 6.0), tuple(WorldParams().room_size)}
+    plain = tmp_path / "plain.yaml"
+    plain.write_text("world:\n  room_size: [8.0, 7.0]\n")
+    with pytest.raises(ConfigError, match=r"plain\.yaml: a room of several .* needs an 'obstacles:' section"):
+        make_env(room_yaml=[room_yaml, str(plain)], scenario="default@map")
 
 
 @pytest.mark.parametrize("text,expect", [

@@ -7,6 +7,7 @@ camera observation modes are wrappers of this one env (``wrappers``).
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 from typing import Any, NamedTuple
 
 import gymnasium as gym
@@ -46,23 +47,32 @@ class EnvParams(NamedTuple):
     task: TaskParams
     groups: GroupModel
     furniture: FurnitureParams
-    map_room: Room | None  # the room YAML's room with its obstacles (rooms ``@map``)
+    map_rooms: tuple[Room, ...]  # the room YAMLs' rooms with their obstacles (rooms ``@map``; one drawn per episode)
 
 
 def parse_env_params(scenario: str, world: Any, robot: Any, social: Any, reward: Any, task: Any,
-                     groups: Any = None, groups_yaml: str | None = None, room_yaml: str | None = None,
+                     groups: Any = None, groups_yaml: str | None = None, room_yaml: str | list[str] | None = None,
                      furniture: Any = None) -> EnvParams:
     """The env's parameters from dataclasses, dicts or None (defaults), checked: the room must hold the largest
-    group the scenario may spawn, and the group data must hold every size it may spawn. ``room_yaml``'s ``world``
-    section overlays ``world`` (explicit values win) and its ``obstacles`` make the map room, the scenario's room
-    by default."""
-    obstacles, data = None, None
-    if room_yaml is not None:
-        from ..params import load_yaml
+    group the scenario may spawn, and the group data must hold every size it may spawn. One ``room_yaml``: its
+    ``world`` section overlays ``world`` (explicit values win) and its ``obstacles`` make the map room, the
+    scenario's room by default. Several (a list, for training in several rooms of a building): each is a map
+    room of its own size, one drawn per episode, and the empty room keeps ``world``'s size."""
+    from ..params import load_yaml
 
-        data = load_yaml(room_yaml)
-        world = merged(world, "world", room_yaml, data, "world")
-        obstacles = read_obstacles(room_yaml, data)
+    paths = [] if room_yaml is None else [room_yaml] if isinstance(room_yaml, str | Path) else list(room_yaml)
+    if not paths and room_yaml is not None:
+        raise ConfigError("room_yaml = []: expected a room YAML or a list of them")
+    rooms, obstacles = [], None
+    for path in paths:
+        data = load_yaml(path)
+        room_world = merged(world if len(paths) == 1 else None, "world", str(path), data, "world")
+        if len(paths) == 1:
+            world = room_world
+        obstacles = read_obstacles(path, data)
+        if obstacles is None and len(paths) > 1:
+            raise ConfigError(f"{path}: a room of several (room_yaml list) needs an 'obstacles:' section")
+        rooms.append((_params(WorldParams, room_world, "world").room_size, obstacles, str(path)))
     mix = ScenarioMix(scenario, "map" if obstacles is not None else "empty")
     if "map" in mix.rooms and obstacles is None:
         raise ConfigError(f"scenario {scenario!r}: room 'map' needs a room YAML with obstacles (--room-yaml, "
@@ -91,12 +101,11 @@ def parse_env_params(scenario: str, world: Any, robot: Any, social: Any, reward:
     else:
         raise ConfigError(f"groups = {groups!r}: expected one of {GROUP_MODELS}")
     model.check_sizes({n for sc in mix.members for n in sc.sizes}, {f for sc in mix.members for f in sc.formations})
-    map_room = None
-    if obstacles is not None and "map" in mix.rooms:
-        map_room = Room(world_p.room_size, box_rows(obstacles), str(room_yaml))
+    map_rooms = tuple(Room(size, box_rows(boxes), path) for size, boxes, path in rooms
+                      if boxes is not None and "map" in mix.rooms)
     return EnvParams(mix, world_p, _params(RobotParams, robot, "robot"), social_p,
                      _params(RewardWeights, reward, "reward"), _params(TaskParams, task, "task"), model, furniture_p,
-                     map_room)
+                     map_rooms)
 
 
 class ApproachGroupEnv(gym.Env):
@@ -131,7 +140,7 @@ class ApproachGroupEnv(gym.Env):
         record: bool = False,
         groups: str | GroupModel | None = None,
         groups_yaml: str | None = None,
-        room_yaml: str | None = None,
+        room_yaml: str | list[str] | None = None,
         furniture: FurnitureParams | dict | None = None,
         scan: bool = True,
         waypoints: bool = False,
@@ -140,7 +149,8 @@ class ApproachGroupEnv(gym.Env):
         ``groups``: where members stand, ``"calibrated"`` (default: real groups' size and irregularity) or
         ``"paper"`` (the original's 1.0 m circle); ``groups_yaml``: the real-group data (default: shipped).
         ``room_yaml``: a room YAML (``tools/import_map.py``): its room size, and its obstacles for rooms ``@map``
-        (the scenario's rooms: ``scenarios``); ``furniture``: how rooms ``@furnished`` are drawn
+        (the scenario's rooms: ``scenarios``), or a list of them (each ``@map`` episode in one of those rooms,
+        drawn at random; for training in several rooms); ``furniture``: how rooms ``@furnished`` are drawn
         (``rooms.FurnitureParams``); ``scan``: the range scan in the observation (False: the 40 entries policies
         trained before it read); ``waypoints``: in rooms with obstacles, the slot's entries show the way around
         them while the slot is out of sight (``planner``; off for policies trained before it)."""
@@ -275,7 +285,7 @@ def _merge_yaml(kwargs: dict[str, Any], key: str, path: str | None) -> None:
 
 def make_env(obs_mode: str = "vector", camera_width: int = 84, camera_height: int = 84,
              camera_yaml: str | None = None, robot_yaml: str | None = None, social_yaml: str | None = None,
-             room_yaml: str | None = None, encoder: str | None = None, **kwargs: Any) -> gym.Env:
+             room_yaml: str | list[str] | None = None, encoder: str | None = None, **kwargs: Any) -> gym.Env:
     """Entry point of ``ssbl_pb/ApproachGroup-v0``: the core env wrapped for ``obs_mode``.
 
     ``encoder`` (a ``tools/train_ae.py`` checkpoint; camera modes only) replaces the images by the frozen
@@ -303,14 +313,14 @@ def make_env(obs_mode: str = "vector", camera_width: int = 84, camera_height: in
 
 
 def core_kwargs(camera_width: int = 84, camera_height: int = 84, camera_yaml: str | None = None,
-                robot_yaml: str | None = None, social_yaml: str | None = None, room_yaml: str | None = None,
-                **kwargs: Any) -> tuple[dict[str, Any], list[float] | None]:
+                robot_yaml: str | None = None, social_yaml: str | None = None,
+                room_yaml: str | list[str] | None = None, **kwargs: Any) -> tuple[dict[str, Any], list[float] | None]:
     """``make_env``'s calibration files folded into the core env's keyword arguments, and the calibrated
     camera's projection (None without ``camera_yaml``)."""
     _merge_yaml(kwargs, "robot", robot_yaml)
     _merge_yaml(kwargs, "social", social_yaml)
-    if room_yaml is not None:  # the core env reads its room size and obstacles
-        kwargs["room_yaml"] = str(room_yaml)
+    if room_yaml is not None:  # the core env reads its room size and obstacles (several rooms: a list)
+        kwargs["room_yaml"] = str(room_yaml) if isinstance(room_yaml, str | Path) else [str(r) for r in room_yaml]
     projection = None
     if camera_yaml is not None:
         from ..perception.camera import PinholeCamera, sim_projection_from_yaml

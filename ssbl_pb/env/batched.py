@@ -44,7 +44,7 @@ class BatchedApproach:
                  robot: RobotParams | dict | None = None, social: SocialParams | dict | None = None,
                  reward: RewardWeights | dict | None = None, task: TaskParams | dict | None = None,
                  groups: str | GroupModel | None = None, groups_yaml: str | None = None,
-                 room_yaml: str | None = None, furniture: FurnitureParams | dict | None = None,
+                 room_yaml: str | list[str] | None = None, furniture: FurnitureParams | dict | None = None,
                  scan: bool = True, waypoints: bool = False) -> None:
         if not isinstance(num, int) or num < 1:
             raise UserError(f"number of copies {num!r}: expected an integer >= 1")
@@ -58,7 +58,7 @@ class BatchedApproach:
         self.waypoints = waypoints  # rooms with obstacles: the slot's entries show the way around them (planner)
         ep = parse_env_params(scenario, world, robot, social, reward, task, groups, groups_yaml, room_yaml, furniture)
         self.scenario, self.world_params, self.robot_params, self.social, self.weights, self.task, self.groups = ep[:7]
-        self.furniture, self.map_room = ep.furniture, ep.map_room
+        self.furniture, self.map_rooms = ep.furniture, ep.map_rooms
         self.dt = self.world_params.dt
         self.n_act = 3 if self.task.turn else 2
         self.keep = slot_keep(self.social, self.robot_params.reach, self.task.intimate_zone,
@@ -96,31 +96,30 @@ class BatchedApproach:
         if "furnished" in self.scenario.rooms:
             n = int(math.ceil(self.furniture.size_max / CELL - 1e-9)) + 1
             shape, slots = (n, n), self.num
-        if self.map_room is not None:
-            shape = tuple(max(a, b) for a, b in zip(shape, self.map_room.field.shape, strict=True))
-            slots = self.num + 1
+        for room in self.map_rooms:  # after the copies' own slots, one each
+            shape = tuple(max(a, b) for a, b in zip(shape, room.field.shape, strict=True))
+            slots = self.num + len(self.map_rooms)
         self.fields = np.full((slots, *shape), CAP, dtype=np.float32)
         # each copy's way to its group (``planner.plan_map``), where it has obstacles and ``waypoints`` is on
         self.plans = np.full((self.num, *shape) if self.waypoints and shape != (1, 1) else (1, 1, 1), np.inf,
                              dtype=np.float32)
-        if self.map_room is not None:
-            f = self.map_room.field
-            self.fields[self.num, :f.shape[0], :f.shape[1]] = f
-            self._check_map_room()
+        for k, room in enumerate(self.map_rooms):
+            self.fields[self.num + k, :room.field.shape[0], :room.field.shape[1]] = room.field
+            self._check_map_room(room)
 
-    def _check_map_room(self) -> None:
-        """The map room must hold the scenario's largest group and the robot: ``NoPlace`` names the file."""
+    def _check_map_room(self, room: Room) -> None:
+        """A map room must hold the scenario's largest group and the robot: ``NoPlace`` names the file."""
         rng = np.random.default_rng(0)
         for sc in self.scenario.members:
             if sc.room == "map":
                 for form in sc.formations:
-                    self._spawn(rng, max(sc.sizes), form, sc.start, self.map_room)
+                    self._spawn(rng, max(sc.sizes), form, sc.start, room)
 
     def _spawn(self, rng: np.random.Generator, n: int, formation: str, start: str, room: Room
                ) -> tuple[np.ndarray, Any, np.ndarray]:
         """``spawn_layout`` in ``room``; in the map room tried with ``SPAWN_TRIES`` groups before ``NoPlace``
         stands (a long row of members may find no place where a circle does)."""
-        tries = SPAWN_TRIES if room is self.map_room else 1
+        tries = SPAWN_TRIES if any(room is m for m in self.map_rooms) else 1
         for attempt in range(tries):
             try:
                 return spawn_layout(rng, self.world_params, self.robot_params, self.social, n, formation, start,
@@ -138,7 +137,8 @@ class BatchedApproach:
             self.fields[i] = CAP
             self.fields[i, :f.shape[0], :f.shape[1]] = f
         elif kind == "map":
-            room, slot = self.map_room, self.num
+            k = int(rng.integers(len(self.map_rooms))) if len(self.map_rooms) > 1 else 0  # one room: no draw
+            room, slot = self.map_rooms[k], self.num + k
         else:
             room, slot = self.empty_room, -1
         self.rooms[i] = room
