@@ -127,6 +127,8 @@ def test_several_room_yamls_are_drawn_per_episode(room_yaml, tmp_path):
     plain.write_text("world:\n  room_size: [8.0, 7.0]\n")
     with pytest.raises(ConfigError, match=r"plain\.yaml: a room of several .* needs an 'obstacles:' section"):
         make_env(room_yaml=[room_yaml, str(plain)], scenario="default@map")
+    with pytest.raises(ConfigError, match=r"room_yaml\[1\] = 3: expected the path of a room YAML"):
+        make_env(room_yaml=[room_yaml, 3], scenario="default@map")
 
 
 @pytest.mark.parametrize("text,expect", [

@@ -64,7 +64,9 @@ def parse_env_params(scenario: str, world: Any, robot: Any, social: Any, reward:
     if not paths and room_yaml is not None:
         raise ConfigError("room_yaml = []: expected a room YAML or a list of them")
     rooms, obstacles = [], None
-    for path in paths:
+    for k, path in enumerate(paths):
+        if not isinstance(path, str | Path):
+            raise ConfigError(f"room_yaml[{k}] = {path!r}: expected the path of a room YAML (tools/import_map.py)")
         data = load_yaml(path)
         room_world = merged(world if len(paths) == 1 else None, "world", str(path), data, "world")
         if len(paths) == 1:
@@ -320,7 +322,8 @@ def core_kwargs(camera_width: int = 84, camera_height: int = 84, camera_yaml: st
     _merge_yaml(kwargs, "robot", robot_yaml)
     _merge_yaml(kwargs, "social", social_yaml)
     if room_yaml is not None:  # the core env reads its room size and obstacles (several rooms: a list)
-        kwargs["room_yaml"] = str(room_yaml) if isinstance(room_yaml, str | Path) else [str(r) for r in room_yaml]
+        kwargs["room_yaml"] = (str(room_yaml) if isinstance(room_yaml, str | Path)
+                               else [str(r) if isinstance(r, Path) else r for r in room_yaml])
     projection = None
     if camera_yaml is not None:
         from ..perception.camera import PinholeCamera, sim_projection_from_yaml
