@@ -121,6 +121,8 @@ def test_bad_flags_name_themselves():
         make_env(scenario="default@furnished", waypoints="yes")
     with pytest.raises(UserError, match="w_disp"):
         RewardWeights(w_disp=-1.0)
+    with pytest.raises(UserError, match="geodesic_route = 'yes': expected true or false"):
+        make_env(scenario="default@furnished", task={"geodesic_route": "yes"})
 
 
 def test_the_furnitures_detour_extends_the_episode():
@@ -142,3 +144,68 @@ def test_the_furnitures_detour_extends_the_episode():
     assert kernels.detour_steps(tp, row, WALL.field) == math.ceil((round_ - through) / step)
     row[[kernels.START_X, kernels.START_Y]] = (2.0, -1.0)  # the same side of the wall: no detour
     assert kernels.detour_steps(tp, row, WALL.field) == 0
+
+
+def test_plan_distance_interpolates_and_reads_nearby_nodes():
+    d = plan(EMPTY, (1.0, 0.0))
+    at = d[node(EMPTY, 2.0, 0.5)]
+    assert planner.plan_distance(d, EMPTY.x0, EMPTY.y0, 2.0, 0.5) == pytest.approx(at, abs=1e-6)
+    between = 0.5 * (d[node(EMPTY, 2.0, 0.5)] + d[node(EMPTY, 2.05, 0.5)])
+    assert planner.plan_distance(d, EMPTY.x0, EMPTY.y0, 2.025, 0.5) == pytest.approx(between, abs=1e-6)
+    # inside the wall's clearance (the last free node is at x = 2.55): that node plus the 0.15 m to it
+    assert not np.isfinite(d[node(EMPTY, 2.6, 0.0)])
+    assert planner.plan_distance(d, EMPTY.x0, EMPTY.y0, 2.7, 0.0) == pytest.approx(d[node(EMPTY, 2.55, 0.0)] + 0.15)
+    w = plan(WALL, (1.0, -1.0))
+    assert planner.plan_distance(w, WALL.x0, WALL.y0, 0.0, -1.0) == np.inf  # 0.5 m inside: nothing near enough
+
+
+def test_the_shaping_goes_round_furniture_only_with_geodesic_route():
+    """``kernels.route_to_slot``: the way round the wall to the way in, then in; without ``geodesic_route`` (or
+    inside the group's disc) the way round the group only; ``potential`` keeps the last value off the map."""
+    from ssbl_pb.env import kernels
+    from ssbl_pb.env.approach import ApproachGroupEnv
+    from ssbl_pb.env.reward import route_length, slot_potential
+
+    plain = ApproachGroupEnv().unwrapped.sim._tp
+    geodesic = ApproachGroupEnv(task={"geodesic_route": True}).unwrapped.sim._tp
+    row = np.zeros(kernels.N_ROOM)
+    row[[kernels.ROOM_X, kernels.ROOM_Y, kernels.FIELD_X0, kernels.FIELD_Y0]] = (*WALL.size, WALL.x0, WALL.y0)
+    row[[kernels.WAY_X, kernels.WAY_Y, kernels.KEEP_OUT, kernels.PLAN_CX, kernels.PLAN_CY]] = (1.0, -1.0, 0.5,
+                                                                                              2.5, -1.0)
+    way = np.empty_like(WALL.field)
+    kernels.make_plan(geodesic, row, WALL.field, way)
+    assert row[kernels.PLANNED] == 1.0
+    slot, centre, radius = np.array([1.6, -1.0]), np.array([2.5, -1.0]), 0.3
+    keep = radius + geodesic[kernels.KEEP_OUT_EXTRA]
+    pose = np.array([-1.0, -1.0, 0.0])
+    round_group = route_length(-1.0, -1.0, *slot, *centre, keep)
+    in_from_way = route_length(1.0, -1.0, *slot, *centre, keep)
+    assert kernels.route_to_slot(plain, pose, slot, centre, radius, row, way) == pytest.approx(round_group)
+    got = kernels.route_to_slot(geodesic, pose, slot, centre, radius, row, way)
+    assert got == pytest.approx(way[node(WALL, -1.0, -1.0)] + in_from_way, abs=1e-5)
+    assert got > round_group + 3.0  # up round the wall's end and back down
+    inside = np.array([2.0, -1.0, 0.0])  # within the group's disc: the way round the group
+    assert kernels.route_to_slot(geodesic, inside, slot, centre, radius, row, way) == pytest.approx(
+        route_length(2.0, -1.0, *slot, *centre, keep))
+    in_wall = np.array([0.0, -1.0, 0.0])
+    assert kernels.potential(geodesic, in_wall, slot, centre, radius, 0.0, row, way, -7.5) == -7.5
+    assert kernels.potential(geodesic, pose, slot, centre, radius, 0.0, row, way, -7.5) == pytest.approx(
+        slot_potential(got, 0.0))
+
+
+def test_geodesic_route_plans_every_furnished_episode_and_never_shortens_the_way():
+    from ssbl_pb.env import kernels
+    from ssbl_pb.env.approach import make_env
+
+    env = make_env(scenario="default@furnished", task={"geodesic_route": True})
+    plain = make_env(scenario="default@furnished")
+    longer = 0
+    for seed in range(20):
+        env.reset(seed=seed)
+        plain.reset(seed=seed)
+        sim, ref = env.unwrapped.sim, plain.unwrapped.sim
+        assert sim.room[0, kernels.PLANNED] == 1.0  # made at the start: the shaping reads it from the first step
+        assert np.allclose(sim.pose, ref.pose)  # same episode
+        assert sim.potential[0] <= ref.potential[0] + 1e-9  # never a shorter way than round the group
+        longer += sim.potential[0] < ref.potential[0] - 0.5
+    assert longer >= 1  # furniture does lengthen some ways

@@ -213,8 +213,7 @@ class ApproachGroupEnv(gym.Env):
                                        g.scalars[0, humans.KEEP], *sim.pose[0, :2], True)
         kernels.clearances(sim._tp, sim.pose[0], n, g.pos[0], sim.clearance[0])
         speed = float(np.hypot(*sim.vel[0, :2]))
-        sim.potential[0] = kernels.potential(sim._tp, sim.pose[0], sim.slot[0], g.centre[0],
-                                             g.scalars[0, humans.RADIUS], speed)
+        sim.potential[0] = sim.potential_of(0, speed)
         self.world.invalidate()
 
 

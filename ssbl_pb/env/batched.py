@@ -28,7 +28,7 @@ from .humans import KEEP, MAX_HUMANS, RADIUS, GroupArrays, free_slot, sffm_param
 from .layouts import GroupModel, slot_keep
 from .obstacles import CAP, CELL
 from .planner import way_in_for_group
-from .reward import TERMS, RewardWeights, weight_vector
+from .reward import TERMS, RewardWeights, slot_potential, weight_vector
 from .rooms import FurnitureParams, Room, furnished_room
 from .scenarios import apply_reset_options
 from .spawn import NoPlace, spawn_layout
@@ -100,9 +100,10 @@ class BatchedApproach:
             shape = tuple(max(a, b) for a, b in zip(shape, room.field.shape, strict=True))
             slots = self.num + len(self.map_rooms)
         self.fields = np.full((slots, *shape), CAP, dtype=np.float32)
-        # each copy's way to its group (``planner.plan_map``), where it has obstacles and ``waypoints`` is on
-        self.plans = np.full((self.num, *shape) if self.waypoints and shape != (1, 1) else (1, 1, 1), np.inf,
-                             dtype=np.float32)
+        # each copy's way to its group (``planner.plan_map``), where it has obstacles and ``waypoints`` or the
+        # task's ``geodesic_route`` is on
+        planned = (self.waypoints or self.task.geodesic_route) and shape != (1, 1)
+        self.plans = np.full((self.num, *shape) if planned else (1, 1, 1), np.inf, dtype=np.float32)
         for k, room in enumerate(self.map_rooms):
             self.fields[self.num + k, :room.field.shape[0], :room.field.shape[1]] = room.field
             self._check_map_room(room)
@@ -215,8 +216,7 @@ class BatchedApproach:
             self._plan(i)
         kernels.clearances(self._tp, self.pose[i], n, g.pos[i], self.clearance[i])
         _, self.room[i, kernels.OBSTACLE] = kernels.static_clearance(self._tp, self.pose[i], self.room[i], self.fields)
-        self.potential[i] = kernels.potential(self._tp, self.pose[i], self.slot[i], g.centre[i],
-                                              g.scalars[i, RADIUS], 0.0)
+        self.potential[i] = self.potential_of(i, 0.0)
         return {"n_humans": n, "formation": formation, "start": start}
 
     def _plan(self, i: int) -> None:
@@ -230,6 +230,17 @@ class BatchedApproach:
         row[kernels.KEEP_OUT], (row[kernels.PLAN_CX], row[kernels.PLAN_CY]) = keep_out, g.centre[i]
         row[kernels.PLAN] = show if self.waypoints else 0.0
         row[kernels.PLANNED] = 0.0
+        if self.task.geodesic_route:  # the shaping reads it from the first step
+            kernels.make_plan(self._tp, row, self.fields[int(row[kernels.FIELD])], self.plans[i])
+
+    def potential_of(self, i: int, speed: float) -> float:
+        """Copy ``i``'s shaping potential in its current state at ``speed`` (``kernels.potential``; with no
+        way round the furniture from where it stands: the way round the group)."""
+        g = self.groups_state
+        plan = self.plans[min(i, len(self.plans) - 1)]
+        args = (self._tp, self.pose[i], self.slot[i], g.centre[i], g.scalars[i, RADIUS])
+        fallback = slot_potential(kernels.route_to_slot(*args, np.zeros(kernels.N_ROOM), plan), speed)
+        return kernels.potential(*args, speed, self.room[i], plan, fallback)
 
     def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Advance every copy by one control period (actions (N, A) in [-1, 1]).
@@ -242,7 +253,7 @@ class BatchedApproach:
         kernels.step(self._tp, self._bp, self._sp, self._w, a, b.pose, b.vel, b.queue, g.count, g.pos, g.vel, g.yaw,
                      g.centre0, g.centre, g.scalars, g.ring_offset, g.comfort, g.force, g.repulsion, g.robot_force,
                      self.steps, self.prev_accel, self.clearance, self.slot, self.potential, self.sums, self.terms,
-                     self.rewards, self.flags, self.room, self.fields)
+                     self.rewards, self.flags, self.room, self.fields, self.plans)
         return self.rewards.copy(), self.flags[:, kernels.TERMINATED].copy(), self.flags[:, kernels.TRUNCATED].copy()
 
     def keep_out(self, i: int, margin: float) -> float:

@@ -25,13 +25,14 @@ from .base import base_step, footprint_distance, wall_clearance, wrap_angle
 from .humans import KEEP, RADIUS, free_slot, group_step
 from .observation import BASE_SIZE, POS_SCALE, SCAN_RANGE, action_command, fill_observation
 from .obstacles import CAP, CELL, fill_scan, footprint_clearance
-from .planner import in_sight, plan_map, way_clearances, waypoint
+from .planner import in_sight, plan_distance, plan_map, way_clearances, waypoint
 from .reward import N_TERMS, proximity_cost, route_length, slot_potential, step_terms
 from .task import TaskParams, joined
 
 # the task's parameters as the compiled step reads them (``task_params``)
 (MAX_SPEED, MAX_YAW_RATE, HALF_LENGTH, HALF_WIDTH, HUMAN_RADIUS, DT, HEADING_GAIN, SLOT_TOL, STOP_SPEED,
- HEADING_TOL, INTIMATE, BAND, MAX_STEPS, KEEP_OUT_EXTRA, TURN, PLAN_CLEARANCE, SIGHT_CLEARANCE, N_TASK) = range(18)
+ HEADING_TOL, INTIMATE, BAND, MAX_STEPS, KEEP_OUT_EXTRA, TURN, PLAN_CLEARANCE, SIGHT_CLEARANCE, GEODESIC,
+ N_TASK) = range(19)
 # per-copy flags of the last step (COLLISION: with anything; OBSTACLE_COLLISION: with a wall or an obstacle)
 TERMINATED, TRUNCATED, SUCCESS, VIOLATION, COLLISION, OBSTACLE_COLLISION, N_FLAGS = range(7)
 # per-copy room, columns of ``room``: size (m), index into ``fields`` (-1: no obstacles) and the field's first
@@ -55,7 +56,7 @@ def task_params(world: WorldParams, robot: RobotParams, social: SocialParams, ta
                  BAND: task.proximity_band, MAX_STEPS: task.max_steps,
                  KEEP_OUT_EXTRA: social.human_radius + robot.reach + task.intimate_zone + task.route_margin,
                  TURN: float(task.turn), PLAN_CLEARANCE: way_clearances(robot.reach)[0],
-                 SIGHT_CLEARANCE: way_clearances(robot.reach)[1]}.items():
+                 SIGHT_CLEARANCE: way_clearances(robot.reach)[1], GEODESIC: float(task.geodesic_route)}.items():
         p[k] = v
     return p
 
@@ -89,11 +90,40 @@ def static_clearance(tp: np.ndarray, pose: np.ndarray, room: np.ndarray, fields:
 
 
 @njit(cache=True)
+def make_plan(tp: np.ndarray, row: np.ndarray, field: np.ndarray, plan: np.ndarray) -> None:
+    """A copy's way to its group (``planner.plan_map`` from its ``room`` row into ``plan``); ``row[PLANNED]``
+    becomes 1 (made) or -1 (no way)."""
+    made = plan_map(field, row[FIELD_X0], row[FIELD_Y0], row[ROOM_X], row[ROOM_Y], tp[PLAN_CLEARANCE], row[PLAN_CX],
+                    row[PLAN_CY], row[KEEP_OUT], row[WAY_X], row[WAY_Y], plan)
+    row[PLANNED] = 1.0 if made else -1.0
+
+
+@njit(cache=True)
+def route_to_slot(tp: np.ndarray, pose: np.ndarray, slot: np.ndarray, centre: np.ndarray, radius: float,
+                  row: np.ndarray, plan: np.ndarray) -> float:
+    """Length (m) of the shaping's way to the slot: round the group (``reward.route_length``) and, with
+    ``geodesic_route`` in a room whose plan is made, outside the group's keep-out disc also round the furniture
+    (the plan's way to the way in, then in); never shorter than the way round the group. inf where the plan
+    does not reach the robot (inside an obstacle's margin, or cut off): the potential then stays as it was.
+
+    Ours (issue 18): round the group only, the shaping paid for driving at a desk between the robot and its
+    group, and the policy pushed against the shield there until the time-out."""
+    keep = radius + tp[KEEP_OUT_EXTRA]
+    d = route_length(pose[0], pose[1], slot[0], slot[1], centre[0], centre[1], keep)
+    if tp[GEODESIC] > 0 and row[PLANNED] > 0 and math.hypot(pose[0] - row[PLAN_CX],
+                                                              pose[1] - row[PLAN_CY]) > row[KEEP_OUT]:
+        way = plan_distance(plan, row[FIELD_X0], row[FIELD_Y0], pose[0], pose[1])
+        d = max(d, way + route_length(row[WAY_X], row[WAY_Y], slot[0], slot[1], centre[0], centre[1], keep))
+    return d
+
+
+@njit(cache=True)
 def potential(tp: np.ndarray, pose: np.ndarray, slot: np.ndarray, centre: np.ndarray, radius: float,
-              speed: float) -> float:
-    """The shaping potential of a state: ``slot_potential`` of the way to the slot around the group."""
-    d = route_length(pose[0], pose[1], slot[0], slot[1], centre[0], centre[1], radius + tp[KEEP_OUT_EXTRA])
-    return slot_potential(d, speed)
+              speed: float, row: np.ndarray, plan: np.ndarray, previous: float) -> float:
+    """The shaping potential of a state: ``slot_potential`` of ``route_to_slot`` (``previous`` where that is
+    inf)."""
+    d = route_to_slot(tp, pose, slot, centre, radius, row, plan)
+    return slot_potential(d, speed) if d < np.inf else previous
 
 
 @njit(cache=True)
@@ -102,7 +132,8 @@ def step(tp: np.ndarray, bp: np.ndarray, sp: np.ndarray, weights: np.ndarray, ac
          myaw: np.ndarray, centre0: np.ndarray, centre: np.ndarray, gscal: np.ndarray, ring_off: np.ndarray,
          comfort: np.ndarray, force: np.ndarray, rep: np.ndarray, robot_force: np.ndarray, steps: np.ndarray,
          prev_accel: np.ndarray, clearance: np.ndarray, slot: np.ndarray, potentials: np.ndarray, sums: np.ndarray,
-         terms: np.ndarray, rewards: np.ndarray, flags: np.ndarray, room: np.ndarray, fields: np.ndarray) -> None:
+         terms: np.ndarray, rewards: np.ndarray, flags: np.ndarray, room: np.ndarray, fields: np.ndarray,
+         plans: np.ndarray) -> None:
     """One step of every copy (the arrays of ``batched.BatchedApproach``, updated in place); ``terms`` gets each
     copy's unweighted reward terms, ``flags`` (terminated, truncated, success, violation, collision, obstacle
     collision)."""
@@ -134,7 +165,8 @@ def step(tp: np.ndarray, bp: np.ndarray, sp: np.ndarray, weights: np.ndarray, ac
         success = joined(violation, math.hypot(slot[i, 0] - x, slot[i, 1] - y), speed,
                          heading_error(pose[i], centre[i]), tp[SLOT_TOL], tp[STOP_SPEED], tp[HEADING_TOL])
         accel = (vel[i, :2] - vel_before) / dt
-        potentials[i] = potential(tp, pose[i], slot[i], centre[i], radius, speed)
+        potentials[i] = potential(tp, pose[i], slot[i], centre[i], radius, speed, room[i],
+                                  plans[min(i, plans.shape[0] - 1)], potential_before)
         prox = proximity_cost(clearance[i, :n], after[:n], tp[INTIMATE], tp[BAND])
         clearance[i, :n] = after[:n]
         t = step_terms(robot_force[i, :2], pose[i, :2] - robot_before, force[i, :n], pos[i, :n] - members_before,
@@ -212,9 +244,7 @@ def observations(tp: np.ndarray, pose: np.ndarray, vel: np.ndarray, count: np.nd
             x0, y0 = room[i, FIELD_X0], room[i, FIELD_Y0]
             if not in_sight(fields[k], x0, y0, x, y, slot[i, 0], slot[i, 1], tp[SIGHT_CLEARANCE]):
                 if room[i, PLANNED] == 0:  # first needed: most episodes never lose sight of their slot
-                    made = plan_map(fields[k], x0, y0, rx, ry, tp[PLAN_CLEARANCE], room[i, PLAN_CX], room[i, PLAN_CY],
-                                    room[i, KEEP_OUT], room[i, WAY_X], room[i, WAY_Y], plans[i])
-                    room[i, PLANNED] = 1.0 if made else -1.0
+                    make_plan(tp, room[i], fields[k], plans[i])
                 wx, wy, found = waypoint(plans[i], x0, y0, x, y) if room[i, PLANNED] > 0 else (x, y, False)
                 if found:
                     c, s = math.cos(frame), math.sin(frame)

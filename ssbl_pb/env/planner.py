@@ -15,6 +15,7 @@ way, found by descending a geodesic distance map. Once the slot is in sight, or 
   obstacles and stays out of the group's disc: metres to the way in, inf where cut off. One per episode (the
   group stays where it stands; the slot moves by centimetres as it makes room).
 * ``waypoint``: from the robot's cell, down the map for ``AHEAD`` metres.
+* ``plan_distance``: the map read at any point (the reward's way round furniture, ``kernels.route_to_slot``).
 * ``in_sight``: the straight way from the robot to the slot keeps ``clearance`` (the field, sampled every 5 cm).
 
 The same functions run in the compiled step (``kernels.observations``) and in deploy (``deploy.frames``), on the
@@ -148,6 +149,33 @@ def waypoint(plan: np.ndarray, x0: float, y0: float, x: float, y: float) -> tupl
     if plan[i, j] == 0.0 and math.hypot(x0 + j * PLAN_CELL - x, y0 + i * PLAN_CELL - y) < 0.5 * AHEAD:
         return x, y, False  # at the way in: the slot is the next place to go
     return x0 + j * PLAN_CELL, y0 + i * PLAN_CELL, True
+
+
+NEAR_NODE = 0.3  # m: a point off the map (inside an obstacle's margin) reads the best node this near, plus the way
+
+
+@njit(cache=True)
+def plan_distance(plan: np.ndarray, x0: float, y0: float, x: float, y: float) -> float:
+    """Metres from (x, y) to the way in along ``plan``: interpolated between the four nodes around the point when
+    all are reachable, else the best reachable node within ``NEAR_NODE`` plus the straight way to it; inf when
+    none is."""
+    ny, nx = plan.shape
+    u, v = (x - x0) / PLAN_CELL, (y - y0) / PLAN_CELL
+    j, i = int(math.floor(u)), int(math.floor(v))
+    if 0 <= i < ny - 1 and 0 <= j < nx - 1:
+        a, b, c, d = plan[i, j], plan[i, j + 1], plan[i + 1, j], plan[i + 1, j + 1]
+        if a < np.inf and b < np.inf and c < np.inf and d < np.inf:
+            u, v = u - j, v - i
+            return (a * (1.0 - u) + b * u) * (1.0 - v) + (c * (1.0 - u) + d * u) * v
+    r = int(math.ceil(NEAR_NODE / PLAN_CELL))
+    best = np.inf
+    for a in range(max(i - r + 1, 0), min(i + r + 1, ny)):
+        for b in range(max(j - r + 1, 0), min(j + r + 1, nx)):
+            if plan[a, b] < np.inf:
+                gap = math.hypot(x0 + b * PLAN_CELL - x, y0 + a * PLAN_CELL - y)
+                if gap <= NEAR_NODE:
+                    best = min(best, plan[a, b] + gap)
+    return best
 
 
 @njit(cache=True)

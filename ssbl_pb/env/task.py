@@ -35,6 +35,8 @@ class TaskParams:
     #                              Pepper's braking distance from 0.35 m/s at 0.3 m/s^2 (0.2 m) plus 0.1 m
     route_margin: float = 0.15  # extra m kept beyond the intimate zone by the shaping's way around the group:
     #                              about four control steps at full speed (0.035 m each), room to correct
+    geodesic_route: bool = False  # in rooms with obstacles the shaping's way also goes round the furniture
+    #                               (``kernels.route_to_slot``); off: round the group only, as trained before
 
     def __post_init__(self) -> None:
         _check(isinstance(self.max_steps, int) and self.max_steps >= 1, "task", "max_steps", self.max_steps,
@@ -44,6 +46,8 @@ class TaskParams:
         _check(isinstance(self.route_margin, int | float) and self.route_margin >= 0, "task", "route_margin",
                self.route_margin, "a number >= 0")
         _check(isinstance(self.turn, bool), "task", "turn", self.turn, "true or false")
+        _check(isinstance(self.geodesic_route, bool), "task", "geodesic_route", self.geodesic_route,
+               "true or false")
 
 
 @njit(cache=True)
