@@ -209,3 +209,30 @@ def test_geodesic_route_plans_every_furnished_episode_and_never_shortens_the_way
         assert sim.potential[0] <= ref.potential[0] + 1e-9  # never a shorter way than round the group
         longer += sim.potential[0] < ref.potential[0] - 0.5
     assert longer >= 1  # furniture does lengthen some ways
+
+
+def test_way_length_is_the_plans_distance_at_the_start():
+    """``planner.way_length`` (A* to one point) against ``plan_map`` (the whole room) in furnished rooms: the
+    same metres from the way in, with or without the obstacles, also from starts inside an obstacle's margin."""
+    from ssbl_pb.env.rooms import FurnitureParams, furnished_room
+
+    rng = np.random.default_rng(3)
+    checked = 0
+    for _ in range(12):
+        room = furnished_room(rng, FurnitureParams())
+        for _ in range(10):
+            cx, cy = rng.uniform(-2, 2, 2)
+            keep_out, wx, wy = 1.2, cx + 1.3, cy
+            sx, sy = rng.uniform(-room.size[0] / 2 + 0.3, room.size[0] / 2 - 0.3), rng.uniform(
+                -room.size[1] / 2 + 0.3, room.size[1] / 2 - 0.3)
+            for obstacles in (True, False):
+                field = room.field if obstacles else np.full_like(room.field, 10.0)
+                ref = np.empty_like(field)
+                made = planner.plan_map(field, room.x0, room.y0, *room.size, 0.42, cx, cy, keep_out, wx, wy, ref)
+                got = planner.way_length(room.field, room.x0, room.y0, *room.size, 0.42, cx, cy, keep_out, wx, wy,
+                                         sx, sy, obstacles)
+                i, j = node(room, sx, sy)
+                want = ref[i, j] if np.isfinite(ref[i, j]) else ref[max(i - 1, 0):i + 2, max(j - 1, 0):j + 2].min()
+                assert got == pytest.approx(want if made else np.inf, abs=1e-6)
+                checked += np.isfinite(got)
+    assert checked > 150  # most of them have a way

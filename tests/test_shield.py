@@ -215,3 +215,38 @@ def test_braking_for_an_obstacle_never_gives_back_speed_toward_a_member():
             allow = math.sqrt(2.0 * P.brake_accel * max(r - REACH - P.obstacle_clearance_min, 0.0))
             assert v[0] * math.cos(a) + v[1] * math.sin(a) <= allow + 1e-6, (math.degrees(angle), k)
     assert worst <= 1e-6
+
+
+def _wall_scan(obs: np.ndarray, gap: float) -> None:
+    """Range-scan entries of a straight wall ``gap`` m ahead (x = gap in the approach frame, endless in y): each
+    15 deg sector's nearest point of it, or nothing within 3 m."""
+    for k in range(24):
+        a = math.radians(15.0 * k if k <= 12 else 15.0 * k - 360.0)
+        nearest = 0.0 if abs(a) <= math.radians(7.5) else abs(a) - math.radians(7.5)
+        r = gap / math.cos(nearest) if nearest < math.pi / 2 else math.inf
+        obs[40 + k] = min(r / 3.0, 1.0)
+
+
+def test_a_robot_already_closing_too_fast_brakes_before_it_turns():
+    """The base reaches a command at 0.3 m/s^2: a robot driving at a wall at full speed and asked to turn 60 deg
+    spent that on the turn and ran on into the wall (a desk's corner in the lab room). The shield now brakes the
+    base's own velocity first, and the footprint's circle keeps clear of the wall."""
+    from ssbl_pb.env.base import base_step
+
+    pose, vel, queue = np.array([0.0, 0.0, 0.0]), np.array([0.35, 0.0, 0.0]), np.zeros((1, 3))
+    wall_x = REACH + 0.38  # 0.38 m between the footprint's circle and the wall: 0.335 m/s to brake for at 0.2 m/s^2
+    wish = np.array([math.cos(math.radians(60)), math.sin(math.radians(60))])
+    closest = math.inf
+    for _ in range(60):
+        obs = np.zeros(OBS_SIZE, dtype=np.float32)
+        obs[5:7] = vel[:2] / 0.35
+        _wall_scan(obs, wall_x - pose[0])
+        first = obs[5] == np.float32(1.0)
+        cmd = shield_action(obs, wish, P)
+        if first:  # already as fast as it can brake for: the command is a pure brake, no turn yet
+            assert cmd[1] == pytest.approx(0.0, abs=1e-6) and cmd[0] < 1.0
+        base_step(0.35, 1.0, 0.3, 0.75, 0.0, 0, 0.0, 0.1, pose, vel, queue, cmd[0] * 0.35, cmd[1] * 0.35, 0.0)
+        closest = min(closest, wall_x - pose[0] - REACH)
+    # the circle (hence every corner at any heading) keeps about the shield's 0.1 m; turning first came to 0.074
+    assert closest > 0.09
+    assert pose[1] > 1.0  # and the robot does go its way along it

@@ -24,8 +24,8 @@ from ..params import RobotParams, SocialParams, WorldParams
 from .base import base_step, footprint_distance, wall_clearance, wrap_angle
 from .humans import KEEP, RADIUS, free_slot, group_step
 from .observation import BASE_SIZE, POS_SCALE, SCAN_RANGE, action_command, fill_observation
-from .obstacles import CAP, CELL, fill_scan, footprint_clearance
-from .planner import in_sight, plan_distance, plan_map, way_clearances, waypoint
+from .obstacles import CAP, fill_scan, footprint_clearance
+from .planner import in_sight, plan_distance, plan_map, way_clearances, way_length, waypoint
 from .reward import N_TERMS, proximity_cost, route_length, slot_potential, step_terms
 from .task import TaskParams, joined
 
@@ -193,27 +193,16 @@ def step(tp: np.ndarray, bp: np.ndarray, sp: np.ndarray, weights: np.ndarray, ac
 @njit(cache=True)
 def detour_steps(tp: np.ndarray, row: np.ndarray, field: np.ndarray) -> int:
     """Steps the room's obstacles add to the way from the episode's start to the group's way in: the geodesic
-    distance (``planner.plan_map``) through the room with its obstacles minus the same through the empty room
+    distance (``planner.way_length``) through the room with its obstacles minus the same through the empty room
     (same walls, same keep-out disc, same grid metric), driven at the top speed. An episode in a furnished room
     may last ``max_steps`` plus these: the paper's 30 s were set for starts 2.5-5.5 m from the group in an empty
     room, and a start as far in a room whose furniture makes the way 10 m long ran out of time while driving
     (12 of the 29 failures of mixed groups in the Willow Garage west rooms)."""
-    x0, y0, rx, ry = row[FIELD_X0], row[FIELD_Y0], row[ROOM_X], row[ROOM_Y]
-    ways = np.empty((2, field.shape[0], field.shape[1]), dtype=np.float32)
-    empty = np.full(field.shape, CAP, dtype=np.float32)
-    for k, f in enumerate((field, empty)):
-        if not plan_map(f, x0, y0, rx, ry, tp[PLAN_CLEARANCE], row[PLAN_CX], row[PLAN_CY], row[KEEP_OUT],
-                        row[WAY_X], row[WAY_Y], ways[k]):
-            return 0
-    i0 = min(max(int(round((row[START_Y] - y0) / CELL)), 0), field.shape[0] - 1)
-    j0 = min(max(int(round((row[START_X] - x0) / CELL)), 0), field.shape[1] - 1)
-    length = np.full(2, np.inf)  # from the start's node, or (off the plan by rounding) the best next to it
-    for k in range(2):
-        length[k] = ways[k, i0, j0]
-        if length[k] == np.inf:
-            for i in range(max(i0 - 1, 0), min(i0 + 2, field.shape[0])):
-                for j in range(max(j0 - 1, 0), min(j0 + 2, field.shape[1])):
-                    length[k] = min(length[k], ways[k, i, j])
+    length = np.empty(2)
+    for k, obstacles in enumerate((True, False)):
+        length[k] = way_length(field, row[FIELD_X0], row[FIELD_Y0], row[ROOM_X], row[ROOM_Y], tp[PLAN_CLEARANCE],
+                               row[PLAN_CX], row[PLAN_CY], row[KEEP_OUT], row[WAY_X], row[WAY_Y], row[START_X],
+                               row[START_Y], obstacles)
     if not (length[0] < np.inf and length[1] < np.inf):
         return 0
     return int(math.ceil(max(length[0] - length[1], 0.0) / (tp[MAX_SPEED] * tp[DT])))
