@@ -230,7 +230,8 @@ def _wall_scan(obs: np.ndarray, gap: float) -> None:
 def test_a_robot_already_closing_too_fast_brakes_before_it_turns():
     """The base reaches a command at 0.3 m/s^2: a robot driving at a wall at full speed and asked to turn 60 deg
     spent that on the turn and ran on into the wall (a desk's corner in the lab room). The shield now brakes the
-    base's own velocity first, and the footprint's circle keeps clear of the wall."""
+    base's own velocity first when a period toward the command would leave it too fast, and the footprint's
+    circle keeps clear of the wall."""
     from ssbl_pb.env.base import base_step
 
     pose, vel, queue = np.array([0.0, 0.0, 0.0]), np.array([0.35, 0.0, 0.0]), np.zeros((1, 3))
@@ -241,12 +242,23 @@ def test_a_robot_already_closing_too_fast_brakes_before_it_turns():
         obs = np.zeros(OBS_SIZE, dtype=np.float32)
         obs[5:7] = vel[:2] / 0.35
         _wall_scan(obs, wall_x - pose[0])
-        first = obs[5] == np.float32(1.0)
         cmd = shield_action(obs, wish, P)
-        if first:  # already as fast as it can brake for: the command is a pure brake, no turn yet
-            assert cmd[1] == pytest.approx(0.0, abs=1e-6) and cmd[0] < 1.0
         base_step(0.35, 1.0, 0.3, 0.75, 0.0, 0, 0.0, 0.1, pose, vel, queue, cmd[0] * 0.35, cmd[1] * 0.35, 0.0)
         closest = min(closest, wall_x - pose[0] - REACH)
     # the circle (hence every corner at any heading) keeps about the shield's 0.1 m; turning first came to 0.074
     assert closest > 0.09
     assert pose[1] > 1.0  # and the robot does go its way along it
+
+
+def test_braking_first_only_when_a_period_toward_the_command_is_not_enough():
+    """A velocity a little over its limit keeps the policy's turn when one period toward it brakes enough, and is
+    braked straight when it does not."""
+    obs = np.zeros(OBS_SIZE, dtype=np.float32)
+    _wall_scan(obs, REACH + 0.38)  # allow 0.335 m/s toward the wall
+    turn = np.array([0.0, 1.0])  # straight along the wall: one period takes 0.03 m/s off the closing
+    obs[5:7] = (0.35 / 0.35, 0.0)  # 0.015 over: the turn brakes enough
+    assert np.allclose(shield_action(obs, turn, P), turn, atol=1e-6)
+    obs[5:7] = (0.35 / 0.35, 0.0)
+    _wall_scan(obs, REACH + 0.3)  # allow 0.28 m/s: 0.07 over, more than a period's 0.03
+    out = shield_action(obs, turn, P)
+    assert out[1] == pytest.approx(0.0, abs=1e-6) and out[0] * 0.35 == pytest.approx(math.sqrt(0.4 * 0.2), abs=1e-3)

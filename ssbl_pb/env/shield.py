@@ -36,17 +36,19 @@ class ShieldParams:
     half_width: float = 0.215
     human_radius: float = 0.28
     obstacle_clearance_min: float = 0.1  # m from walls and obstacles (the scan): room to pass between desks
+    base_accel: float = 0.3  # m/s^2: the base's own limit (NAOqi default), over one control period:
+    control_period: float = 0.1  # s (the env's and the deploy loop's 10 Hz)
 
     def __post_init__(self) -> None:
         _positive("shield", self, "clearance_min", "brake_accel", "max_speed", "half_length", "half_width",
-                  "human_radius", "obstacle_clearance_min")
+                  "human_radius", "obstacle_clearance_min", "base_accel", "control_period")
         _check(self.brake_accel <= 0.55, "shield", "brake_accel", self.brake_accel, "<= 0.55 m/s^2 (Pepper's max)")
 
     @classmethod
     def from_env(cls, robot: RobotParams, social: SocialParams, task: TaskParams) -> ShieldParams:
         return cls(clearance_min=task.intimate_zone + 0.05, brake_accel=robot.max_accel * 2.0 / 3.0,
                    max_speed=robot.max_speed, half_length=robot.length / 2, half_width=robot.width / 2,
-                   human_radius=social.human_radius)
+                   human_radius=social.human_radius, base_accel=robot.max_accel)
 
 
 @njit(cache=True)
@@ -153,7 +155,16 @@ def _shielded(obs: np.ndarray, vx: float, vy: float, clear: np.ndarray, toward: 
     return vx, vy, acted
 
 
-BRAKE_FIRST = 0.01  # m/s the base's own velocity may exceed its limits before the shield brakes it first
+BRAKE_FIRST = 0.01  # m/s a velocity may exceed the limits before the shield brakes it first (``_over_limits``)
+
+
+@njit(cache=True)
+def _over_limits(obs: np.ndarray, vx: float, vy: float, clear: np.ndarray, toward: np.ndarray, reach: float,
+                 clearance_min: float, brake_accel: float, obstacle_clearance_min: float) -> bool:
+    """Whether (vx, vy) closes on a member or a sector faster than its limit (by more than ``BRAKE_FIRST``)."""
+    tx, ty = _scale_to_limits(obs, vx, vy, clear, toward, reach, clearance_min, brake_accel, obstacle_clearance_min)
+    return math.hypot(vx - tx, vy - ty) > BRAKE_FIRST
+
 
 SLIDE_ANGLES = (math.pi / 4, -math.pi / 4, math.pi / 2, -math.pi / 2)  # tried in turn when an obstacle stops it
 
@@ -161,7 +172,7 @@ SLIDE_ANGLES = (math.pi / 4, -math.pi / 4, math.pi / 2, -math.pi / 2)  # tried i
 @njit(cache=True)
 def shield_row(obs: np.ndarray, action: np.ndarray, out: np.ndarray, clearance_min: float, brake_accel: float,
                max_speed: float, half_length: float, half_width: float, human_radius: float,
-               obstacle_clearance_min: float) -> None:
+               obstacle_clearance_min: float, accel_step: float) -> None:
     """The action (approach frame, in [-1, 1]) with its excess closing speed on each member removed, into ``out``:
     members nearest first, each limiting the closing speed to ``sqrt(2 a (c - c_min))``; then the same for every
     ray of the range scan that ends within its range (observations longer than ``BASE_SIZE``), in up to
@@ -205,14 +216,19 @@ def shield_row(obs: np.ndarray, action: np.ndarray, out: np.ndarray, clearance_m
     if acted:
         # the base reaches a command at its acceleration limit: while its velocity already closes faster than it
         # can brake for, a turned command spends that limit sideways and the robot runs on into what it was
-        # closing on (a desk's corner in 1 of 1,000 lab episodes). Then the velocity itself is shielded: the
-        # command differs from it only by braking.
+        # closing on (a desk's corner in 1 of 1,000 lab episodes). When one period toward the command would not
+        # bring the velocity within the limits, the velocity itself is shielded: the command then differs from
+        # it only by braking, and all of the acceleration goes to that.
         cx, cy = float(obs[5]) * max_speed, float(obs[6]) * max_speed
-        tx, ty = _scale_to_limits(obs, cx, cy, clear, toward, reach, clearance_min, brake_accel,
-                                  obstacle_clearance_min)
-        if math.hypot(cx - tx, cy - ty) > BRAKE_FIRST:
-            sx, sy, _ = _shielded(obs, cx, cy, clear, toward, reach, clearance_min, brake_accel,
-                                  obstacle_clearance_min)
+        if _over_limits(obs, cx, cy, clear, toward, reach, clearance_min, brake_accel, obstacle_clearance_min):
+            dx, dy = sx - cx, sy - cy
+            change = math.hypot(dx, dy)
+            if change > accel_step:
+                dx, dy = dx * accel_step / change, dy * accel_step / change
+            if _over_limits(obs, cx + dx, cy + dy, clear, toward, reach, clearance_min, brake_accel,
+                            obstacle_clearance_min):
+                sx, sy, _ = _shielded(obs, cx, cy, clear, toward, reach, clearance_min, brake_accel,
+                                      obstacle_clearance_min)
         out[0] = min(max(sx / max_speed, -1.0), 1.0)
         out[1] = min(max(sy / max_speed, -1.0), 1.0)
 
@@ -220,10 +236,10 @@ def shield_row(obs: np.ndarray, action: np.ndarray, out: np.ndarray, clearance_m
 @njit(cache=True)
 def _shield_rows(obs: np.ndarray, actions: np.ndarray, out: np.ndarray, clearance_min: float, brake_accel: float,
                  max_speed: float, half_length: float, half_width: float, human_radius: float,
-                 obstacle_clearance_min: float) -> None:
+                 obstacle_clearance_min: float, accel_step: float) -> None:
     for i in range(obs.shape[0]):
         shield_row(obs[i], actions[i], out[i], clearance_min, brake_accel, max_speed, half_length, half_width,
-                   human_radius, obstacle_clearance_min)
+                   human_radius, obstacle_clearance_min, accel_step)
 
 
 def shield_actions(obs: np.ndarray, actions: np.ndarray, p: ShieldParams) -> np.ndarray:
@@ -241,7 +257,7 @@ def shield_action(obs: np.ndarray, action: np.ndarray, p: ShieldParams) -> np.nd
 
 def _limits(p: ShieldParams) -> tuple[float, ...]:
     return (p.clearance_min, p.brake_accel, p.max_speed, p.half_length, p.half_width, p.human_radius,
-            p.obstacle_clearance_min)
+            p.obstacle_clearance_min, p.base_accel * p.control_period)
 
 
 class SafetyShield:
