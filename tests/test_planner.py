@@ -105,6 +105,7 @@ def test_deploy_shows_the_same_waypoint_from_the_map():
     keep_out, wx, wy, radius = planner.way_in_for_group(members, centre, slot, 0.5)
     assert (keep_out, wx, wy) == pytest.approx((1.3, 2.0 - 1.3 - planner.ENTRY_BEYOND, -1.0))
     assert radius == pytest.approx(1.3 + planner.ENTRY_BEYOND + planner.WAY_IN_ZONE)
+    assert planner.way_in_for_group(members, centre, slot, 0.5, near_group=True)[3] == pytest.approx(1.3)
     assert planner.plan_map(WALL.field, WALL.x0, WALL.y0, *WALL.size, 0.42, *centre, keep_out, wx, wy, out)
     wx, wy, found = planner.waypoint(out, WALL.x0, WALL.y0, -1.5, -1.0)
     assert found and np.allclose(got, [wx, wy])
@@ -121,6 +122,8 @@ def test_bad_flags_name_themselves():
         make_env(scenario="default@furnished", waypoints="yes")
     with pytest.raises(UserError, match="w_disp"):
         RewardWeights(w_disp=-1.0)
+    with pytest.raises(UserError, match="waypoints_near_group = 1: expected true or false"):
+        make_env(scenario="default@furnished", waypoints=True, waypoints_near_group=1)
     with pytest.raises(UserError, match="geodesic_route = 'yes': expected true or false"):
         make_env(scenario="default@furnished", task={"geodesic_route": "yes"})
 
@@ -236,3 +239,21 @@ def test_way_length_is_the_plans_distance_at_the_start():
                 assert got == pytest.approx(want if made else np.inf, abs=1e-6)
                 checked += np.isfinite(got)
     assert checked > 150  # most of them have a way
+
+
+def test_waypoints_near_the_group_are_shown_up_to_its_disc():
+    """``waypoints_near_group``: the plan's way is shown right up to the group's keep-out disc (a policy trained
+    with it reads it from its config: ``trained.OBSERVATION_KEYS``)."""
+    from ssbl_pb.env import kernels
+    from ssbl_pb.env.approach import make_env
+    from ssbl_pb.env.trained import policy_env_kwargs
+
+    near = make_env(scenario="default@furnished", waypoints=True, waypoints_near_group=True)
+    far = make_env(scenario="default@furnished", waypoints=True)
+    for seed in range(5):
+        near.reset(seed=seed)
+        far.reset(seed=seed)
+        a, b = near.unwrapped.sim.room[0], far.unwrapped.sim.room[0]
+        assert a[kernels.PLAN] == pytest.approx(a[kernels.KEEP_OUT])
+        assert b[kernels.PLAN] == pytest.approx(b[kernels.KEEP_OUT] + planner.ENTRY_BEYOND + planner.WAY_IN_ZONE)
+    assert policy_env_kwargs("vector").get("waypoints_near_group") is True  # the shipped policy's

@@ -192,8 +192,9 @@ def _run(args: argparse.Namespace, url: str, folder: Path, robot: Any, params: A
                        "robot": dataclasses.asdict(robot_params), "watchdog": robot.watchdog is not None,
                        "started": time.strftime("%Y-%m-%d %H:%M:%S"), **frames.info()})
     log = RunLog(folder)
-    waypoints = args.policy not in BASELINES and bool(policy_env_kwargs(args.policy).get("waypoints", False))
-    loop = DeployLoop(Setup(robot, policy, perception, frames, robot_params, social, task, args.groups, waypoints),
+    seen = {} if args.policy in BASELINES else policy_env_kwargs(args.policy)
+    loop = DeployLoop(Setup(robot, policy, perception, frames, robot_params, social, task, args.groups,
+                            bool(seen.get("waypoints", False)), bool(seen.get("waypoints_near_group", False))),
                       params, log, status=None if args.quiet else status_printer())
     try:
         outcome, message = loop.run()

@@ -151,10 +151,11 @@ class Frames:
         return out
 
     def way_to(self, room_pose: np.ndarray, members: np.ndarray, centre: np.ndarray, slot: np.ndarray, reach: float,
-               body_reach: float) -> np.ndarray:
+               body_reach: float, near_group: bool = False) -> np.ndarray:
         """What the observation's slot entries show for a policy trained with waypoints (``env.planner``, room
         frame): the slot, or the point along the way around the map's obstacles while the slot is out of sight.
-        The plan is made again when the group's centre or slot estimate moved 0.2 m (~1 ms)."""
+        The plan is made again when the group's centre or slot estimate moved 0.2 m (~1 ms); ``near_group`` as
+        the policy was trained (``planner.way_in_for_group``)."""
         obstacles = None if self.room is None else self.room.obstacles
         if obstacles is None:
             return slot
@@ -162,7 +163,7 @@ class Frames:
         if self._plan_key is None or float(np.abs(key - self._plan_key).max()) > 0.2:
             if self._plan is None:
                 self._plan = np.empty_like(obstacles.field)
-            keep_out, wx, wy, radius = way_in_for_group(members, centre, slot, body_reach)
+            keep_out, wx, wy, radius = way_in_for_group(members, centre, slot, body_reach, near_group)
             made = plan_map(obstacles.field, obstacles.x0, obstacles.y0, *self.room.room_size,
                             way_clearances(reach)[0], float(centre[0]), float(centre[1]), keep_out, wx, wy,
                             self._plan)

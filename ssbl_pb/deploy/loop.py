@@ -86,6 +86,7 @@ class Setup:
     task: TaskParams = dataclasses.field(default_factory=TaskParams)
     groups: str = "calibrated"  # the group model the policy was trained with (``env.layouts.GROUP_MODELS``)
     waypoints: bool = False  # the policy was trained with waypoints in furnished rooms (``env.planner``)
+    waypoints_near_group: bool = False  # ... shown up to the group's keep-out disc
 
 
 class DeployLoop:
@@ -140,7 +141,7 @@ class DeployLoop:
         if s.waypoints:
             reach = s.robot_params.reach
             slot_room = fr.way_to(room, members_room, centre_room, slot_room, reach,
-                                  s.social.human_radius + reach + s.task.intimate_zone)
+                                  s.social.human_radius + reach + s.task.intimate_zone, s.waypoints_near_group)
         frame = ob.approach_yaw(room, centre_room)
         obs = ob.vector_observation(room, vel_room, members_room, mvel_room, centre_room, radius, slot_room,
                                     fr.walls(room), s.robot_params.max_speed, s.robot_params.max_yaw_rate, frame,

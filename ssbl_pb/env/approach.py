@@ -146,6 +146,7 @@ class ApproachGroupEnv(gym.Env):
         furniture: FurnitureParams | dict | None = None,
         scan: bool = True,
         waypoints: bool = False,
+        waypoints_near_group: bool = False,
     ) -> None:
         """``record`` keeps every step's state in ``trajectory`` (metrics, plots; on when rendering).
         ``groups``: where members stand, ``"calibrated"`` (default: real groups' size and irregularity) or
@@ -155,7 +156,8 @@ class ApproachGroupEnv(gym.Env):
         drawn at random; for training in several rooms); ``furniture``: how rooms ``@furnished`` are drawn
         (``rooms.FurnitureParams``); ``scan``: the range scan in the observation (False: the 40 entries policies
         trained before it read); ``waypoints``: in rooms with obstacles, the slot's entries show the way around
-        them while the slot is out of sight (``planner``; off for policies trained before it)."""
+        them while the slot is out of sight (``planner``; off for policies trained before it);
+        ``waypoints_near_group``: right up to the group's keep-out disc (``planner.way_in_for_group``)."""
         from .batched import BatchedApproach
 
         if render_mode not in (None, "rgb_array"):
@@ -163,7 +165,7 @@ class ApproachGroupEnv(gym.Env):
         if not isinstance(render_width, int) or not 64 <= render_width <= 4096:
             raise UserError(f"render width {render_width!r}: expected an integer in [64, 4096] pixels")
         self.sim = BatchedApproach(1, scenario, world, robot, social, reward, task, groups, groups_yaml, room_yaml,
-                                   furniture, scan, waypoints)
+                                   furniture, scan, waypoints, waypoints_near_group)
         sim = self.sim
         self.scenario, self.world_params, self.robot_params = sim.scenario, sim.world_params, sim.robot_params
         self.social, self.task, self.groups = sim.social, sim.task, sim.groups

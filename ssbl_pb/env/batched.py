@@ -45,17 +45,19 @@ class BatchedApproach:
                  reward: RewardWeights | dict | None = None, task: TaskParams | dict | None = None,
                  groups: str | GroupModel | None = None, groups_yaml: str | None = None,
                  room_yaml: str | list[str] | None = None, furniture: FurnitureParams | dict | None = None,
-                 scan: bool = True, waypoints: bool = False) -> None:
+                 scan: bool = True, waypoints: bool = False, waypoints_near_group: bool = False) -> None:
         if not isinstance(num, int) or num < 1:
             raise UserError(f"number of copies {num!r}: expected an integer >= 1")
-        for name, flag in (("scan", scan), ("waypoints", waypoints)):
+        for name, flag in (("scan", scan), ("waypoints", waypoints), ("waypoints_near_group", waypoints_near_group)):
             if not isinstance(flag, bool):
                 raise UserError(f"{name} = {flag!r}: expected true or false")
         self.num = num
         self.kwargs = {"scenario": scenario, "world": world, "robot": robot, "social": social, "reward": reward,
                        "task": task, "groups": groups, "groups_yaml": groups_yaml, "room_yaml": room_yaml,
-                       "furniture": furniture, "scan": scan, "waypoints": waypoints}  # ``like`` builds more
+                       "furniture": furniture, "scan": scan, "waypoints": waypoints,
+                       "waypoints_near_group": waypoints_near_group}  # ``like`` builds more
         self.waypoints = waypoints  # rooms with obstacles: the slot's entries show the way around them (planner)
+        self.waypoints_near_group = waypoints_near_group  # ... up to the group's keep-out disc
         ep = parse_env_params(scenario, world, robot, social, reward, task, groups, groups_yaml, room_yaml, furniture)
         self.scenario, self.world_params, self.robot_params, self.social, self.weights, self.task, self.groups = ep[:7]
         self.furniture, self.map_rooms = ep.furniture, ep.map_rooms
@@ -226,7 +228,7 @@ class BatchedApproach:
         g, n, row = self.groups_state, int(self.groups_state.count[i]), self.room[i]
         keep_out, row[kernels.WAY_X], row[kernels.WAY_Y], show = way_in_for_group(
             g.pos[i, :n], g.centre[i], self.slot[i],
-            self.social.human_radius + self.robot_params.reach + self.task.intimate_zone)
+            self.social.human_radius + self.robot_params.reach + self.task.intimate_zone, self.waypoints_near_group)
         row[kernels.KEEP_OUT], (row[kernels.PLAN_CX], row[kernels.PLAN_CY]) = keep_out, g.centre[i]
         row[kernels.PLAN] = show if self.waypoints else 0.0
         row[kernels.PLANNED] = 0.0

@@ -279,14 +279,16 @@ def in_sight(field: np.ndarray, x0: float, y0: float, x: float, y: float, sx: fl
         t = min(t + max(room, SIGHT_STEP), length)
 
 
-def way_in_for_group(members: np.ndarray, centre: np.ndarray, slot: np.ndarray, body_reach: float
-                     ) -> tuple[float, float, float, float]:
+def way_in_for_group(members: np.ndarray, centre: np.ndarray, slot: np.ndarray, body_reach: float,
+                     near_group: bool = False) -> tuple[float, float, float, float]:
     """(keep_out, way-in x, way-in y, show radius) for a group whose members stand at ``members`` (n, 2) around
     ``centre``: the keep-out disc spawning checks (``spawn.Approach``: the farthest member's distance from the
     centre plus ``body_reach``, the member's body radius + the footprint's reach + the intimate zone), the way in
     (``entry_point``) and the radius around the centre beyond which the plan shows the way (up to
-    ``WAY_IN_ZONE`` beyond the way in). Used by the env at each episode's start and by deploy."""
+    ``WAY_IN_ZONE`` beyond the way in; ``near_group``: right up to the keep-out disc, where a group whose near
+    side is shut by furniture is gone round by its far side). Used by the env at each episode's start and by
+    deploy."""
     ring = float(np.hypot(members[:, 0] - centre[0], members[:, 1] - centre[1]).max()) if len(members) else 0.0
     keep_out = ring + body_reach
     wx, wy = entry_point(float(centre[0]), float(centre[1]), float(slot[0]), float(slot[1]), keep_out)
-    return keep_out, wx, wy, keep_out + ENTRY_BEYOND + WAY_IN_ZONE
+    return keep_out, wx, wy, keep_out if near_group else keep_out + ENTRY_BEYOND + WAY_IN_ZONE

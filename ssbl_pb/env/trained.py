@@ -47,7 +47,7 @@ def resolve_model(spec: str) -> tuple[Path, Path | None, dict[str, Any]]:
     return model, (norm if norm.is_file() else None), (config or {})
 
 
-OBSERVATION_KEYS = ("waypoints",)  # env arguments that change what a policy observes
+OBSERVATION_KEYS = ("waypoints", "waypoints_near_group")  # env arguments that change what a policy observes
 
 
 def policy_env_kwargs(spec: str) -> dict[str, Any]:
