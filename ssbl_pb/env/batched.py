@@ -196,14 +196,16 @@ class BatchedApproach:
         rng = self.rngs[i]
         sc = self.scenario.pick(rng)
         n, formation, start = apply_reset_options(sc.sample(rng), options)
-        for attempt in range(SPAWN_TRIES):  # a furnished room with no place is drawn again
-            room = self._draw_room(i, sc.room, rng)
+        for attempt in range(SPAWN_TRIES):  # a furnished room with no place is drawn again; in a map room, the
+            room = self._draw_room(i, sc.room, rng)  # episode's group and start (1 in ~1,000 west-room draws)
             try:
                 centre, layout, pose = self._spawn(rng, n, formation, start, room)
                 break
             except NoPlace:
-                if sc.room != "furnished" or attempt == SPAWN_TRIES - 1:
+                if sc.room == "empty" or attempt == SPAWN_TRIES - 1:
                     raise
+                if sc.room == "map":
+                    n, formation, start = apply_reset_options(sc.sample(rng), options)
         self.bases.reset(i, pose)
         g = self.groups_state
         g.spawn(i, self.social, centre, layout, self.keep, pose[:2])
