@@ -85,6 +85,19 @@ def test_cli_bad_input(tmp_path, args, message):
     assert not (out / "episodes.csv").exists()
 
 
+def test_cli_groups_flag_spawns_the_papers_circles(tmp_path):
+    res = run_cli("--policy", "sffm", "--groups", "paper", "--episodes", "2", "--workers", "1", "--paths", "0",
+                  "--out", str(tmp_path / "cli"))
+    assert res.returncode == 0, res.stderr
+    evaluate(Setup("sffm", env_kwargs=(("groups", "paper"),)), 2, 1000, tmp_path / "paper", n_paths=0)
+    evaluate(Setup("sffm"), 2, 1000, tmp_path / "calibrated", n_paths=0)
+    played = (tmp_path / "cli" / "episodes.csv").read_text()
+    assert played == (tmp_path / "paper" / "episodes.csv").read_text()  # the paper's groups, same episodes
+    assert played != (tmp_path / "calibrated" / "episodes.csv").read_text()
+    res = run_cli("--policy", "sffm", "--groups", "circle", "--out", str(tmp_path / "x"))
+    assert res.returncode == 2 and "--groups: invalid choice: 'circle'" in res.stderr
+
+
 def test_cli_unwritable_out(tmp_path):
     blocker = tmp_path / "file"
     blocker.write_text("x")

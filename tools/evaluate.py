@@ -5,6 +5,7 @@ Examples:
     python tools/evaluate.py --policy sffm --episodes 200 --out results/eval_sffm
     python tools/evaluate.py --policy vector --scenario mixed --episodes 200 --out results/eval_vector_mixed
     python tools/evaluate.py --policy runs/ppo_vector --episodes 50 --out results/eval_run
+    python tools/evaluate.py --policy sffm --groups paper --episodes 200 --out results/eval_sffm_paper
 """
 
 from __future__ import annotations
@@ -30,6 +31,9 @@ def main(argv: list[str] | None = None) -> int:
                     help="processes (default 0: all cores when episodes >= 40)")
     ap.add_argument("--paths", type=int_at_least(0), default=6,
                     help="episodes drawn in paths.png (default 6; 0: no plot)")
+    ap.add_argument("--groups", choices=["calibrated", "paper"],
+                    help="where members stand: as real groups do (calibrated, the default) or on the paper's 1.0 m "
+                         "o-space circle (paper)")
     ap.add_argument("--shield", choices=["auto", "on", "off"], default="auto",
                     help="a trained policy's safety shield: as trained (auto, default), or forced on/off")
     for name, what in (("camera", "tools/calibrate_camera.py"), ("robot", "tools/identify_dynamics.py"),
@@ -43,6 +47,8 @@ def main(argv: list[str] | None = None) -> int:
     workers = args.workers or ((os.cpu_count() or 1) if args.episodes >= 40 else 1)
     calib = tuple((f"{k}_yaml", v) for k in ("camera", "robot", "social", "room", "groups")
                   if (v := getattr(args, f"{k}_yaml")) is not None)
+    if args.groups is not None:
+        calib += (("groups", args.groups),)
     shield = {"auto": None, "on": True, "off": False}[args.shield]
     setup = Setup(args.policy, args.obs_mode, args.scenario, calib, shield)
     with progress_bar(args.episodes, f"evaluate {args.policy}") as bar:
