@@ -192,6 +192,8 @@ def test_the_shaping_goes_round_furniture_only_with_geodesic_route():
         route_length(2.0, -1.0, *slot, *centre, keep))
     in_wall = np.array([0.0, -1.0, 0.0])
     assert kernels.potential(geodesic, in_wall, slot, centre, radius, 0.0, row, way, -7.5) == -7.5
+    assert kernels.potential(geodesic, in_wall, slot, centre, radius, 0.0, row, way, np.nan) == pytest.approx(
+        slot_potential(route_length(0.0, -1.0, *slot, *centre, keep), 0.0))  # no previous: round the group
     assert kernels.potential(geodesic, pose, slot, centre, radius, 0.0, row, way, -7.5) == pytest.approx(
         slot_potential(got, 0.0))
 

@@ -28,7 +28,7 @@ from .humans import KEEP, MAX_HUMANS, RADIUS, GroupArrays, free_slot, sffm_param
 from .layouts import GroupModel, slot_keep
 from .obstacles import CAP, CELL
 from .planner import way_in_for_group
-from .reward import TERMS, RewardWeights, slot_potential, weight_vector
+from .reward import TERMS, RewardWeights, weight_vector
 from .rooms import FurnitureParams, Room, furnished_room
 from .scenarios import apply_reset_options
 from .spawn import NoPlace, spawn_layout
@@ -238,13 +238,11 @@ class BatchedApproach:
             kernels.make_plan(self._tp, row, self.fields[int(row[kernels.FIELD])], self.plans[i])
 
     def potential_of(self, i: int, speed: float) -> float:
-        """Copy ``i``'s shaping potential in its current state at ``speed`` (``kernels.potential``; with no
-        way round the furniture from where it stands: the way round the group)."""
+        """Copy ``i``'s shaping potential in its current state at ``speed`` (``kernels.potential`` with no
+        previous value)."""
         g = self.groups_state
-        plan = self.plans[min(i, len(self.plans) - 1)]
-        args = (self._tp, self.pose[i], self.slot[i], g.centre[i], g.scalars[i, RADIUS])
-        fallback = slot_potential(kernels.route_to_slot(*args, np.zeros(kernels.N_ROOM), plan), speed)
-        return kernels.potential(*args, speed, self.room[i], plan, fallback)
+        return kernels.potential(self._tp, self.pose[i], self.slot[i], g.centre[i], g.scalars[i, RADIUS], speed,
+                                 self.room[i], self.plans[min(i, len(self.plans) - 1)], np.nan)
 
     def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Advance every copy by one control period (actions (N, A) in [-1, 1]).

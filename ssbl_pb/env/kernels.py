@@ -99,6 +99,12 @@ def make_plan(tp: np.ndarray, row: np.ndarray, field: np.ndarray, plan: np.ndarr
 
 
 @njit(cache=True)
+def _round_group(tp: np.ndarray, pose: np.ndarray, slot: np.ndarray, centre: np.ndarray, radius: float) -> float:
+    """Length (m) of the way to the slot round the group (``reward.route_length``)."""
+    return route_length(pose[0], pose[1], slot[0], slot[1], centre[0], centre[1], radius + tp[KEEP_OUT_EXTRA])
+
+
+@njit(cache=True)
 def route_to_slot(tp: np.ndarray, pose: np.ndarray, slot: np.ndarray, centre: np.ndarray, radius: float,
                   row: np.ndarray, plan: np.ndarray) -> float:
     """Length (m) of the shaping's way to the slot: round the group (``reward.route_length``) and, with
@@ -109,7 +115,7 @@ def route_to_slot(tp: np.ndarray, pose: np.ndarray, slot: np.ndarray, centre: np
     Ours (issue 18): round the group only, the shaping paid for driving at a desk between the robot and its
     group, and the policy pushed against the shield there until the time-out."""
     keep = radius + tp[KEEP_OUT_EXTRA]
-    d = route_length(pose[0], pose[1], slot[0], slot[1], centre[0], centre[1], keep)
+    d = _round_group(tp, pose, slot, centre, radius)
     if tp[GEODESIC] > 0 and row[PLANNED] > 0 and math.hypot(pose[0] - row[PLAN_CX],
                                                               pose[1] - row[PLAN_CY]) > row[KEEP_OUT]:
         way = plan_distance(plan, row[FIELD_X0], row[FIELD_Y0], pose[0], pose[1])
@@ -120,10 +126,12 @@ def route_to_slot(tp: np.ndarray, pose: np.ndarray, slot: np.ndarray, centre: np
 @njit(cache=True)
 def potential(tp: np.ndarray, pose: np.ndarray, slot: np.ndarray, centre: np.ndarray, radius: float,
               speed: float, row: np.ndarray, plan: np.ndarray, previous: float) -> float:
-    """The shaping potential of a state: ``slot_potential`` of ``route_to_slot`` (``previous`` where that is
-    inf)."""
+    """The shaping potential of a state: ``slot_potential`` of ``route_to_slot``; where that is inf, ``previous``
+    (the potential keeps its value), or with no previous (NaN: an episode's start) the way round the group's."""
     d = route_to_slot(tp, pose, slot, centre, radius, row, plan)
-    return slot_potential(d, speed) if d < np.inf else previous
+    if d < np.inf:
+        return slot_potential(d, speed)
+    return previous if previous == previous else slot_potential(_round_group(tp, pose, slot, centre, radius), speed)
 
 
 @njit(cache=True)
