@@ -53,11 +53,13 @@ def test_metrics_of_a_hand_made_episode():
     assert m["min_ttc_s"] == pytest.approx(2.5)
     assert m["social_work"] == pytest.approx(20 * 0.2 * dt)
     assert m["ospace_intrusion_time_s"] == 0.0
+    assert math.isnan(m["arrival_speed"])  # it never arrived
     # the same run, joined: SPL is the shortest way (around the keep-out disc) over the path driven
     traj[0]["keep_out"] = 0.5
     traj[-1]["slot"] = np.array([1.0, 0.0])
     win = episode_metrics(traj, True, False, False, TASK, dt)
     assert win["timeout"] == 0.0 and win["spl"] == pytest.approx(1.0 / 1.0)
+    assert win["arrival_speed"] == pytest.approx(1.0)  # the last step's speed
     traj[-1]["slot"] = np.array([0.8, 0.0])  # it overshot its place by 0.2 m
     assert episode_metrics(traj, True, False, False, TASK, dt)["spl"] == pytest.approx(0.8)
 

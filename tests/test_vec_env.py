@@ -76,14 +76,15 @@ def test_make_vec_env_batched_reports_episodes():
 def test_batched_evaluation_matches_single_env_episodes():
     from ssbl_pb.env.approach import make_env
     from ssbl_pb.env.rollout import run_episode
-    from ssbl_pb.env.trained import load_trained
+    from ssbl_pb.env.trained import load_trained, shield_at_place
     from ssbl_pb.training.vec_env import evaluate_first_episodes
 
     single = load_trained("vector", shield=True)  # the shipped policy: smoothing 0.4 and the shield
     env = make_env(scenario="mixed")
     want = [run_episode(env, single, 900 + i, keep_trajectory=False).metrics for i in range(6)]
     env.close()
-    venv = BatchedVecEnv(6, smoothing=single.filter.alpha, shield=True, scenario="mixed")
+    venv = BatchedVecEnv(6, smoothing=single.filter.alpha, shield=True, shield_at_place=shield_at_place("vector"),
+                         scenario="mixed")
     venv.seed(900)
     success, returns = evaluate_first_episodes(single.model, single.normalizer, False, venv)
     assert success.tolist() == [bool(m["success"]) for m in want]

@@ -11,6 +11,7 @@ OUT/learned_episode.mp4 and OUT/README.md (what is where, with the headline numb
 
 from __future__ import annotations
 
+import math
 import os
 from pathlib import Path
 
@@ -60,8 +61,9 @@ def main(argv: list[str] | None = None) -> int:
     lines = ["# Quickstart results", "", "| policy | success | personal-zone time (s) | mean jerk | arrival speed |",
              "|---|---|---|---|---|"]
     for name, s in summaries.items():
+        arrival = "-" if math.isnan(s["arrival_speed"]) else f"{s['arrival_speed']:.3f}"  # never arrived
         lines.append(f"| {name} | {s['success_rate']:.0%} | {s['personal_zone_time_s']:.2f} | {s['mean_jerk']:.3f} | "
-                     f"{s['arrival_speed']:.3f} |")
+                     f"{arrival} |")
     lines += ["", "Files: `run/learning_curve.png`, `comparison.png`, `eval_*/paths.png`, `learned_episode.mp4`."]
     write_text(args.out / "README.md", "\n".join(lines) + "\n")
     print("\n".join(lines[2:]))

@@ -119,13 +119,13 @@ def _policy(spec: str, robot: Any, social: Any, task: Any, stop_distance: float)
 
     from ..env import observation as ob
     from ..env.policies import make_policy
-    from ..env.trained import load_trained
+    from ..env.trained import load_trained, shield_at_place
     from .loop import deploy_shield
 
     if spec in BASELINES:
         return make_policy(spec, robot, social, seed=0)
     space = gym.spaces.Box(-ob.OBS_LIMIT, ob.OBS_LIMIT, shape=(ob.OBS_SIZE,), dtype=np.float32)
-    return load_trained(spec, space, None, deploy_shield(robot, social, task, stop_distance))
+    return load_trained(spec, space, None, deploy_shield(robot, social, task, stop_distance, shield_at_place(spec)))
 
 
 def _warm_up(policy: Any) -> None:

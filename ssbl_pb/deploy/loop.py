@@ -66,10 +66,11 @@ ESTIMATE_MARGIN = 0.1  # m the policy's shield keeps beyond --stop-distance: the
 #   person just out of view) must not turn the policy's closest pass (0.5 m by the training shield) into a stop
 
 
-def deploy_shield(robot: RobotParams, social: SocialParams, task: TaskParams, stop_distance: float) -> ShieldParams:
-    """The policy's safety shield on the robot: the training one (``ShieldParams.from_env``), braking
-    ``ESTIMATE_MARGIN`` before ``stop_distance`` when that is further out."""
-    shield = ShieldParams.from_env(robot, social, task)
+def deploy_shield(robot: RobotParams, social: SocialParams, task: TaskParams, stop_distance: float,
+                  at_place: bool = False) -> ShieldParams:
+    """The policy's safety shield on the robot: the training one (``ShieldParams.from_env``, ``at_place`` as the
+    policy was trained), braking ``ESTIMATE_MARGIN`` before ``stop_distance`` when that is further out."""
+    shield = ShieldParams.from_env(robot, social, task, at_place)
     return dataclasses.replace(shield, clearance_min=max(shield.clearance_min, stop_distance + ESTIMATE_MARGIN))
 
 

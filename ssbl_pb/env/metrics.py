@@ -147,7 +147,7 @@ def episode_metrics(trajectory: list[dict[str, Any]], success: bool, collision: 
         "max_accel": float(acc_n.max()),
         "mean_jerk": float(jerk_n.mean()),
         "max_jerk": float(jerk_n.max()),
-        "arrival_speed": float(np.hypot(*vel[-1])),
+        "arrival_speed": float(np.hypot(*vel[-1])) if success else float("nan"),  # no arrival: none
         "outside_fov_time_s": outside_time,
         "approach_in_fov": float(outside_time == 0.0),
         "final_slot_error_m": float(np.hypot(*(last["slot"] - last["robot"][:2]))),

@@ -21,8 +21,13 @@ import numpy as np
 from numba import njit
 
 from ..params import RobotParams, SocialParams, _check, _positive
+from .layouts import slot_keep
 from .observation import BASE_SIZE, MAX_MEMBERS, MEMBER_FIELDS, POS_SCALE, SCAN_RANGE
 from .task import TaskParams
+
+# m from the place shown in the observation within which the place's clearance holds fully, and beyond which
+# not at all (linear between): the task's slot tolerance, and twice it (ours)
+PLACE_NEAR, PLACE_FAR = 0.3, 0.6
 
 
 @dataclasses.dataclass(frozen=True)
@@ -38,17 +43,29 @@ class ShieldParams:
     obstacle_clearance_min: float = 0.1  # m from walls and obstacles (the scan): room to pass between desks
     base_accel: float = 0.3  # m/s^2: the base's own limit (NAOqi default), over one control period:
     control_period: float = 0.1  # s (the env's and the deploy loop's 10 Hz)
+    place_clearance: float = 0.0  # m kept from every member near the place (0: off; ``from_env``'s ``at_place``)
 
     def __post_init__(self) -> None:
         _positive("shield", self, "clearance_min", "brake_accel", "max_speed", "half_length", "half_width",
                   "human_radius", "obstacle_clearance_min", "base_accel", "control_period")
+        _check(self.place_clearance >= 0, "shield", "place_clearance", self.place_clearance, ">= 0")
         _check(self.brake_accel <= 0.55, "shield", "brake_accel", self.brake_accel, "<= 0.55 m/s^2 (Pepper's max)")
 
     @classmethod
-    def from_env(cls, robot: RobotParams, social: SocialParams, task: TaskParams) -> ShieldParams:
+    def from_env(cls, robot: RobotParams, social: SocialParams, task: TaskParams,
+                 at_place: bool = False) -> ShieldParams:
+        """The shield of an env's robot. ``at_place`` (a policy's config ``shield_at_place``): near its place it
+        keeps the place's own clearance from every member (``layouts.slot_keep`` between centres: 0.6 m between
+        the member's body and the footprint's circle), instead of the intimate zone plus 0.05.
+
+        Ours (issue 14): braking for 0.5 m, the shield ended the approach 5-10 cm past the place, inside the
+        members' 1.2 m repulsion zone, and they stepped away (members displaced 0.17 m against the SFFM's 0.07).
+        Kept everywhere, 0.6 m also blocked ways round a group's members (10 points of `mixed`)."""
         return cls(clearance_min=task.intimate_zone + 0.05, brake_accel=robot.max_accel * 2.0 / 3.0,
                    max_speed=robot.max_speed, half_length=robot.length / 2, half_width=robot.width / 2,
-                   human_radius=social.human_radius, base_accel=robot.max_accel)
+                   human_radius=social.human_radius, base_accel=robot.max_accel,
+                   place_clearance=slot_keep(social, robot.reach, task.intimate_zone, task.route_margin)
+                   - social.human_radius - robot.reach if at_place else 0.0)
 
 
 @njit(cache=True)
@@ -172,7 +189,7 @@ SLIDE_ANGLES = (math.pi / 4, -math.pi / 4, math.pi / 2, -math.pi / 2)  # tried i
 @njit(cache=True)
 def shield_row(obs: np.ndarray, action: np.ndarray, out: np.ndarray, clearance_min: float, brake_accel: float,
                max_speed: float, half_length: float, half_width: float, human_radius: float,
-               obstacle_clearance_min: float, accel_step: float) -> None:
+               obstacle_clearance_min: float, accel_step: float, place_clearance: float) -> None:
     """The action (approach frame, in [-1, 1]) with its excess closing speed on each member removed, into ``out``:
     members nearest first, each limiting the closing speed to ``sqrt(2 a (c - c_min))``; then the same for every
     ray of the range scan that ends within its range (observations longer than ``BASE_SIZE``), in up to
@@ -184,8 +201,13 @@ def shield_row(obs: np.ndarray, action: np.ndarray, out: np.ndarray, clearance_m
     next step: the robot stood still until its time ran out (most time-outs in the map rooms). So when the scan
     (not a member) takes more than 90 % of a command of at least a third of the top speed, the command turned by
     45 deg, then 90 deg, to either side is shielded instead, the one going most the way asked for if it keeps a
-    quarter of the speed: the robot slides along the obstacle as a person would."""
+    quarter of the speed: the robot slides along the obstacle as a person would.
+
+    Near the place shown in the observation (its entries 0-1), ``clearance_min`` rises to ``place_clearance``
+    (when larger): fully within ``PLACE_NEAR``, linearly less out to ``PLACE_FAR``."""
     out[:] = action
+    near = (PLACE_FAR - math.hypot(float(obs[0]), float(obs[1])) * POS_SCALE) / (PLACE_FAR - PLACE_NEAR)
+    clearance_min += max(place_clearance - clearance_min, 0.0) * min(max(near, 0.0), 1.0)
     reach = math.hypot(half_length, half_width)
     clear = np.full(MAX_MEMBERS, np.inf)
     toward = np.zeros((MAX_MEMBERS, 2))
@@ -236,10 +258,10 @@ def shield_row(obs: np.ndarray, action: np.ndarray, out: np.ndarray, clearance_m
 @njit(cache=True)
 def _shield_rows(obs: np.ndarray, actions: np.ndarray, out: np.ndarray, clearance_min: float, brake_accel: float,
                  max_speed: float, half_length: float, half_width: float, human_radius: float,
-                 obstacle_clearance_min: float, accel_step: float) -> None:
+                 obstacle_clearance_min: float, accel_step: float, place_clearance: float) -> None:
     for i in range(obs.shape[0]):
         shield_row(obs[i], actions[i], out[i], clearance_min, brake_accel, max_speed, half_length, half_width,
-                   human_radius, obstacle_clearance_min, accel_step)
+                   human_radius, obstacle_clearance_min, accel_step, place_clearance)
 
 
 def shield_actions(obs: np.ndarray, actions: np.ndarray, p: ShieldParams) -> np.ndarray:
@@ -257,7 +279,7 @@ def shield_action(obs: np.ndarray, action: np.ndarray, p: ShieldParams) -> np.nd
 
 def _limits(p: ShieldParams) -> tuple[float, ...]:
     return (p.clearance_min, p.brake_accel, p.max_speed, p.half_length, p.half_width, p.human_radius,
-            p.obstacle_clearance_min, p.base_accel * p.control_period)
+            p.obstacle_clearance_min, p.base_accel * p.control_period, p.place_clearance)
 
 
 class SafetyShield:

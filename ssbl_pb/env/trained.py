@@ -159,12 +159,21 @@ def _compatible(model_space: gym.Space, env_space: gym.Space) -> bool:
     return model_space == env_space or model_space == _channel_first(env_space)
 
 
+def shield_at_place(spec: str) -> bool:
+    """Whether a trained model's shield keeps its place's clearance near the place (config ``shield_at_place``,
+    ``ShieldParams.place_clearance``; off for models trained before it and for baselines)."""
+    from .policies import BASELINES
+
+    return spec not in BASELINES and bool(resolve_model(spec)[2].get("shield_at_place", False))
+
+
 def load_trained(spec: str, observation_space: gym.Space | None = None, shield: bool | None = None,
                  shield_params: Any = None) -> TrainedPolicy:
     """Load a trained model (shipped name, run directory or .zip); checks it fits ``observation_space``.
 
     ``shield``: the safety shield on or off; None (default) uses it as the model was trained (config
-    ``safety_shield``). ``shield_params``: its limits (``ShieldParams.from_env`` for a calibrated robot)."""
+    ``safety_shield``). ``shield_params``: its limits (``ShieldParams.from_env`` for a calibrated robot, with the
+    model's ``shield_at_place``); None: Pepper's defaults, likewise."""
     model_path, norm_path, config = resolve_model(spec)
     if not zipfile.is_zipfile(model_path):
         raise ModelError(f"{model_path}: not a saved SB3 model (expected a .zip archive)")
@@ -191,5 +200,11 @@ def load_trained(spec: str, observation_space: gym.Space | None = None, shield: 
         normalizer.training = False
     if shield is None:
         shield = bool(config.get("safety_shield", False)) and config.get("obs_mode", "vector") == "vector"
+    if shield and shield_params is None:
+        from ..params import RobotParams, SocialParams
+        from .shield import ShieldParams
+        from .task import TaskParams
+
+        shield_params = ShieldParams.from_env(RobotParams(), SocialParams(), TaskParams(), shield_at_place(spec))
     return TrainedPolicy(model, normalizer, recurrent, float(config.get("action_smoothing", 1.0)), shield,
                          shield_params)

@@ -96,6 +96,8 @@ class TrainConfig:
     action_smoothing: float = 0.4  # agent-side action filter (env.wrappers.ActionSmoothing); 1.0 = off
     safety_shield: bool = True  # agent-side safety shield (env.shield), the last action stage; it reads the
     #                             Vector observation, so camera modes train without it
+    shield_at_place: bool = False  # near its place the shield keeps the place's clearance from the members
+    #                                (ShieldParams.place_clearance; stage 7), carried to every tool and deploy
 
     @property
     def vec_env_kind(self) -> str:
@@ -144,6 +146,8 @@ class TrainConfig:
             _check(isinstance(v, int) and v >= 1, "config", name, v, "an integer >= 1")
         _check(isinstance(self.seed, int), "config", "seed", self.seed, "an integer")
         _check(isinstance(self.safety_shield, bool), "config", "safety_shield", self.safety_shield, "true or false")
+        _check(isinstance(self.shield_at_place, bool), "config", "shield_at_place", self.shield_at_place,
+               "true or false")
         _check(isinstance(self.action_smoothing, int | float) and 0 < self.action_smoothing <= 1, "config",
                "action_smoothing", self.action_smoothing, "a number in (0, 1] (1 = off)")
         _check(isinstance(self.env, dict), "config", "env", self.env, "a mapping of env arguments")

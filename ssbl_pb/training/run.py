@@ -37,15 +37,19 @@ class EnvFactory:
     """Picklable env constructor for SubprocVecEnv workers (the agent's action smoothing included)."""
 
     def __init__(self, kwargs: dict[str, Any], monitor: bool = True, smoothing: float = 1.0,
-                 shield: bool = False) -> None:
+                 shield: bool = False, shield_at_place: bool = False) -> None:
         self.kwargs, self.monitor, self.smoothing, self.shield = kwargs, monitor, smoothing, shield
+        self.shield_at_place = shield_at_place
 
     def __call__(self) -> Any:
         env = make_env(**self.kwargs)
         if self.shield:  # innermost: the shield acts on the smoothed action
+            from ..env.shield import ShieldParams
             from ..env.wrappers import ShieldWrapper
 
-            env = ShieldWrapper(env)
+            core = env.unwrapped
+            env = ShieldWrapper(env, ShieldParams.from_env(core.robot_params, core.social, core.task,
+                                                           self.shield_at_place))
         if self.smoothing < 1.0:
             from ..env.wrappers import ActionSmoothing
 
@@ -64,12 +68,12 @@ class BatchedFactory:
         from ..env.approach import core_kwargs
 
         self.env_kwargs, _ = core_kwargs(**{k: v for k, v in kwargs.items() if k != "obs_mode"})
-        self.smoothing, self.shield = cfg.action_smoothing, cfg.shield_active
+        self.smoothing, self.shield, self.at_place = cfg.action_smoothing, cfg.shield_active, cfg.shield_at_place
 
     def __call__(self, n: int) -> Any:
         from .vec_env import BatchedVecEnv
 
-        return BatchedVecEnv(n, self.smoothing, self.shield, **self.env_kwargs)
+        return BatchedVecEnv(n, self.smoothing, self.shield, self.at_place, **self.env_kwargs)
 
 
 def make_vec_env(cfg: TrainConfig, seed: int) -> Any:
@@ -80,7 +84,8 @@ def make_vec_env(cfg: TrainConfig, seed: int) -> Any:
     if kind == "batched":
         venv = VecMonitor(BatchedFactory(_env_kwargs(cfg), cfg)(cfg.n_envs), info_keywords=("is_success",))
     else:
-        factory = EnvFactory(_env_kwargs(cfg), smoothing=cfg.action_smoothing, shield=cfg.shield_active)
+        factory = EnvFactory(_env_kwargs(cfg), smoothing=cfg.action_smoothing, shield=cfg.shield_active,
+                             shield_at_place=cfg.shield_at_place)
         fns = [factory] * cfg.n_envs
         venv = SubprocVecEnv(fns, start_method="forkserver") if kind == "subproc" else DummyVecEnv(fns)
     venv.seed(seed)
@@ -153,7 +158,8 @@ def _callbacks(cfg: TrainConfig, run_dir: Path) -> list[Any]:
     eval_kwargs["reward"] = {**eval_kwargs["reward"], **{k: v[1] for k, v in cfg.reward_ramp.items()}}
     ramp = [RewardRampCallback(cfg.reward_ramp, cfg.reward_ramp_fraction, cfg.total_steps)] if cfg.reward_ramp else []
     return ramp + [ProgressCallback(cfg.total_steps), EpisodeLogCallback(run_dir / "learning_curve.csv"),
-            EvalCheckpointCallback(run_dir, EnvFactory(eval_kwargs, monitor=False), cfg.eval_every,
+            EvalCheckpointCallback(run_dir, EnvFactory(eval_kwargs, monitor=False, shield_at_place=cfg.shield_at_place),
+                                   cfg.eval_every,
                                    cfg.eval_episodes, cfg.eval_seed, cfg.checkpoint_every, cfg.policy == "lstm",
                                    cfg.action_smoothing, cfg.shield_active,
                                    BatchedFactory(eval_kwargs, cfg) if cfg.vec_env_kind == "batched" else None)]

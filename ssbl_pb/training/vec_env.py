@@ -26,13 +26,14 @@ from ..errors import UserError
 class BatchedVecEnv(VecEnv):
     """``num`` copies of the Vector-mode task; ``env_kwargs`` as for ``BatchedApproach`` (scenario, weights...)."""
 
-    def __init__(self, num: int, smoothing: float = 1.0, shield: bool = False, **env_kwargs: Any) -> None:
+    def __init__(self, num: int, smoothing: float = 1.0, shield: bool = False, shield_at_place: bool = False,
+                 **env_kwargs: Any) -> None:
         self.batch = BatchedApproach(num, **env_kwargs)
         b = self.batch
         if not 0.0 < smoothing <= 1.0:
             raise UserError(f"action smoothing alpha {smoothing!r}: expected a number in (0, 1]")
         self.filter = ActionFilter(smoothing) if smoothing < 1.0 else None
-        self.shield = ShieldParams.from_env(b.robot_params, b.social, b.task) if shield else None
+        self.shield = ShieldParams.from_env(b.robot_params, b.social, b.task, shield_at_place) if shield else None
         self.render_mode = None
         size = b.obs_size  # with the range scan or without (``scan=False``)
         obs_space = gym.spaces.Box(-ob.OBS_LIMIT, ob.OBS_LIMIT, shape=(size,), dtype=np.float32)
