@@ -97,7 +97,7 @@ class TrainConfig:
     safety_shield: bool = True  # agent-side safety shield (env.shield), the last action stage; it reads the
     #                             Vector observation, so camera modes train without it
     shield_at_place: bool = False  # near its place the shield keeps the place's clearance from the members
-    #                                (ShieldParams.place_clearance; stage 7), carried to every tool and deploy
+    #                                (ShieldParams.place_clearance; on for the shipped vector); tools and deploy too
 
     @property
     def vec_env_kind(self) -> str:
