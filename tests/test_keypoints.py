@@ -7,7 +7,7 @@ import pytest
 
 from ssbl_pb.params import RobotParams
 from ssbl_pb.perception.keypoints import calibrate, merge_points, nearest_member_distance, plane_projection
-from ssbl_pb.perception.probe import fit_linear, member_probe, predict_linear
+from ssbl_pb.perception.probe import fit_linear, member_probe, pixel_probe, predict_linear
 from ssbl_pb.perception.sim_eval import sim_camera
 
 
@@ -45,6 +45,22 @@ def test_linear_probe_recovers_a_linear_map() -> None:
     members[::3, 1] = np.nan  # member out of view in a third of the frames
     res = member_probe(x[:200], members[:200], x[200:], members[200:], ridge=1e-8)
     assert res["median_m"] < 1e-6 and res["scored"] == 67
+
+
+def test_probe_splits_its_error_into_depth_and_lateral_parts() -> None:
+    # member 0 stands at depth 1 or 3 m (alternating) and 0.5 m to the left; a constant predicts the means
+    members = np.full((8, 2, 2), np.nan)
+    members[:, 0] = [[1.0 if i % 2 else 3.0, 0.5] for i in range(8)]
+    none = np.zeros((8, 0))
+    res = member_probe(none[:4], members[:4], none[4:], members[4:], ridge=1e-8)
+    assert res["median_depth_m"] == pytest.approx(1.0) and res["median_lateral_m"] == pytest.approx(0.0)
+    assert res["median_m"] == pytest.approx(1.0) and res["scored"] == 4
+    # its own pixel row carries the depth exactly (a linear map of it): the pixel probe recovers it
+    px = np.zeros((8, 2, 2))
+    px[:, 0, 1] = 40.0 - 5.0 * members[:, 0, 0]
+    px[:, 1] = np.nan
+    res = pixel_probe(px[:4], members[:4], px[4:], members[4:], ridge=1e-8)
+    assert res["median_m"] < 1e-6 and res["scored"] == 4
 
 
 def test_pets_person_boxes_stand_on_their_ground_points(shared_data) -> None:

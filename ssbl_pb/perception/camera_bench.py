@@ -74,11 +74,14 @@ def training_throughput(encoder: str, obs_mode: str = "camera_speed", policy: st
 def probe_encoders(frames: dict[str, np.ndarray], checkpoints: dict[str, str]) -> dict[str, dict[str, float]]:
     """Linear probe of each encoder's features -> visible members' positions; held-out = validation episodes."""
     from ..env.encoded import FrozenEncoder
-    from .probe import member_probe, visible_members
+    from .probe import member_probe, pixel_probe, visible_members
 
     train_c, val_c = split_centres(frames["episode"], 10)
     members = visible_members(frames)
-    out = {}
+    n_tr, n_val = len(train_c), len(val_c)
+    px = frames["members_px"].astype(float)
+    out = {"constant": member_probe(np.zeros((n_tr, 0)), members[train_c], np.zeros((n_val, 0)), members[val_c]),
+           "true_torso_pixels": pixel_probe(px[train_c], members[train_c], px[val_c], members[val_c])}
     for name, path in checkpoints.items():
         enc = FrozenEncoder(load_autoencoder(path))
         feats = np.concatenate([enc.encode(frames["frames"][i:i + 512]) for i in range(0, len(frames["frames"]),

@@ -3,7 +3,10 @@
 A linear map (ridge regression on standardised features, one per member slot: members keep their colour, so a
 slot is one person's appearance) is fitted on training frames from the features to each visible member's
 position relative to the robot, and scored on held-out frames: the distance between predicted and true
-positions, over every visible member of every held-out frame.
+positions, over every visible member of every held-out frame, split into its depth (the robot's x) and
+lateral (y) parts. Two reference rows bound it: a constant per member (the training mean) and the members' true
+torso pixels, each slot from its own pixel (``pixel_probe``): what a perfect keypoint on every member gives a
+linear map, whose depth error stays large because a torso's pixel says little about its distance.
 """
 
 from __future__ import annotations
@@ -31,16 +34,34 @@ def member_probe(feat_train: np.ndarray, members_train: np.ndarray, feat_test: n
     """Median / 90th-percentile error (m) of per-slot linear maps features -> visible member positions.
 
     ``members_*`` (N, M, 2): robot-frame positions of the members in view, NaN otherwise."""
+    return _slot_probe(lambda m: feat_train, members_train, lambda m: feat_test, members_test, ridge)
+
+
+def pixel_probe(px_train: np.ndarray, members_train: np.ndarray, px_test: np.ndarray, members_test: np.ndarray,
+                ridge: float = 1e-2) -> dict[str, float]:
+    """``member_probe``'s reference: each member slot's position from its own true pixel (``px_*`` (N, M, 2))."""
+    return _slot_probe(lambda m: px_train[:, m], members_train, lambda m: px_test[:, m], members_test, ridge)
+
+
+def _slot_probe(train_x, members_train: np.ndarray, test_x, members_test: np.ndarray, ridge: float
+                ) -> dict[str, float]:
     errors = []
     for m in range(members_train.shape[1]):
         tr, te = np.isfinite(members_train[:, m, 0]), np.isfinite(members_test[:, m, 0])
-        if tr.sum() < feat_train.shape[1] + 2 or not te.any():
+        x_tr = train_x(m)
+        if tr.sum() < x_tr.shape[1] + 2 or not te.any():
             continue
-        fit = fit_linear(feat_train[tr], members_train[tr, m], ridge)
-        errors.append(np.linalg.norm(predict_linear(fit, feat_test[te]) - members_test[te, m], axis=1))
-    e = np.concatenate(errors) if errors else np.zeros(0)
-    return {"median_m": float(np.median(e)) if len(e) else float("nan"),
-            "p90_m": float(np.percentile(e, 90)) if len(e) else float("nan"), "scored": int(len(e))}
+        fit = fit_linear(x_tr[tr], members_train[tr, m], ridge)
+        errors.append(predict_linear(fit, test_x(m)[te]) - members_test[te, m])
+    e = np.concatenate(errors) if errors else np.zeros((0, 2))
+    dist = np.linalg.norm(e, axis=1)
+
+    def med(v: np.ndarray) -> float:
+        return float(np.median(v)) if len(v) else float("nan")
+
+    return {"median_m": med(dist), "p90_m": float(np.percentile(dist, 90)) if len(dist) else float("nan"),
+            "median_depth_m": med(np.abs(e[:, 0])), "median_lateral_m": med(np.abs(e[:, 1])),
+            "scored": int(len(dist))}
 
 
 def visible_members(data: dict[str, np.ndarray]) -> np.ndarray:
