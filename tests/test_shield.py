@@ -288,14 +288,16 @@ def test_a_policys_shield_at_place_travels_to_evaluation_and_deploy(tmp_path):
     assert load_trained(str(tmp_path)).shield.params.place_clearance == 0.0
     (tmp_path / "config.yaml").write_text(yaml.safe_dump({**cfg, "shield_at_place": True}))
     params = load_trained(str(tmp_path)).shield.params
-    assert (params.clearance_min, params.place_clearance) == pytest.approx((0.50, 0.60))
+    assert (params.clearance_min, params.place_clearance, params.place_arrival_speed) == pytest.approx(
+        (0.50, 0.60, 0.05))
     robot = tmp_path / "robot.yaml"
     robot.write_text("max_accel: 0.15\n")
     _, policy = Setup(str(tmp_path), env_kwargs=(("robot_yaml", str(robot)),))()
     assert policy.shield.params.place_clearance == pytest.approx(0.60)
     assert policy.shield.params.brake_accel == pytest.approx(0.1)
     on_robot = deploy_shield(RobotParams(), SocialParams(), TaskParams(), 0.45, shield_at_place(str(tmp_path)))
-    assert (on_robot.clearance_min, on_robot.place_clearance) == pytest.approx((0.55, 0.60))
+    assert (on_robot.clearance_min, on_robot.place_clearance, on_robot.place_arrival_speed) == pytest.approx(
+        (0.55, 0.60, 0.05))
 
 
 def test_near_its_place_the_shield_keeps_the_places_clearance():
@@ -311,6 +313,35 @@ def test_near_its_place_the_shield_keeps_the_places_clearance():
         for params, c_min in ((at_place, kept), (P, 0.5)):
             v = shield_action(obs, np.array([1.0, 0.0], dtype=np.float32), params)[0] * P.max_speed
             assert v == pytest.approx(math.sqrt(2 * a * (0.75 - c_min)), abs=1e-3), (place, params)
+
+
+def test_near_its_place_the_shield_caps_the_speed_to_arrive_slowly():
+    """No member in view, full speed asked straight ahead: with ``place_arrival_speed`` 0.05 the speed allowed is
+    sqrt(0.05^2 + 2 a (d - 0.3)) at d m from the place (a = 0.2: 0.206 m/s at 0.4 m, 0.05 within 0.3 m, the full
+    0.35 beyond 0.6 m), in the direction asked; without it, nothing changes; a bad value is refused by name; and
+    it holds only where the robot keeps the clearance asked of it from every member."""
+    from ssbl_pb.env.shield import place_speed_cap
+
+    slow = ShieldParams(place_arrival_speed=0.05)
+    assert place_speed_cap(0.4, 0.05, 0.2) == pytest.approx(math.sqrt(0.05 ** 2 + 2 * 0.2 * 0.1))
+    for place, speed in ((1.0, P.max_speed), (0.4, 0.2062), (0.2, 0.05), (0.0, 0.05)):
+        obs = obs_with(np.zeros((0, 2)))
+        obs[0] = place / POS_SCALE
+        cmd = np.array([0.6, 0.8], dtype=np.float32)
+        out = shield_action(obs, cmd, slow) * P.max_speed
+        assert np.hypot(*out) == pytest.approx(speed, abs=1e-3), place
+        assert out[1] / out[0] == pytest.approx(0.8 / 0.6, rel=1e-5)
+        assert shield_action(obs, cmd, P) == pytest.approx(cmd, abs=1e-6)
+    with pytest.raises(ConfigError, match="place_arrival_speed"):
+        ShieldParams(place_arrival_speed=-0.1)
+    # a member beside it, 0.2 m from the place, driving straight on (not closing on the member): capped where it
+    # keeps the place's 0.6 m from the member, not where it is closer (stopping would leave it there)
+    both = ShieldParams(place_clearance=0.6, place_arrival_speed=0.05)
+    for beside, speed in ((0.65, 0.05), (0.55, P.max_speed)):
+        obs = obs_with([(0.0, -(REACH + P.human_radius + beside))])
+        obs[0] = 0.2 / POS_SCALE
+        out = shield_action(obs, np.array([1.0, 0.0], dtype=np.float32), both) * P.max_speed
+        assert np.hypot(*out) == pytest.approx(speed, abs=1e-3), beside
 
 
 def test_at_place_the_approach_ends_outside_the_members_repulsion_zone():

@@ -44,11 +44,14 @@ class ShieldParams:
     base_accel: float = 0.3  # m/s^2: the base's own limit (NAOqi default), over one control period:
     control_period: float = 0.1  # s (the env's and the deploy loop's 10 Hz)
     place_clearance: float = 0.0  # m kept from every member near the place (0: off; ``from_env``'s ``at_place``)
+    place_arrival_speed: float = 0.0  # m/s the approach slows to at the place's tolerance (0: off; ``at_place``)
 
     def __post_init__(self) -> None:
         _positive("shield", self, "clearance_min", "brake_accel", "max_speed", "half_length", "half_width",
                   "human_radius", "obstacle_clearance_min", "base_accel", "control_period")
         _check(self.place_clearance >= 0, "shield", "place_clearance", self.place_clearance, ">= 0")
+        _check(0 <= self.place_arrival_speed <= self.max_speed, "shield", "place_arrival_speed",
+               self.place_arrival_speed, f"in [0, max_speed = {self.max_speed}]")
         _check(self.brake_accel <= 0.55, "shield", "brake_accel", self.brake_accel, "<= 0.55 m/s^2 (Pepper's max)")
 
     @classmethod
@@ -56,16 +59,20 @@ class ShieldParams:
                  at_place: bool = False) -> ShieldParams:
         """The shield of an env's robot. ``at_place`` (a policy's config ``shield_at_place``): near its place it
         keeps the place's own clearance from every member (``layouts.slot_keep`` between centres: 0.6 m between
-        the member's body and the footprint's circle), instead of the intimate zone plus 0.05.
+        the member's body and the footprint's circle), instead of the intimate zone plus 0.05; and it slows the
+        approach to half the success rule's stop speed where the place's tolerance begins (``place_speed_cap``).
 
         Ours (issue 14): braking for 0.5 m, the shield ended the approach 5-10 cm past the place, inside the
         members' 1.2 m repulsion zone, and they stepped away (members displaced 0.17 m against the SFFM's 0.07).
-        Kept everywhere, 0.6 m also blocked ways round a group's members (10 points of `mixed`)."""
+        Kept everywhere, 0.6 m also blocked ways round a group's members (10 points of `mixed`). The speed cap
+        (ours, issue 14's arrival speed): the policy braked at the base's limit into the place and arrived at
+        0.087 m/s, the success rule's 0.1 less one period's braking, however its reward priced the arrival."""
         return cls(clearance_min=task.intimate_zone + 0.05, brake_accel=robot.max_accel * 2.0 / 3.0,
                    max_speed=robot.max_speed, half_length=robot.length / 2, half_width=robot.width / 2,
                    human_radius=social.human_radius, base_accel=robot.max_accel,
                    place_clearance=slot_keep(social, robot.reach, task.intimate_zone, task.route_margin)
-                   - social.human_radius - robot.reach if at_place else 0.0)
+                   - social.human_radius - robot.reach if at_place else 0.0,
+                   place_arrival_speed=task.stop_speed / 2 if at_place else 0.0)
 
 
 @njit(cache=True)
@@ -189,7 +196,8 @@ SLIDE_ANGLES = (math.pi / 4, -math.pi / 4, math.pi / 2, -math.pi / 2)  # tried i
 @njit(cache=True)
 def shield_row(obs: np.ndarray, action: np.ndarray, out: np.ndarray, clearance_min: float, brake_accel: float,
                max_speed: float, half_length: float, half_width: float, human_radius: float,
-               obstacle_clearance_min: float, accel_step: float, place_clearance: float) -> None:
+               obstacle_clearance_min: float, accel_step: float, place_clearance: float,
+               place_arrival_speed: float) -> None:
     """The action (approach frame, in [-1, 1]) with its excess closing speed on each member removed, into ``out``:
     members nearest first, each limiting the closing speed to ``sqrt(2 a (c - c_min))``; then the same for every
     ray of the range scan that ends within its range (observations longer than ``BASE_SIZE``), in up to
@@ -204,9 +212,11 @@ def shield_row(obs: np.ndarray, action: np.ndarray, out: np.ndarray, clearance_m
     quarter of the speed: the robot slides along the obstacle as a person would.
 
     Near the place shown in the observation (its entries 0-1), ``clearance_min`` rises to ``place_clearance``
-    (when larger): fully within ``PLACE_NEAR``, linearly less out to ``PLACE_FAR``."""
+    (when larger): fully within ``PLACE_NEAR``, linearly less out to ``PLACE_FAR``; and with
+    ``place_arrival_speed`` the speed is capped as it nears that place (``place_speed_cap``)."""
     out[:] = action
-    near = (PLACE_FAR - math.hypot(float(obs[0]), float(obs[1])) * POS_SCALE) / (PLACE_FAR - PLACE_NEAR)
+    to_place = math.hypot(float(obs[0]), float(obs[1])) * POS_SCALE
+    near = (PLACE_FAR - to_place) / (PLACE_FAR - PLACE_NEAR)
     clearance_min += max(place_clearance - clearance_min, 0.0) * min(max(near, 0.0), 1.0)
     reach = math.hypot(half_length, half_width)
     clear = np.full(MAX_MEMBERS, np.inf)
@@ -253,15 +263,32 @@ def shield_row(obs: np.ndarray, action: np.ndarray, out: np.ndarray, clearance_m
                                       obstacle_clearance_min)
         out[0] = min(max(sx / max_speed, -1.0), 1.0)
         out[1] = min(max(sy / max_speed, -1.0), 1.0)
+    if place_arrival_speed > 0.0 and clear.min() >= clearance_min - CAP_SLACK:
+        cap = place_speed_cap(to_place, place_arrival_speed, brake_accel) / max_speed
+        norm = math.hypot(float(out[0]), float(out[1]))
+        if norm > cap:
+            out[0], out[1] = out[0] * (cap / norm), out[1] * (cap / norm)
+
+
+CAP_SLACK = 0.01  # m: the speed cap holds only where the robot keeps the clearance asked of it, less this
+
+
+@njit(cache=True)
+def place_speed_cap(to_place: float, arrival_speed: float, brake_accel: float) -> float:
+    """Top speed (m/s) at ``to_place`` metres from the place: ``sqrt(v_a^2 + 2 a (d - PLACE_NEAR))``, braking at
+    ``a`` to reach ``v_a`` where the place's tolerance (``PLACE_NEAR``) begins, and ``v_a`` within it. With
+    Pepper's 0.2 m/s^2 it binds only within 0.6 m of the place (0.35 m/s there)."""
+    return math.sqrt(arrival_speed * arrival_speed + 2.0 * brake_accel * max(to_place - PLACE_NEAR, 0.0))
 
 
 @njit(cache=True)
 def _shield_rows(obs: np.ndarray, actions: np.ndarray, out: np.ndarray, clearance_min: float, brake_accel: float,
                  max_speed: float, half_length: float, half_width: float, human_radius: float,
-                 obstacle_clearance_min: float, accel_step: float, place_clearance: float) -> None:
+                 obstacle_clearance_min: float, accel_step: float, place_clearance: float,
+                 place_arrival_speed: float) -> None:
     for i in range(obs.shape[0]):
         shield_row(obs[i], actions[i], out[i], clearance_min, brake_accel, max_speed, half_length, half_width,
-                   human_radius, obstacle_clearance_min, accel_step, place_clearance)
+                   human_radius, obstacle_clearance_min, accel_step, place_clearance, place_arrival_speed)
 
 
 def shield_actions(obs: np.ndarray, actions: np.ndarray, p: ShieldParams) -> np.ndarray:
@@ -279,7 +306,7 @@ def shield_action(obs: np.ndarray, action: np.ndarray, p: ShieldParams) -> np.nd
 
 def _limits(p: ShieldParams) -> tuple[float, ...]:
     return (p.clearance_min, p.brake_accel, p.max_speed, p.half_length, p.half_width, p.human_radius,
-            p.obstacle_clearance_min, p.base_accel * p.control_period, p.place_clearance)
+            p.obstacle_clearance_min, p.base_accel * p.control_period, p.place_clearance, p.place_arrival_speed)
 
 
 class SafetyShield:

@@ -160,8 +160,8 @@ def _compatible(model_space: gym.Space, env_space: gym.Space) -> bool:
 
 
 def shield_at_place(spec: str) -> bool:
-    """Whether a trained model's shield keeps its place's clearance near the place (config ``shield_at_place``,
-    ``ShieldParams.place_clearance``; off for models trained before it and for baselines)."""
+    """Whether a trained model's shield keeps its place's clearance and slows its arrival near the place (config
+    ``shield_at_place``, ``ShieldParams.from_env``; off for models trained before it and for baselines)."""
     from .policies import BASELINES
 
     return spec not in BASELINES and bool(resolve_model(spec)[2].get("shield_at_place", False))

@@ -96,8 +96,9 @@ class TrainConfig:
     action_smoothing: float = 0.4  # agent-side action filter (env.wrappers.ActionSmoothing); 1.0 = off
     safety_shield: bool = True  # agent-side safety shield (env.shield), the last action stage; it reads the
     #                             Vector observation, so camera modes train without it
-    shield_at_place: bool = False  # near its place the shield keeps the place's clearance from the members
-    #                                (ShieldParams.place_clearance; on for the shipped vector); tools and deploy too
+    shield_at_place: bool = False  # near its place the shield keeps the place's clearance from the members and
+    #                                slows the arrival (ShieldParams.place_clearance, place_arrival_speed; on for
+    #                                the shipped vector); tools and deploy too
 
     @property
     def vec_env_kind(self) -> str:
