@@ -79,7 +79,7 @@ def write_table(out: Path, results: list[dict[str, Any]], budget: Budget, comman
     write_json(out / "table1.json", rows)
     lines = [f"# Table I (budget `{budget.name}`)", "", f"Produced by `{command}`.", "",
              "Reward: the best periodic evaluation's mean return (our reward's scale, not the paper's; see "
-             "ssbl_pb/table1.py for why not the smoothed training reward); percentage: 0 % = random policy, "
+             "ssbl_pb/analysis/table1.py for why not the smoothed training reward); percentage: 0 % = random policy, "
              f"100 % = Vector + LSTM, per seed; success: best model on {budget.test_episodes} held-out episodes "
              "(seeds from 500000). Mean ± sd over seeds.", "",
              "| row | reward | percent | success | seeds | paper reward | paper percent |",
