@@ -37,9 +37,10 @@ def make_loop(seed=11, policy="sffm", folder=None, clock_cls=SimClock, groups="c
     social = SocialParams()
     if policy == "vector":
         from ssbl_pb.env.task import TaskParams
-        from ssbl_pb.env.trained import load_trained
+        from ssbl_pb.env.trained import load_trained, shield_at_place
 
-        shield = deploy_shield(RobotParams(), social, TaskParams(), DeployParams().stop_distance)
+        shield = deploy_shield(RobotParams(), social, TaskParams(), DeployParams().stop_distance,
+                               shield_at_place("vector"))  # as the CLI builds it: the place's clearance and cap
         policy = load_trained("vector", shield_params=shield)
     pol = policy if not isinstance(policy, str) else make_policy(policy, RobotParams(), social, seed=0)
     perception = Perception(robot, clock.now, "colour", RobotParams(), social=social, threaded=False)
@@ -68,6 +69,8 @@ def test_joins_the_group_and_logs_a_dynamics_log(tmp_path, groups):
     assert robot._cmd.tolist() == [0.0, 0.0, 0.0] and robot.closed
     rows = read_log(tmp_path)
     assert [r["state"] for r in rows][:3] == ["settle"] * 3 and rows[-1]["state"] == "joined"
+    # deploy judges arrival on its estimate 0.1 m inside the tolerance (loop.ARRIVAL_MARGIN)
+    assert rows[-1]["slot_distance_m"] < 0.2
     assert {"t", "cmd_vx", "odom_x", "humans", "tick_ms", "estimate_age_ms", "room_pose"} <= set(rows[-1])
     dyn = read_dynamics_log(tmp_path / "log.jsonl")  # the calibration tool reads the same file
     assert len(dyn.t) == len(rows) and dyn.from_pose
