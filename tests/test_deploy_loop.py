@@ -54,7 +54,7 @@ def make_loop(seed=11, policy="sffm", folder=None, clock_cls=SimClock, groups="c
 @pytest.mark.parametrize("groups", ["calibrated", "paper"])
 def test_joins_the_group_and_logs_a_dynamics_log(tmp_path, groups):
     # the shipped policy on real-sized groups (calibrated, what it was trained on); deploy's model of the paper's
-    # 1.0 m circles with the SFFM baseline (the shipped policy joins 74.5 % of paper groups since the sixth stage:
+    # 1.0 m circles with the SFFM baseline (the shipped policy joins 97 % of paper groups with its place shield:
     # docs/benchmarks.md)
     loop, robot, log = make_loop(12, "vector" if groups == "calibrated" else "sffm", tmp_path, groups=groups)
     outcome, message = loop.run()
