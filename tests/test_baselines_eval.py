@@ -130,3 +130,9 @@ def test_compare_marks_the_better_side():
     assert cmp["success"]["better"] is None  # no discordant pairs
     assert cmp["n_humans"]["better"] is None  # descriptive: no direction
     assert compare_rows(baseline, learned)["mean_jerk"]["better"] == "baseline"
+    # a rank test's side: 19 pairs a little lower, one far higher (mean higher), is lower in the test's terms
+    skew_l = [{"human_displacement_m": 0.10 - 0.001 * i if i else 1.0} for i in range(20)]
+    skew_b = [{"human_displacement_m": 0.11 - 0.001 * i} for i in range(20)]
+    skew = compare_rows(skew_l, skew_b)["human_displacement_m"]
+    assert skew["learned"]["mean"] > skew["baseline"]["mean"] and skew["test"]["mean_diff"] > 0
+    assert skew["test"]["effect"] < 0 and skew["test"]["p"] < 0.05 and skew["better"] == "learned"

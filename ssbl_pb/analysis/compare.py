@@ -48,7 +48,13 @@ def paired_test(a: list[float], b: list[float], binary: bool) -> dict[str, float
 
 def compare_rows(learned: list[dict[str, float]], baseline: list[dict[str, float]], alpha: float = 0.05
                  ) -> dict[str, Any]:
-    """Per metric: means with 95 % CIs for both, the paired test, and which side is better (if significant)."""
+    """Per metric: means with 95 % CIs for both, the paired test, and which side is better (if significant).
+
+    The side is the one the test finds lower: for McNemar's, the rarer of the discordant pairs (the means
+    agree); for Wilcoxon's signed-rank test, the sign of its rank-biserial effect, which can disagree with the
+    means when a few pairs differ by much (members displaced, issue 14: the learned robot displaces members less
+    in most pairs, more in a tail of starts beside a member, and its mean is the higher one). ``mean_diff`` keeps
+    the means' side in view."""
     out: dict[str, Any] = {}
     for key in learned[0]:
         if key == "seed":
@@ -56,19 +62,20 @@ def compare_rows(learned: list[dict[str, float]], baseline: list[dict[str, float
         a, b = [r[key] for r in learned], [r[key] for r in baseline]
         test = paired_test(a, b, key in BINARY)
         ma, mb = mean_ci(a), mean_ci(b)
+        test["mean_diff"] = ma["mean"] - mb["mean"] if math.isfinite(ma["mean"]) and math.isfinite(mb["mean"]) \
+            else math.nan
+        shift = test["mean_diff"] if test["test"] == "mcnemar" else test["effect"]
         better = None
         directed = key in LOWER_IS_BETTER or key in HIGHER_IS_BETTER
-        if directed and test["p"] < alpha and math.isfinite(ma["mean"]) and math.isfinite(mb["mean"]) \
-                and ma["mean"] != mb["mean"]:
-            learned_lower = ma["mean"] < mb["mean"]
-            better = "learned" if learned_lower == (key in LOWER_IS_BETTER) else "baseline"
+        if directed and test["p"] < alpha and math.isfinite(shift) and shift != 0:
+            better = "learned" if (shift < 0) == (key in LOWER_IS_BETTER) else "baseline"
         out[key] = {"learned": ma, "baseline": mb, "test": test, "better": better}
     return out
 
 
 def markdown_table(cmp: dict[str, Any], names: tuple[str, str] = ("learned", "SFFM")) -> str:
-    lines = [f"| metric | {names[0]} (95 % CI) | {names[1]} (95 % CI) | test | p | better |",
-             "|---|---|---|---|---|---|"]
+    lines = [f"| metric | {names[0]} (95 % CI) | {names[1]} (95 % CI) | test | p | effect | better |",
+             "|---|---|---|---|---|---|---|"]
 
     def fmt(m: dict[str, float]) -> str:
         if not math.isfinite(m["mean"]):
@@ -79,8 +86,16 @@ def markdown_table(cmp: dict[str, Any], names: tuple[str, str] = ("learned", "SF
         t = c["test"]
         mark = {"learned": names[0], "baseline": names[1], None: ""}[c["better"]]
         lines.append(f"| {key}{' **' if key in SOCIAL else ''} | {fmt(c['learned'])} | {fmt(c['baseline'])} | "
-                     f"{t['test']} (n={t['n']}) | {t['p']:.2g} | {mark} |")
+                     f"{t['test']} (n={t['n']}) | {t['p']:.2g} | {_effect(t)} | {mark} |")
     return "\n".join(lines)
+
+
+def _effect(test: dict[str, Any]) -> str:
+    """The table's effect column: Wilcoxon's rank-biserial r (+: learned higher in more pairs, weighted by rank)
+    with the median pair difference; McNemar's discordant pairs (learned only / baseline only)."""
+    if test["test"] == "mcnemar":
+        return f"{test['a_only']} / {test['b_only']}"
+    return f"r {test['effect']:+.2f}, median {test['median_diff']:+.3g}"
 
 
 def speed_profile(trajectories: list[list[dict[str, Any]]], bins: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
