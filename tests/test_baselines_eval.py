@@ -128,6 +128,9 @@ def test_compare_marks_the_better_side():
     cmp = compare_rows(learned, baseline)
     assert cmp["mean_jerk"]["better"] == "learned" and cmp["mean_jerk"]["test"]["p"] < 0.05
     assert cmp["success"]["better"] is None  # no discordant pairs
+    both = compare_rows([{"obstacle_collision": float(i < 9)} for i in range(20)],
+                        [{"obstacle_collision": 0.0} for _ in range(20)])["obstacle_collision"]
+    assert both["test"]["test"] == "mcnemar" and both["test"]["a_only"] == 9 and both["better"] == "baseline"
     assert cmp["n_humans"]["better"] is None  # descriptive: no direction
     assert compare_rows(baseline, learned)["mean_jerk"]["better"] == "baseline"
     # a rank test's side: 19 pairs a little lower, one far higher (mean higher), is lower in the test's terms
