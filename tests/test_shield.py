@@ -1,5 +1,6 @@
 """The safety shield: footprint geometry, the closing-speed limit, and the closed loop never entering a zone."""
 
+import dataclasses
 import math
 
 import numpy as np
@@ -290,6 +291,7 @@ def test_a_policys_shield_at_place_travels_to_evaluation_and_deploy(tmp_path):
     params = load_trained(str(tmp_path)).shield.params
     assert (params.clearance_min, params.place_clearance, params.place_arrival_speed) == pytest.approx(
         (0.50, 0.60, 0.05))
+    assert params.ospace_keep_out
     robot = tmp_path / "robot.yaml"
     robot.write_text("max_accel: 0.15\n")
     _, policy = Setup(str(tmp_path), env_kwargs=(("robot_yaml", str(robot)),))()
@@ -298,6 +300,8 @@ def test_a_policys_shield_at_place_travels_to_evaluation_and_deploy(tmp_path):
     on_robot = deploy_shield(RobotParams(), SocialParams(), TaskParams(), 0.45, shield_at_place(str(tmp_path)))
     assert (on_robot.clearance_min, on_robot.place_clearance, on_robot.place_arrival_speed) == pytest.approx(
         (0.55, 0.60, 0.05))
+    assert on_robot.ospace_keep_out and not ShieldParams.from_env(RobotParams(), SocialParams(), TaskParams()
+                                                                  ).ospace_keep_out
 
 
 def test_near_its_place_the_shield_keeps_the_places_clearance():
@@ -365,3 +369,47 @@ def test_at_place_the_approach_ends_outside_the_members_repulsion_zone():
             ends.append(float(np.hypot(*(last["members"] - last["robot"][:2]).T).min()))
         inside.append(min(ends))
     assert inside[0] < 1.15 and inside[1] >= 1.18
+
+
+def test_the_shield_keeps_the_robot_out_of_the_ospace_short_of_the_places_ring():
+    """Group centre 1.0 m ahead with an o-space radius of 0.9 m: the robot's centre may come to 0.6 m from it
+    (``OSPACE_MARGIN`` 0.3 inside the radius). Full speed at the centre: the closing speed on it is cut to
+    sqrt(2 a (d - 0.6)) (0.2 m/s at d = 0.7), the sideways part kept; at 0.6 m only sideways motion is left; away
+    from the centre nothing changes; without ``ospace_keep_out`` nothing is braked."""
+    from ssbl_pb.env.shield import OSPACE_MARGIN
+
+    keep = ShieldParams(ospace_keep_out=True)
+    assert OSPACE_MARGIN == pytest.approx(0.3)
+    for d, closing in ((1.2, P.max_speed * 0.6), (0.7, math.sqrt(2 * 0.2 * 0.1)), (0.6, 0.0), (0.5, 0.0)):
+        obs = obs_with(np.zeros((0, 2)))
+        obs[0], obs[2], obs[4] = 2.0 / POS_SCALE, d / POS_SCALE, 0.9 / POS_SCALE
+        out = shield_action(obs, np.array([0.6, 0.8], dtype=np.float32), keep) * P.max_speed
+        assert out[0] == pytest.approx(min(closing, P.max_speed * 0.6), abs=1e-4), d
+        assert out[1] == pytest.approx(P.max_speed * 0.8, abs=1e-4)
+        away = shield_action(obs, np.array([-0.6, 0.8], dtype=np.float32), keep)
+        assert away == pytest.approx([-0.6, 0.8], abs=1e-6)
+        assert shield_action(obs, np.array([0.6, 0.8], dtype=np.float32), P) == pytest.approx([0.6, 0.8], abs=1e-6)
+    with pytest.raises(ConfigError, match="ospace_keep_out"):
+        ShieldParams(ospace_keep_out="yes")
+
+
+def test_kept_out_of_the_ospace_the_shipped_policy_joins_the_pairs_it_lost_inside_it():
+    """Closed loop, the shipped policy on `mixed` starts (an L-shaped and a side-by-side pair, held-out seeds)
+    where, without the o-space keep-out, it ends inside the o-space 0.3-0.7 m inward of its place until the
+    time-out: with it, it joins both and never comes nearer the centre than the radius less 0.3 m (5 cm of
+    braking slack)."""
+    from ssbl_pb.env.rollout import run_episode
+    from ssbl_pb.env.trained import load_trained
+
+    env = ApproachGroupEnv(scenario="mixed", waypoints=True, waypoints_near_group=True)
+    core = env.unwrapped
+    params = ShieldParams.from_env(core.robot_params, core.social, core.task, True)
+    for keep, won in ((False, 0.0), (True, 1.0)):
+        policy = load_trained("vector", env.observation_space, None,
+                              dataclasses.replace(params, ospace_keep_out=keep))
+        for seed in (500029, 500123):
+            r = run_episode(env, policy, seed)
+            assert r.metrics["success"] == won, (keep, seed)
+            if keep:
+                inner = min(np.hypot(*(s["robot"][:2] - s["centre"])) - s["radius"] for s in r.trajectory)
+                assert inner >= -0.35
