@@ -7,7 +7,7 @@ import pytest
 
 from ssbl_pb.params import RobotParams
 from ssbl_pb.perception.keypoints import calibrate, merge_points, nearest_member_distance, plane_projection
-from ssbl_pb.perception.probe import fit_linear, member_probe, pixel_probe, predict_linear
+from ssbl_pb.perception.probe import fit_linear, fit_predict_mlp, member_probe, pixel_probe, predict_linear
 from ssbl_pb.perception.sim_eval import sim_camera
 
 
@@ -61,6 +61,22 @@ def test_probe_splits_its_error_into_depth_and_lateral_parts() -> None:
     px[:, 1] = np.nan
     res = pixel_probe(px[:4], members[:4], px[4:], members[4:], ridge=1e-8)
     assert res["median_m"] < 1e-6 and res["scored"] == 4
+
+
+def test_mlp_probe_reads_depth_from_a_torso_row_where_a_linear_map_cannot() -> None:
+    # a pinhole camera 0.25 m below the torso plane: row offset 50 * 0.25 / depth, column 50 * lateral / depth
+    rng = np.random.default_rng(0)
+    depth, lateral = rng.uniform(1.0, 5.0, 3000), rng.uniform(-1.0, 1.0, 3000)
+    members = np.full((3000, 1, 2), np.nan)
+    members[:, 0] = np.column_stack([depth, lateral])
+    px = np.column_stack([32.0 + 50.0 * lateral / depth, 32.0 - 12.5 / depth])[:, None]
+    lin = pixel_probe(px[:2400], members[:2400], px[2400:], members[2400:])
+    mlp = pixel_probe(px[:2400], members[:2400], px[2400:], members[2400:], reader="mlp")
+    assert lin["median_depth_m"] > 0.2 and mlp["median_m"] < 0.1 and mlp["scored"] == 600
+    small = [fit_predict_mlp(px[:300, 0], members[:300, 0], px[300:310, 0], epochs=2) for _ in range(2)]
+    assert np.array_equal(small[0], small[1])  # seeded
+    with pytest.raises(ValueError, match="reader 'knn'"):
+        pixel_probe(px[:2400], members[:2400], px[2400:], members[2400:], reader="knn")
 
 
 def test_pets_person_boxes_stand_on_their_ground_points(shared_data) -> None:

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from ssbl_pb.analysis.table1 import BUDGETS, ROWS, find_row, percent, row_trials, smoothed_best
-from ssbl_pb.analysis.table1_report import aggregate, ordering_checks
+from ssbl_pb.analysis.table1_report import aggregate, ordering_checks, ordering_detail
 
 
 def test_smoothed_best_and_percentage_by_hand() -> None:
@@ -40,6 +40,25 @@ def test_aggregate_takes_percentages_per_seed() -> None:
     assert checks["Vector + LSTM > CameraSpeed + SAEV + LSTM"] is True
     assert checks["CameraSpeed + SAEV + LSTM >= 80 %"] is True
     assert checks["CameraOnly + SAEV + FF > Random policy"] is None  # row missing
+
+
+def test_ordering_pairs_seeds_and_tests_them_by_hand() -> None:
+    # random 0 and Vector + LSTM 10 per seed: a row's percentage is 10 x its reward
+    results = []
+    for seed, saev in enumerate((9.1, 9.2, 8.7)):
+        results += [_res("Vector + LSTM", seed, 10.0), _res("Random policy", seed, 0.0),
+                    _res("CameraOnly + SAEV + FF", seed, saev), _res("CameraOnly + conv + FF", seed, 9.0)]
+    detail = {d["statement"]: d for d in ordering_detail(aggregate(results))}
+    d = detail["CameraOnly + SAEV + FF >= CameraOnly + conv + FF"]
+    # differences 1, 2, -3 points: mean 0, so the t statistic is 0 and p is 1; the mean 90 >= 90 holds
+    assert d["holds"] is True and d["mean_diff"] == pytest.approx(0.0, abs=1e-9)
+    assert (d["seeds_holding"], d["seeds_paired"]) == (2, 3) and d["p_paired"] == pytest.approx(1.0)
+    results[-2] = _res("CameraOnly + SAEV + FF", 2, 9.3)  # differences 1, 2, 3: t = 2 / (1 / sqrt 3) = 3.464,
+    d = {x["statement"]: x for x in ordering_detail(aggregate(results))}[
+        "CameraOnly + SAEV + FF >= CameraOnly + conv + FF"]
+    # two-sided p with 2 degrees of freedom: 1 - t / sqrt(t^2 + 2) = 1 - 3.464 / 3.742 = 0.0742
+    assert d["mean_diff"] == pytest.approx(2.0) and d["p_paired"] == pytest.approx(0.0742, abs=1e-4)
+    assert detail["CameraSpeed + SAEV + LSTM > CameraOnly + SAEV + FF"]["holds"] is None  # row missing
 
 
 def test_rows_are_sweep_trials_and_a_finished_one_is_read_back(tmp_path: Path) -> None:

@@ -71,8 +71,11 @@ def training_throughput(encoder: str, obs_mode: str = "camera_speed", policy: st
     return rate
 
 
-def probe_encoders(frames: dict[str, np.ndarray], checkpoints: dict[str, str]) -> dict[str, dict[str, float]]:
-    """Linear probe of each encoder's features -> visible members' positions; held-out = validation episodes."""
+def probe_encoders(frames: dict[str, np.ndarray], checkpoints: dict[str, str], mlp: bool = True
+                   ) -> dict[str, dict[str, float]]:
+    """Linear probe of each encoder's features -> visible members' positions; held-out = validation episodes.
+    With ``mlp``, the same rows read by a small MLP too (``NAME_mlp``: whether the features carry the members
+    at all; a few minutes on one core)."""
     from ..env.encoded import FrozenEncoder
     from .probe import member_probe, pixel_probe, visible_members
 
@@ -82,12 +85,18 @@ def probe_encoders(frames: dict[str, np.ndarray], checkpoints: dict[str, str]) -
     px = frames["members_px"].astype(float)
     out = {"constant": member_probe(np.zeros((n_tr, 0)), members[train_c], np.zeros((n_val, 0)), members[val_c]),
            "true_torso_pixels": pixel_probe(px[train_c], members[train_c], px[val_c], members[val_c])}
+    if mlp:
+        out["true_torso_pixels_mlp"] = pixel_probe(px[train_c], members[train_c], px[val_c], members[val_c],
+                                                   reader="mlp")
     for name, path in checkpoints.items():
         enc = FrozenEncoder(load_autoencoder(path))
         feats = np.concatenate([enc.encode(frames["frames"][i:i + 512]) for i in range(0, len(frames["frames"]),
                                                                                          512)])
         out[name] = member_probe(feats[train_c], members[train_c], feats[val_c], members[val_c])
         out[name]["feature_dim"] = enc.feature_dim
+        if mlp:
+            out[f"{name}_mlp"] = member_probe(feats[train_c], members[train_c], feats[val_c], members[val_c],
+                                              reader="mlp")
     return out
 
 
