@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import json
 import os
+import shlex
 import shutil
 from pathlib import Path
 
@@ -97,8 +98,9 @@ def main(argv: list[str] | None = None) -> int:
         info = {"source_run": str(args.run), "source_model": str(model), "model": args.model,
                 "episodes": args.episodes, "seeds": [seeds[0], seeds[-1]], "results": results,
                 "replaced": current, "forced": bool(worse),
-                "command": f"python tools/ship_policy.py {args.run} --model {args.model} --episodes {args.episodes}"
-                           + (" --force" if worse else "")}
+                "command": shlex.join(["python", "tools/ship_policy.py", str(args.run), "--name", args.name,
+                                       "--model", args.model, "--episodes", str(args.episodes),
+                                       "--seed", str(args.seed)] + (["--force"] if worse else []))}
         write_json(stage / "evaluation.json", info)
         old = SHIPPED_DIR / f".old-{args.name}"
         shutil.rmtree(old, ignore_errors=True)
