@@ -139,3 +139,14 @@ def test_compare_marks_the_better_side():
     skew = compare_rows(skew_l, skew_b)["human_displacement_m"]
     assert skew["learned"]["mean"] > skew["baseline"]["mean"] and skew["test"]["mean_diff"] > 0
     assert skew["test"]["effect"] < 0 and skew["test"]["p"] < 0.05 and skew["better"] == "learned"
+
+
+def test_path_panels_show_the_place_and_the_o_space() -> None:
+    from ssbl_pb.analysis.report import view_bounds
+
+    # the robot stays east of the members; the place lies 2 m west of them (seed 500495 of `mixed` was cut off)
+    robot = np.array([[3.0, 0.0], [1.0, 0.0]])
+    members = np.array([[[0.0, 1.0], [0.0, -1.0]]])
+    (x0, x1), (y0, y1) = view_bounds(robot, members, slot=(-2.0, 0.0), centre=(-0.5, 0.0), radius=1.0)
+    # x from the place (-2) to the start (3), each 1 m out: [-3, 4]; y widened to the same 7 m, centred on 0
+    assert (x0, x1) == pytest.approx((-3.0, 4.0)) and (y0, y1) == pytest.approx((-3.5, 3.5))

@@ -68,6 +68,18 @@ def box_corners(boxes: np.ndarray) -> np.ndarray:
     return np.stack([c * local[..., 0] - s * local[..., 1], s * local[..., 0] + c * local[..., 1]], -1) + b[:, None, :2]
 
 
+def view_bounds(robot: np.ndarray, members: np.ndarray, slot: Sequence[float], centre: Sequence[float],
+                radius: float, margin: float = 1.0) -> tuple[tuple[float, float], tuple[float, float]]:
+    """Square (x, y) limits of a path panel: the robot's path, the members', the place and the o-space circle,
+    ``margin`` metres round them."""
+    c, r = np.asarray(centre, dtype=float), float(radius)
+    pts = np.vstack([np.asarray(robot, float).reshape(-1, 2), np.asarray(members, float).reshape(-1, 2),
+                     np.asarray(slot, float).reshape(1, 2), c - r, c + r])
+    lo, hi = pts.min(0) - margin, pts.max(0) + margin
+    mid, half = (lo + hi) / 2, float(max(hi - lo)) / 2
+    return (mid[0] - half, mid[0] + half), (mid[1] - half, mid[1] + half)
+
+
 def plot_paths(path: Path, trajectories: list[list[dict[str, Any]]], titles: list[str], room: tuple[float, float],
                cols: int = 3, personal: float = 1.2, human_radius: float = 0.28) -> None:
     """Top-down paths of the robot (with speed colouring) and the members, one panel per episode, with the room's
@@ -100,11 +112,9 @@ def plot_paths(path: Path, trajectories: list[list[dict[str, Any]]], titles: lis
         sc = ax.scatter(robot[:, 0], robot[:, 1], c=speed, cmap="viridis", s=6, vmin=0, vmax=0.4)
         ax.plot(*first["robot"][:2], "ks", ms=6)
         ax.plot(*last["slot"], "rx", ms=9, mew=2)
-        lo = np.minimum(robot.min(0), members.reshape(-1, 2).min(0)) - 1.0
-        hi = np.maximum(robot.max(0), members.reshape(-1, 2).max(0)) + 1.0
-        c, half = (lo + hi) / 2, max(hi - lo) / 2
-        ax.set_xlim(c[0] - half, c[0] + half)
-        ax.set_ylim(c[1] - half, c[1] + half)
+        (x0, x1), (y0, y1) = view_bounds(robot, members, last["slot"], last["centre"], last["radius"])
+        ax.set_xlim(x0, x1)
+        ax.set_ylim(y0, y1)
         ax.set_aspect("equal")
         ax.set_title(title, fontsize=9)
     for ax in list(axes.flat)[n:]:
