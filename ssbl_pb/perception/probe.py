@@ -20,7 +20,7 @@ from collections.abc import Callable
 import numpy as np
 
 READERS = ("linear", "mlp")
-MLP_HIDDEN = 128  # ours: enough for 48-256 features and ~20k sightings, ~20 s per member slot on one core
+MLP_HIDDEN = 128  # ours: enough for 48-256 features and ~20k sightings; ~10 s per member slot on one core
 MLP_EPOCHS = 60
 
 
