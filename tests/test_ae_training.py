@@ -86,8 +86,17 @@ def test_frames_file_checks_name_the_problem(tmp_path: Path) -> None:
 def test_training_lowers_the_held_out_reconstruction_error(arch: str) -> None:
     torch.set_num_threads(1)
     params = AETrainParams(steps=80, batch=8, lr=3e-3, eval_every=20, val_every_episode=4)
-    model, history = train_autoencoder(moving_square(40, 8), arch, TINY, params)
+    probe, seen = torch.rand(2, 3, 24, 24), []
+
+    def on_eval(step: int, m: A.Autoencoder) -> None:
+        with torch.inference_mode():
+            seen.append((step, m.training, m.encode(probe).clone()))
+
+    model, history = train_autoencoder(moving_square(40, 8), arch, TINY, params, on_eval=on_eval)
     assert not model.training
+    assert [(s, t) for s, t, _ in seen] == [(20, False), (40, False), (60, False), (80, False)]
+    with torch.inference_mode():
+        assert torch.equal(seen[-1][2], model.encode(probe)) and not torch.equal(seen[0][2], seen[-1][2])
     first, last = history[0]["val_reconstruction"], history[-1]["val_reconstruction"]
     assert last < 0.7 * first, [round(r["val_reconstruction"], 4) for r in history]
     assert [r["step"] for r in history] == [20, 40, 60, 80]
@@ -122,9 +131,11 @@ def test_train_ae_tool_writes_checkpoint_and_figures(tmp_path: Path) -> None:
     data = moving_square(4, 12, size=64)
     save_frames(tmp_path / "f.npz", data)
     res = run_tool("train_ae.py", ["--frames", str(tmp_path / "f.npz"), "--arch", "saev", "--steps", "3",
-                                   "--batch", "4", "--out", str(tmp_path / "ae")])
+                                   "--batch", "4", "--snapshot-every", "2", "--out", str(tmp_path / "ae")])
     assert res.returncode == 0, res.stderr
     names = sorted(p.name for p in (tmp_path / "ae").iterdir())
     assert names == ["encoder.pt", "history.csv", "keypoints.png", "losses.png", "reconstructions.png",
-                     "summary.json"]
+                     "snapshots", "summary.json"]
+    assert [p.name for p in (tmp_path / "ae" / "snapshots").iterdir()] == ["encoder_step2.pt"]
+    assert load_autoencoder(tmp_path / "ae" / "snapshots" / "encoder_step2.pt", "saev", "cpu", 64)
     assert load_autoencoder(tmp_path / "ae" / "encoder.pt", "saev", "cpu", 64).feature_dim == 48

@@ -9,6 +9,7 @@ Examples:
     python tools/train_ae.py --frames results/frames/frames.npz --arch saev --out results/ae/saev
     python tools/train_ae.py --frames frames.npz --arch conv --steps 500 --out results/ae/conv_quick
     python tools/train_ae.py --frames frames96.npz --arch saev --size paper --out results/ae/saev_paper
+    python tools/train_ae.py --frames frames.npz --arch saev --steps 16000 --snapshot-every 2000 --out results/ae/long
 """
 
 from __future__ import annotations
@@ -31,8 +32,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--lr", type=float, default=1e-3, help="Adam learning rate (default 1e-3)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--threads", type=int, default=2, help="torch threads (default 2)")
+    ap.add_argument("--snapshot-every", type=int, default=0, metavar="N",
+                    help="also write DIR/snapshots/encoder_stepN.pt every N steps (a multiple of the evaluation "
+                         "interval, min(250, steps/10)), for a learning curve of tools/bench_camera.py; 0: none")
     args = ap.parse_args(argv)
 
+    from ssbl_pb.errors import UserError
     from ssbl_pb.perception.ae_train import AETrainParams
     from ssbl_pb.perception.autoencoders import build, get_size
     from ssbl_pb.perception.frames import load_frames
@@ -40,6 +45,9 @@ def main(argv: list[str] | None = None) -> int:
     build(args.arch, args.size)  # unknown arch / size: exit 2 before reading anything
     params = AETrainParams(steps=args.steps, batch=args.batch, lr=args.lr, seed=args.seed,
                            eval_every=max(1, min(250, args.steps // 10)))
+    if args.snapshot_every < 0 or args.snapshot_every % params.eval_every:
+        raise UserError(f"--snapshot-every {args.snapshot_every}: expected 0 or a multiple of the evaluation "
+                        f"interval {params.eval_every}")
     data = load_frames(args.frames, get_size(args.size).input_size)
 
     import torch
@@ -47,13 +55,17 @@ def main(argv: list[str] | None = None) -> int:
     from ssbl_pb.cli import make_bar
     from ssbl_pb.files import output_dir
     from ssbl_pb.perception.ae_report import write_report
-    from ssbl_pb.perception.ae_train import train_autoencoder
+    from ssbl_pb.perception.ae_train import save_checkpoint, train_autoencoder
 
     torch.set_num_threads(max(1, args.threads))
     with output_dir(args.out) as out:
+        def snapshot(step: int, model) -> None:
+            if args.snapshot_every and step % args.snapshot_every == 0:
+                save_checkpoint(out / "snapshots" / f"encoder_step{step}.pt", model, {"step": step})
+
         bar = make_bar(params.steps, f"train {args.arch}", "step")
         try:
-            model, history = train_autoencoder(data, args.arch, args.size, params, bar)
+            model, history = train_autoencoder(data, args.arch, args.size, params, bar, on_eval=snapshot)
         finally:
             bar.close()
         summary = write_report(out, model, history, data, {"frames_file": str(args.frames), "lr": args.lr,

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -83,10 +84,13 @@ def evaluate_loss(model: Autoencoder, frames: torch.Tensor, centres: np.ndarray,
 
 
 def train_autoencoder(data: dict[str, np.ndarray], arch: str, size: str | AESize, params: AETrainParams,
-                      progress: Any = None, max_val: int = 512) -> tuple[Autoencoder, list[dict[str, float]]]:
+                      progress: Any = None, max_val: int = 512,
+                      on_eval: Callable[[int, Autoencoder], None] | None = None,
+                      ) -> tuple[Autoencoder, list[dict[str, float]]]:
     """Train a fresh ``arch`` autoencoder on a frames file's arrays; returns it (eval mode) and its history
     (one row per ``eval_every`` steps: step, seconds, training parts averaged since the last row, validation
-    parts on up to ``max_val`` held-out triplets)."""
+    parts on up to ``max_val`` held-out triplets). ``on_eval(step, model)``, when given, runs after each row
+    (model in eval mode; training resumes after it): snapshots for a learning curve."""
     torch.manual_seed(params.seed)
     rng = np.random.default_rng(params.seed)
     model = build(arch, size)
@@ -123,6 +127,10 @@ def train_autoencoder(data: dict[str, np.ndarray], arch: str, size: str | AESize
             acc, n_acc = {}, 0
             if progress is not None and hasattr(progress, "set_postfix_str"):
                 progress.set_postfix_str(f"val loss {val['total']:.4f}")
+            if on_eval is not None:
+                model.eval()
+                on_eval(step, model)
+                model.train()
     return model.eval(), history
 
 
