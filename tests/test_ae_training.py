@@ -139,3 +139,29 @@ def test_train_ae_tool_writes_checkpoint_and_figures(tmp_path: Path) -> None:
     assert [p.name for p in (tmp_path / "ae" / "snapshots").iterdir()] == ["encoder_step2.pt"]
     assert load_autoencoder(tmp_path / "ae" / "snapshots" / "encoder_step2.pt", "saev", "cpu", 64)
     assert load_autoencoder(tmp_path / "ae" / "encoder.pt", "saev", "cpu", 64).feature_dim == 48
+
+
+@pytest.mark.slow
+def test_interrupted_train_ae_keeps_its_snapshots(tmp_path: Path) -> None:
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    from tests.test_contracts import ROOT
+
+    save_frames(tmp_path / "f.npz", moving_square(4, 12, size=64))
+    out = tmp_path / "runs" / "ae"
+    proc = subprocess.Popen([sys.executable, str(ROOT / "tools" / "train_ae.py"), "--frames", str(tmp_path / "f.npz"),
+                             "--arch", "saev", "--steps", "100000", "--batch", "2", "--snapshot-every", "250",
+                             "--threads", "1", "--out", str(out)], cwd=ROOT, stderr=subprocess.PIPE, text=True)
+    first = out / "snapshots" / "encoder_step250.pt"
+    deadline = time.monotonic() + 120
+    while not first.is_file() and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.2)
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 143, err
+    assert "snapshots kept" in err and not (out / "encoder.pt").exists()
+    assert load_autoencoder(first, "saev", "cpu", 64).feature_dim == 48
+    assert not [p for p in (out / "snapshots").iterdir() if p.name.startswith(".")]  # no temporary file left

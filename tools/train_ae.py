@@ -14,6 +14,8 @@ Examples:
 
 from __future__ import annotations
 
+import shutil
+import sys
 from pathlib import Path
 
 from ssbl_pb.cli import ArgumentParser, run
@@ -34,7 +36,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--threads", type=int, default=2, help="torch threads (default 2)")
     ap.add_argument("--snapshot-every", type=int, default=0, metavar="N",
                     help="also write DIR/snapshots/encoder_stepN.pt every N steps (a multiple of the evaluation "
-                         "interval, min(250, steps/10)), for a learning curve of tools/bench_camera.py; 0: none")
+                         "interval, min(250, steps/10)), for a learning curve of tools/bench_camera.py; kept if "
+                         "the run is interrupted; 0: none")
     args = ap.parse_args(argv)
 
     from ssbl_pb.errors import UserError
@@ -53,23 +56,35 @@ def main(argv: list[str] | None = None) -> int:
     import torch
 
     from ssbl_pb.cli import make_bar
-    from ssbl_pb.files import output_dir
+    from ssbl_pb.files import check_output_path, output_dir
     from ssbl_pb.perception.ae_report import write_report
     from ssbl_pb.perception.ae_train import save_checkpoint, train_autoencoder
 
     torch.set_num_threads(max(1, args.threads))
-    with output_dir(args.out) as out:
-        def snapshot(step: int, model) -> None:
-            if args.snapshot_every and step % args.snapshot_every == 0:
-                save_checkpoint(out / "snapshots" / f"encoder_step{step}.pt", model, {"step": step})
+    created, snapshots = not args.out.exists(), []
+    if args.snapshot_every:  # DIR made here, so output_dir keeps it (and the snapshots) when interrupted
+        check_output_path(args.out).mkdir(parents=True, exist_ok=True)
+    try:
+        with output_dir(args.out) as out:
+            def snapshot(step: int, model) -> None:
+                if args.snapshot_every and step % args.snapshot_every == 0:
+                    snapshots.append(save_checkpoint(out / "snapshots" / f"encoder_step{step}.pt", model,
+                                                     {"step": step}))
 
-        bar = make_bar(params.steps, f"train {args.arch}", "step")
-        try:
-            model, history = train_autoencoder(data, args.arch, args.size, params, bar, on_eval=snapshot)
-        finally:
-            bar.close()
-        summary = write_report(out, model, history, data, {"frames_file": str(args.frames), "lr": args.lr,
-                                                            "batch": args.batch, "seed": args.seed})
+            bar = make_bar(params.steps, f"train {args.arch}", "step")
+            try:
+                model, history = train_autoencoder(data, args.arch, args.size, params, bar, on_eval=snapshot)
+            finally:
+                bar.close()
+            summary = write_report(out, model, history, data, {"frames_file": str(args.frames), "lr": args.lr,
+                                                                "batch": args.batch, "seed": args.seed})
+    except BaseException:
+        if snapshots:
+            print(f"snapshots kept: {snapshots[-1].parent} (last {snapshots[-1].name}); no encoder.pt",
+                  file=sys.stderr)
+        elif created:
+            shutil.rmtree(args.out, ignore_errors=True)
+        raise
     last = summary["final_val"]
     print(f"{args.arch} ({args.size}) {params.steps} steps in {summary['train_seconds']:.0f} s: validation "
           f"reconstruction {last['reconstruction']:.4f} -> {args.out}/encoder.pt")
