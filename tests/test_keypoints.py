@@ -79,6 +79,31 @@ def test_mlp_probe_reads_depth_from_a_torso_row_where_a_linear_map_cannot() -> N
         pixel_probe(px[:2400], members[:2400], px[2400:], members[2400:], reader="knn")
 
 
+def test_keypoint_precision_feet_tolerate_noise_that_torso_rows_do_not() -> None:
+    from ssbl_pb.perception.camera_bench import keypoint_precision
+
+    rng = np.random.default_rng(1)
+    n = 1200
+    depth, lateral = rng.uniform(1.0, 5.0, n), rng.uniform(-0.4, 0.4, n) * rng.uniform(1.0, 5.0, n) / 2
+    cam = sim_camera(RobotParams(), 64, 64)
+    members = np.column_stack([depth, lateral])[:, None].astype(np.float32)
+    torso = cam.robot_to_pixel(np.column_stack([depth, lateral, np.full(n, 1.4)]))[:, None].astype(np.float32)
+    frames = {"frames": np.zeros((n, 64, 64, 3), np.uint8), "episode": np.repeat(np.arange(20), 60),
+              "members_rel": members, "members_px": torso}
+    res = keypoint_precision(frames, noise_px=(0.0, 2.0))
+    # a linear map reads any affine image of the pixels alike: the foot row is one of the torso row (pitch 0)
+    assert res["feet_linear_noise0"]["median_m"] == pytest.approx(res["torso_linear_noise0"]["median_m"], rel=1e-4)
+    # two pixels of noise: the torso row (0.25 m above the camera) loses depth, the foot row (1.15 m below) keeps it
+    assert res["feet_mlp_noise2"]["median_m"] < 0.5 * res["torso_mlp_noise2"]["median_m"], res
+    # feet in view: row cy + f 1.15 / depth below the image's last row (cy = 31, f = 32 / tan(28.15 deg))
+    held = np.repeat(np.arange(20), 60) % 10 == 9
+    held &= np.isin(np.arange(n), np.arange(n)[np.isin(np.arange(n) % 60, [0, 59])], invert=True)
+    f = 32.0 / np.tan(np.radians(56.3 / 2))
+    u = 32.0 - f * lateral / depth
+    want = np.mean(((31.0 + f * 1.15 / depth) < 64) & (u >= 0) & (u < 64), where=held)
+    assert res["feet_in_image"] == pytest.approx(want, abs=0.02)
+
+
 def test_pets_person_boxes_stand_on_their_ground_points(shared_data) -> None:
     from ssbl_pb.perception.pets import foot_points, load_ground_truth
     from ssbl_pb.perception.pets_saev import ground_truth_positions, person_boxes

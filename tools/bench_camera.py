@@ -1,13 +1,15 @@
 #!/usr/bin/env python
 """Benchmarks of the camera state representations: encoder frames/s, camera-mode training throughput against
 the raw TinyRenderer frame rate, the autoencoders' training time and quality, a linear probe of the features
-to the members' positions (SAEV vs conv), and the SAEV keypoint detector in the simulated tracker.
+to the members' positions (SAEV vs conv), the keypoint precision that probe asks for, and the SAEV keypoint
+detector in the simulated tracker.
 
 Writes OUT (JSON) and prints a Markdown summary (docs/benchmarks.md, "Camera state representations").
 
 Examples:
     python tools/bench_camera.py --frames results/frames/frames.npz --saev results/ae/saev/encoder.pt \\
         --conv results/ae/conv/encoder.pt --out results/bench_camera.json
+    python tools/bench_camera.py --only precision --frames results/frames/frames.npz --out results/precision.json
     python tools/bench_camera.py --only encoders --out results/bench_encoders.json
 """
 
@@ -18,7 +20,7 @@ from pathlib import Path
 
 from ssbl_pb.cli import ArgumentParser, run
 
-PARTS = ("encoders", "throughput", "autoencoders", "probe", "tracking", "pets")
+PARTS = ("encoders", "throughput", "autoencoders", "probe", "precision", "tracking", "pets")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -42,7 +44,7 @@ def main(argv: list[str] | None = None) -> int:
     if bad := sorted(set(parts) - set(PARTS)):
         raise UserError(f"--only {args.only!r}: unknown part(s) {bad}; expected {list(PARTS)}")
     needs = {"throughput": ["saev"], "autoencoders": ["saev", "conv"], "probe": ["frames", "saev", "conv"],
-             "tracking": ["frames", "saev"], "pets": ["pets"]}
+             "precision": ["frames"], "tracking": ["frames", "saev"], "pets": ["pets"]}
     for part in parts:
         for what in needs.get(part, []):
             if getattr(args, what) is None:
@@ -55,7 +57,7 @@ def main(argv: list[str] | None = None) -> int:
         raise UserError(f"--pets {args.pets}: expected a folder holding {list(pets_files)}")
     check_output_path(args.out, "--out", is_dir=False)
     frames = None
-    if args.frames is not None and {"probe", "tracking"} & set(parts):
+    if args.frames is not None and {"probe", "precision", "tracking"} & set(parts):
         from ssbl_pb.perception.frames import load_frames
 
         frames = load_frames(args.frames, 64)
@@ -80,6 +82,8 @@ def main(argv: list[str] | None = None) -> int:
                                for a in ("saev", "conv")}
     if "probe" in parts:
         res["probe"] = cb.probe_encoders(frames, {"saev": str(args.saev), "conv": str(args.conv)})
+    if "precision" in parts:
+        res["precision"] = cb.keypoint_precision(frames)
     if "tracking" in parts:
         res["tracking_saev"] = cb.keypoint_tracking(frames, str(args.saev))
     if "pets" in parts:

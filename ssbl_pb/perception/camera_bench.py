@@ -120,3 +120,33 @@ def keypoint_tracking(frames: dict[str, np.ndarray], saev: str, episodes: int = 
                        custom=lambda w: det(w.render_first_person(s, s)[0]))
     return res | {"calibration": {"keypoints": list(calib.keypoints), "heights_m": list(calib.heights),
                                   "train_median_m": [round(v, 3) for v in calib.train_median_m]}}
+
+
+def keypoint_precision(frames: dict[str, np.ndarray], noise_px: tuple[float, ...] = (0.0, 0.5, 1.0, 2.0),
+                       seed: int = 0) -> dict[str, Any]:
+    """What keypoint precision the probe target asks for: the probe (linear and MLP) from each member's true torso
+    pixel and from its true foot pixel (where it stands, projected through the frames' camera), each blurred by
+    Gaussian noise of ``noise_px`` pixels (seeded); rows ``{torso,feet}_{linear,mlp}_noise{σ}`` over the same
+    sightings and split as ``probe_encoders``; ``feet_in_image``: the held-out sightings whose feet are in view
+    (a close member's are below the image: this cue is an idealisation there)."""
+    from ..params import RobotParams
+    from .probe import pixel_probe, visible_members
+    from .sim_eval import sim_camera
+
+    train_c, val_c = split_centres(frames["episode"], 10)
+    members = visible_members(frames)
+    side = frames["frames"].shape[1]
+    cam = sim_camera(RobotParams(), side, side)
+    cues = {"torso": frames["members_px"].astype(float),
+            "feet": cam.ground_to_pixel(np.nan_to_num(members.reshape(-1, 2))).reshape(members.shape)}
+    rng = np.random.default_rng(seed)
+    seen = np.isfinite(members[val_c, :, 0])
+    feet = cues["feet"][val_c][seen]
+    out: dict[str, Any] = {"feet_in_image": float(np.mean((feet >= 0).all(axis=1) & (feet < side).all(axis=1)))}
+    for cue, px in cues.items():
+        for sigma in noise_px:
+            noisy = px + rng.normal(0.0, sigma, px.shape) if sigma else px
+            for reader in ("linear", "mlp"):
+                out[f"{cue}_{reader}_noise{sigma:g}"] = pixel_probe(noisy[train_c], members[train_c], noisy[val_c],
+                                                                    members[val_c], reader=reader)
+    return out
