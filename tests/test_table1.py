@@ -59,6 +59,10 @@ def test_ordering_pairs_seeds_and_tests_them_by_hand() -> None:
     # two-sided p with 2 degrees of freedom: 1 - t / sqrt(t^2 + 2) = 1 - 3.464 / 3.742 = 0.0742
     assert d["mean_diff"] == pytest.approx(2.0) and d["p_paired"] == pytest.approx(0.0742, abs=1e-4)
     assert detail["CameraSpeed + SAEV + LSTM > CameraOnly + SAEV + FF"]["holds"] is None  # row missing
+    # the paper's own Table I: SAEV 57.06 % < conv 61.18 % (CameraOnly + FF), SAEV 61.63 % >= conv 41.51 % (LSTM)
+    assert d["paper_holds"] is False
+    assert detail["CameraOnly + SAEV + LSTM >= CameraOnly + conv + LSTM"]["paper_holds"] is True
+    assert detail["CameraSpeed + SAEV + LSTM >= 80 %"]["paper_holds"] is False  # 79.80 %
 
 
 def test_rows_are_sweep_trials_and_a_finished_one_is_read_back(tmp_path: Path) -> None:
