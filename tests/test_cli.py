@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ssbl_pb.cli import ArgumentParser, DeferredSignals, PlainBar, int_in, run
+from ssbl_pb.cli import ArgumentParser, DeferredSignals, PlainBar, command_line, int_in, run
 from ssbl_pb.errors import Terminated, UserError
 from ssbl_pb.files import atomic_write, check_output_path, output_dir, write_text
 
@@ -70,6 +70,14 @@ def test_deferred_signals_wait_for_a_safe_point_then_raise():
         os.kill(os.getpid(), signal.SIGINT)
         with pytest.raises(KeyboardInterrupt):  # a second signal stops at once
             os.kill(os.getpid(), signal.SIGINT)
+
+
+def test_command_line_records_the_arguments_as_typed_and_quoted(monkeypatch):
+    argv = ["runs/my run", "--name", "camera_speed_saev", "--seed", "600000"]
+    assert command_line("tools/ship_policy.py", argv) == ("python tools/ship_policy.py 'runs/my run' --name "
+                                                          "camera_speed_saev --seed 600000")
+    monkeypatch.setattr(sys, "argv", ["tools/x.py", "--force"])
+    assert command_line("tools/x.py") == "python tools/x.py --force"
 
 
 def test_output_dir_removes_only_what_it_created(tmp_path):

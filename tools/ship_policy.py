@@ -15,11 +15,10 @@ from __future__ import annotations
 
 import json
 import os
-import shlex
 import shutil
 from pathlib import Path
 
-from ssbl_pb.cli import ArgumentParser, UserError, int_at_least, progress_bar, run
+from ssbl_pb.cli import ArgumentParser, UserError, command_line, int_at_least, progress_bar, run
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIOS = ("default", "mixed", "mixed@furnished")  # mixed@furnished: issue 18
@@ -98,9 +97,7 @@ def main(argv: list[str] | None = None) -> int:
         info = {"source_run": str(args.run), "source_model": str(model), "model": args.model,
                 "episodes": args.episodes, "seeds": [seeds[0], seeds[-1]], "results": results,
                 "replaced": current, "forced": bool(worse),
-                "command": shlex.join(["python", "tools/ship_policy.py", str(args.run), "--name", args.name,
-                                       "--model", args.model, "--episodes", str(args.episodes),
-                                       "--seed", str(args.seed)] + (["--force"] if worse else []))}
+                "command": command_line("tools/ship_policy.py", argv)}
         write_json(stage / "evaluation.json", info)
         old = SHIPPED_DIR / f".old-{args.name}"
         shutil.rmtree(old, ignore_errors=True)
