@@ -101,6 +101,19 @@ def test_unknown_config_key_named(tmp_path):
     assert not (tmp_path / "o").exists()
 
 
+def test_observation_normalisation_can_be_turned_off(tmp_path):
+    from ssbl_pb.training.run import make_vec_env
+
+    for on in (True, False):
+        venv = make_vec_env(load_config(None, {"n_envs": 1, "normalize_obs": on}), 0)
+        obs = venv.reset()
+        raw = venv.get_original_obs()
+        assert venv.norm_obs is on and np.array_equal(obs, raw) is not on
+        venv.close()
+    with pytest.raises(ConfigError, match="normalize_obs"):
+        load_config(None, {"normalize_obs": "no"})
+
+
 def test_camera_mode_needs_an_existing_encoder():
     with pytest.raises(ConfigError, match="encoder"):
         load_config(None, {"obs_mode": "camera"})
