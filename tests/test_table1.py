@@ -74,6 +74,8 @@ def test_rows_are_sweep_trials_and_a_finished_one_is_read_back(tmp_path: Path) -
     assert [t.name for t in trials] == ["vector_ff,seed=0", "cameraonly_saev_ff,seed=0", "vector_ff,seed=1",
                                         "cameraonly_saev_ff,seed=1"]
     assert trials[0].definition()["encoder"] is None and trials[1].definition()["encoder"] == "/x/saev.pt"
+    # frozen-encoder features reach the policy raw, the vector standardised; a table run otherwise is stale
+    assert [t.definition()["normalize_obs"] for t in trials[:2]] == [True, False]
     done = _res("Vector + FF", 1, -5.0)
     path = trial_dir(tmp_path, trials[2].name) / RESULT
     path.parent.mkdir(parents=True)

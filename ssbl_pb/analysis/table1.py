@@ -5,7 +5,10 @@ Stage 1 (once per table): first-person frames from a mix of policies, then the S
 machinery, so rows run on a local process pool or a Ray cluster and a killed table resumes where it stopped):
 PPO / RecurrentPPO on the row's observation with the frozen encoder, then the best model evaluated on held-out
 seeds. Every row uses the same task (scenario ``default``, the paper's two-person group), reward, action
-smoothing and no safety shield (the paper had none; camera modes could not use it).
+smoothing and no safety shield (the paper had none; camera modes could not use it). The frozen encoders'
+features reach the policy raw (``normalize_obs`` off; the vector rows keep VecNormalize's standardisation):
+standardising divides each feature by its running spread and blows up near-constant ones, and every camera row
+piloted trained far better raw (docs/benchmarks.md, "Features fed raw train far better").
 
 Every row trains with the default config's reward and its jerk-cost ramp (configs/vector_ff.yaml: without the
 ramp PPO learns nothing, docs/decisions.md "Smoothness"). Because the ramp changes the reward during training,
@@ -154,9 +157,14 @@ def _default_reward() -> dict[str, Any]:
     return {k: cfg[k] for k in ("reward", "reward_ramp", "reward_ramp_fraction") if k in cfg}
 
 
+def features_raw(row: Row) -> bool:
+    """Whether a row's observation reaches the policy unstandardised: a frozen encoder's features do."""
+    return row.encoder in ("conv", "saev")
+
+
 def row_config(row: Row, seed: int, budget: Budget, encoders: dict[str, str]) -> dict[str, Any]:
     """The training config (``training.config`` keys) of a row."""
-    cfg: dict[str, Any] = {**_default_reward(),
+    cfg: dict[str, Any] = {**_default_reward(), "normalize_obs": not features_raw(row),
         "name": f"{row.slug}_s{seed}", "obs_mode": row.obs_mode, "encoder": row.encoder, "policy": row.policy,
         "scenario": "default", "seed": seed, "n_envs": budget.n_envs, "safety_shield": False,
         "total_steps": budget.vector_steps if row.obs_mode == "vector" else budget.camera_steps,
@@ -234,7 +242,8 @@ class RowTrial:
 
     def definition(self) -> dict[str, Any]:
         return {"kind": "table1_row", "row": self.row.label, "seed": self.seed,
-                "budget": dataclasses.asdict(self.budget), "encoder": dict(self.encoders).get(self.row.encoder)}
+                "budget": dataclasses.asdict(self.budget), "encoder": dict(self.encoders).get(self.row.encoder),
+                "normalize_obs": not features_raw(self.row)}
 
     def __call__(self, trial_dir: Path) -> dict[str, Any]:
         import torch
