@@ -112,6 +112,12 @@ def test_observation_normalisation_can_be_turned_off(tmp_path):
         venv.close()
     with pytest.raises(ConfigError, match="normalize_obs"):
         load_config(None, {"normalize_obs": "no"})
+    # unset: the vector standardised, a frozen encoder's features (the shipped SAEV here) raw
+    assert load_config(None, {}).standardises_obs is True
+    encoded = load_config(None, {"obs_mode": "camera_speed", "encoder": "saev", "camera_size": 64})
+    assert encoded.standardises_obs is False
+    assert load_config(None, {"obs_mode": "camera_speed", "encoder": "saev", "camera_size": 64,
+                              "normalize_obs": True}).standardises_obs is True
 
 
 def test_camera_mode_needs_an_existing_encoder():

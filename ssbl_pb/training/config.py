@@ -12,7 +12,7 @@ epochs             3                   5: fewer, cheaper environment steps per u
 hidden layers      3 x 512             2 x 128: CPU forward passes dominate the step cost
 gamma / lambda     0.99 / 0.95         same
 clip / entropy     0.2 / 1e-3          same
-obs normalisation  on                  on (VecNormalize; reward normalisation on too; ``normalize_obs``)
+obs normalisation  on                  on (VecNormalize, rewards too; ``normalize_obs``: auto, off for AE features)
 LSTM               memory 256, seq 64  hidden 128 (``policy: lstm``)
 action mean        not given           tanh-bounded (``ppo.bounded_mean``, training/policies.py)
 =================  ==================  ===========================================================
@@ -97,9 +97,9 @@ class TrainConfig:
     safety_shield: bool = True  # agent-side safety shield (env.shield), the last action stage; it reads the
     #                             Vector observation, so camera modes train without it
     # VecNormalize's running standardisation of the observation (the original's "normalize: true"); false feeds
-    # it raw (reward normalisation stays). Frozen encoders' features trained better raw (docs/benchmarks.md,
-    # "Features fed raw"); the default stays on so that runs and Table I's committed rows keep their meaning
-    normalize_obs: bool = True
+    # it raw (reward normalisation stays); unset (auto): on, except for a frozen encoder's features, which train
+    # far better raw (docs/benchmarks.md, "Features fed raw"; Table I's camera rows)
+    normalize_obs: bool | None = None
     shield_at_place: bool = False  # near its place the shield keeps the place's clearance from the members and
     #                                slows the arrival (ShieldParams.place_clearance, place_arrival_speed; on for
     #                                the shipped vector); tools and deploy too
@@ -121,6 +121,11 @@ class TrainConfig:
         from ..policies import SHIPPED_ENCODERS
 
         return str(SHIPPED_ENCODERS.get(self.encoder, ""))
+
+    @property
+    def standardises_obs(self) -> bool:
+        """``normalize_obs`` with auto resolved: off for a frozen encoder's features, else on."""
+        return self.normalize_obs if self.normalize_obs is not None else not self.encoder_file
 
     @property
     def policy_obs_mode(self) -> str:
@@ -151,7 +156,8 @@ class TrainConfig:
             _check(isinstance(v, int) and v >= 1, "config", name, v, "an integer >= 1")
         _check(isinstance(self.seed, int), "config", "seed", self.seed, "an integer")
         _check(isinstance(self.safety_shield, bool), "config", "safety_shield", self.safety_shield, "true or false")
-        _check(isinstance(self.normalize_obs, bool), "config", "normalize_obs", self.normalize_obs, "true or false")
+        _check(self.normalize_obs is None or isinstance(self.normalize_obs, bool), "config", "normalize_obs",
+               self.normalize_obs, "true, false or unset (auto)")
         _check(isinstance(self.shield_at_place, bool), "config", "shield_at_place", self.shield_at_place,
                "true or false")
         _check(isinstance(self.action_smoothing, int | float) and 0 < self.action_smoothing <= 1, "config",

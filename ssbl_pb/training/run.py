@@ -94,9 +94,9 @@ def make_vec_env(cfg: TrainConfig, seed: int) -> Any:
 
         venv = EncodedVecEnv(venv, load_encoder(cfg.encoder_file, cfg.camera_size))
     if cfg.policy_obs_mode == "vector":
-        return VecNormalize(venv, norm_obs=cfg.normalize_obs, norm_reward=True, gamma=cfg.ppo.gamma)
+        return VecNormalize(venv, norm_obs=cfg.standardises_obs, norm_reward=True, gamma=cfg.ppo.gamma)
     if cfg.obs_mode == "camera_speed":
-        return VecNormalize(venv, norm_obs=cfg.normalize_obs, norm_obs_keys=["speed"], norm_reward=True,
+        return VecNormalize(venv, norm_obs=cfg.standardises_obs, norm_obs_keys=["speed"], norm_reward=True,
                             gamma=cfg.ppo.gamma)
     return VecNormalize(venv, norm_obs=False, norm_reward=True, gamma=cfg.ppo.gamma)
 
