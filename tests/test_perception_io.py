@@ -40,7 +40,7 @@ def test_cvml_and_mot_loaders(tmp_path):
 
 @pytest.mark.parametrize("name,text,match", [
     ("gt.xml", "<annotations><track id='1'/></annotations>", r"gt\.xml.*CVML XML"),
-    ("gt.xml", "frame,id\n1,2\n", r"gt\.xml: not XML.*CVML"),
+    ("gt.xml", "frame,id\n1,2\n", r"gt\.xml: not valid XML.*CVML"),
     ("gt.json", "{}", r"gt\.json: unknown ground-truth format '.json'"),
     ("gt.xml", CVML.replace(' xc="100"', ""), r"gt\.xml: frame '0'.*CVML"),
     ("gt.txt", "1,2,3\n", r"gt\.txt: 3 columns; expected MOTChallenge"),

@@ -5,12 +5,12 @@ Both load to one array layout, ``(n, 7)`` rows of ``frame (0-based), id, left, t
 
 from __future__ import annotations
 
-import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import UserError
+from .xmlfile import xml_root
 
 CVML_EXPECTED = "CVML XML: <dataset><frame number><objectlist><object id><box h w xc yc/>"
 MOT_EXPECTED = "MOTChallenge text: frame(1-based),id,left,top,w,h,score,..."
@@ -23,12 +23,7 @@ class GroundTruthError(UserError):
 def load_cvml(path: str | Path) -> np.ndarray:
     """PETS CVML XML -> ``(n, 7)`` array ``frame, id, left, top, w, h, 1`` (frame numbers as in the file)."""
     path = Path(path)
-    if not path.is_file():
-        raise GroundTruthError(f"{path}: ground-truth file not found; expected {CVML_EXPECTED}")
-    try:
-        root = ET.parse(path).getroot()
-    except ET.ParseError as exc:
-        raise GroundTruthError(f"{path}: not XML ({exc}); expected {CVML_EXPECTED}") from exc
+    root = xml_root(path, GroundTruthError, CVML_EXPECTED, "ground-truth file")
     frames = root.findall("frame")
     if root.tag != "dataset" or not frames:
         raise GroundTruthError(f"{path}: root <{root.tag}> has no <frame> children; expected {CVML_EXPECTED}")

@@ -8,12 +8,12 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import UserError
+from .xmlfile import xml_root
 
 _FIELDS = {
     "Geometry": ("width", "height", "dpx", "dpy"),
@@ -59,12 +59,7 @@ class TsaiCamera:
     def from_xml(cls, path: str | Path) -> TsaiCamera:
         """Load a PETS ``<Camera><Geometry/><Intrinsic/><Extrinsic/></Camera>`` file."""
         path = Path(path)
-        if not path.is_file():
-            raise CalibrationError(f"{path}: calibration file not found")
-        try:
-            root = ET.parse(path).getroot()
-        except ET.ParseError as exc:
-            raise CalibrationError(f"{path}: not valid XML ({exc}); expected a PETS Tsai calibration") from exc
+        root = xml_root(path, CalibrationError, "a PETS Tsai calibration <Camera>", "calibration file")
         nodes = {tag: root.find(tag) for tag in _FIELDS}
         missing = [f"<{tag}>" for tag, node in nodes.items() if node is None]
         if missing:
