@@ -4,6 +4,7 @@ aggregation over seeds, rows as sweep trials resumed one by one, and a smoke run
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import pytest
@@ -40,6 +41,23 @@ def test_aggregate_takes_percentages_per_seed() -> None:
     assert checks["Vector + LSTM > CameraSpeed + SAEV + LSTM"] is True
     assert checks["CameraSpeed + SAEV + LSTM >= 80 %"] is True
     assert checks["CameraOnly + SAEV + FF > Random policy"] is None  # row missing
+    assert math.isnan(cs["test_percent"])  # no held-out returns given
+
+
+def test_held_out_return_gets_its_own_percentages_and_ordering() -> None:
+    # table reward: conv ahead (best evaluation); held-out return: SAEV ahead
+    results = []
+    for seed in (0, 1):
+        for row, rew, ret in (("Vector + LSTM", 10.0, 8.0), ("Random policy", 0.0, 0.0),
+                              ("CameraOnly + SAEV + LSTM", 6.0, 6.0 + seed), ("CameraOnly + conv + LSTM", 7.0, 5.0)):
+            results.append(_res(row, seed, rew) | {"mean_return": ret})
+    rows = aggregate(results)
+    saev = next(r for r in rows if r["row"] == "CameraOnly + SAEV + LSTM")
+    assert saev["test_percent_by_seed"] == pytest.approx([75.0, 87.5])  # 6 / 8, 7 / 8
+    assert saev["test_return"] == pytest.approx(6.5) and saev["percent"] == pytest.approx(60.0)
+    statement = "CameraOnly + SAEV + LSTM >= CameraOnly + conv + LSTM"
+    assert dict(ordering_checks(rows))[statement] is False
+    assert dict(ordering_checks(rows, "test_percent"))[statement] is True
 
 
 def test_ordering_pairs_seeds_and_tests_them_by_hand() -> None:
