@@ -56,7 +56,9 @@ EXPECTED = {"robot_killed": 7, "camera_frozen": 5, "robot_frozen": 8, "sigint": 
 @pytest.mark.slow
 @pytest.mark.parametrize("fault", FAULTS)
 def test_each_fault_stops_the_base_and_names_itself(fault, tmp_path):
-    res = run_fault(fault, tmp_path, stale=2.0)  # a loaded CI machine may deliver a frame 1 s late
+    # a loaded machine may deliver a frame a second or more late: the staleness limit is raised, and raised
+    # further where staleness is not what the fault is about (a late frame once ended policy_exception first)
+    res = run_fault(fault, tmp_path, stale=2.0 if fault in ("camera_frozen", "robot_frozen") else 6.0)
     assert res["exit_code"] == EXPECTED[fault], res
     assert not res.get("hung"), res
     summary = tmp_path / "deploy" / "summary.json"
