@@ -43,12 +43,12 @@ def aggregate(results: list[dict[str, Any]]) -> list[dict[str, Any]]:
             continue
         pcts, test_pcts = _percents(runs, by, "reward"), _percents(runs, by, "mean_return")
         (rew, rew_sd), (pct, pct_sd) = _stats([r["reward"] for r in runs]), _stats(pcts)
-        (ret, ret_sd) = _stats([r.get("mean_return", float("nan")) for r in runs])
+        (ret, ret_sd), (tpct, tpct_sd) = _stats([r.get("mean_return", float("nan")) for r in runs]), _stats(test_pcts)
         succ, succ_sd = _stats([r["success_rate"] for r in runs])
         out.append({"row": row.label, "reward": rew, "reward_sd": rew_sd, "percent": pct, "percent_sd": pct_sd,
                     "percent_by_seed": pcts,
-                    "test_return": ret, "test_return_sd": ret_sd, "test_percent": _stats(test_pcts)[0],
-                    "test_percent_sd": _stats(test_pcts)[1], "test_percent_by_seed": test_pcts,
+                    "test_return": ret, "test_return_sd": ret_sd, "test_percent": tpct,
+                    "test_percent_sd": tpct_sd, "test_percent_by_seed": test_pcts,
                     "success_rate": succ, "success_rate_sd": succ_sd, "seeds": [r["seed"] for r in runs],
                     "paper_reward": row.paper_reward, "paper_percent": row.paper_percent,
                     "steps": [r["steps"] for r in runs], "seconds": [r["seconds"] for r in runs]})
