@@ -114,6 +114,9 @@ def test_observation_normalisation_can_be_turned_off(tmp_path):
         load_config(None, {"normalize_obs": "no"})
     # unset: the vector standardised, a frozen encoder's features (the shipped SAEV here) raw
     assert load_config(None, {}).standardises_obs is True
+    venv = make_vec_env(load_config(None, {"n_envs": 1}), 0)  # and training builds what it says
+    assert venv.norm_obs is True
+    venv.close()
     encoded = load_config(None, {"obs_mode": "camera_speed", "encoder": "saev", "camera_size": 64})
     assert encoded.standardises_obs is False
     assert load_config(None, {"obs_mode": "camera_speed", "encoder": "saev", "camera_size": 64,
