@@ -17,7 +17,14 @@ from ssbl_pb.perception.ae_train import (
     split_centres,
     train_autoencoder,
 )
-from ssbl_pb.perception.frames import FramesError, collect, load_frames, save_frames, triplet_centres
+from ssbl_pb.perception.frames import (
+    FramesError,
+    collect,
+    frames_hfov,
+    load_frames,
+    save_frames,
+    triplet_centres,
+)
 
 TINY = A.AESize("tiny", 24, (4, 6, 5), (3, 3, 3), 2, 12, (4, 4), 8, 6)
 
@@ -64,6 +71,22 @@ def test_collect_frames_records_members_and_their_pixels() -> None:
     assert np.abs(data["speed"]).max() <= 1.01
 
 
+def test_a_narrower_camera_magnifies_the_members() -> None:
+    """The same drive through Pepper's 56.3 deg camera and the paper's 26.5 deg one: a member's offset from the
+    image centre grows by tan(28.15 deg) / tan(13.25 deg) = 2.27 (pinhole), and the file keeps the camera."""
+    wide = collect(1, 32, seed=3, policies=("straight",), scenario="default")
+    narrow = collect(1, 32, seed=3, policies=("straight",), scenario="default", camera_hfov_deg=26.5)
+    assert frames_hfov(wide) == pytest.approx(56.3) and frames_hfov(narrow) == pytest.approx(26.5)
+    assert np.array_equal(wide["members_rel"], narrow["members_rel"], equal_nan=True)  # the same drive
+    both = np.isfinite(wide["members_px"][..., 0]) & np.isfinite(narrow["members_px"][..., 0])
+    off_w, off_n = wide["members_px"][both] - 16.0, narrow["members_px"][both] - 16.0  # centre: W / 2
+    big = np.abs(off_w) > 1.0
+    assert big.sum() > 20
+    ratio = np.tan(np.radians(56.3 / 2)) / np.tan(np.radians(26.5 / 2))
+    assert np.allclose(off_n[big] / off_w[big], ratio, rtol=0.02)
+    assert frames_hfov({k: v for k, v in wide.items() if k != "camera_hfov"}) == pytest.approx(56.3)  # older files
+
+
 def test_frames_file_checks_name_the_problem(tmp_path: Path) -> None:
     data = moving_square(2, 5)
     good = save_frames(tmp_path / "f.npz", data)
@@ -77,6 +100,9 @@ def test_frames_file_checks_name_the_problem(tmp_path: Path) -> None:
     save_frames(tmp_path / "c.npz", data | {"frames": data["frames"][..., 0]})
     with pytest.raises(FramesError, match="'frames' has shape"):
         load_frames(tmp_path / "c.npz")
+    save_frames(tmp_path / "e.npz", data | {"camera_hfov": np.array([26.5, 26.5])})
+    with pytest.raises(FramesError, match="'camera_hfov' has shape"):
+        load_frames(tmp_path / "e.npz")
     (tmp_path / "d.npz").write_text("not a zip")
     with pytest.raises(FramesError, match="not a readable"):
         load_frames(tmp_path / "d.npz")

@@ -89,6 +89,28 @@ def test_sb3_updates_leave_the_encoder_untouched(checkpoints: dict[str, Path], t
     venv.close()
 
 
+def test_an_encoder_brings_the_camera_it_learned_through(checkpoints: dict[str, Path], tmp_path: Path) -> None:
+    from ssbl_pb.training.run import _env_kwargs
+
+    torch.manual_seed(0)
+    narrow = save_checkpoint(tmp_path / "narrow.pt", A.build("saev", TINY).eval(),
+                             {"summary": {"camera_hfov_deg": 26.5}})
+    kw = {"obs_mode": "camera", "camera_width": 24, "camera_height": 24}
+    env = make_env(**kw, encoder=str(narrow))
+    assert env.unwrapped.robot_params.camera_hfov_deg == 26.5
+    env.close()
+    env = make_env(**kw, encoder=str(checkpoints["saev"]))  # recorded no camera: Pepper's
+    assert env.unwrapped.robot_params.camera_hfov_deg == 56.3
+    env.close()
+    with pytest.raises(UserError, match=r"robot camera_hfov_deg 40.0: the encoder \S*narrow.pt learned from frames "
+                                        r"of a 26.5 deg camera"):
+        make_env(**kw, encoder=str(narrow), robot={"camera_hfov_deg": 40.0})
+    cfg = {"obs_mode": "camera", "encoder": "saev", "encoder_checkpoint": str(narrow), "camera_size": 24}
+    assert _env_kwargs(load_config(None, cfg))["robot"] == {"camera_hfov_deg": 26.5}  # training and evaluations
+    with pytest.raises(ConfigError, match=r"config.env.robot camera_hfov_deg 40.0: the encoder"):
+        load_config(None, cfg | {"env": {"robot": {"camera_hfov_deg": 40.0}}})
+
+
 def test_config_checks_the_encoder_checkpoint(checkpoints: dict[str, Path]) -> None:
     saev = str(checkpoints["saev"])
     ok = load_config(None, {"obs_mode": "camera_speed", "encoder": "saev", "encoder_checkpoint": saev,

@@ -9,6 +9,7 @@ ssbl_pb/perception/frames.py).
 Examples:
     python tools/collect_frames.py --episodes 120 --out results/frames/frames.npz
     python tools/collect_frames.py --episodes 40 --size 96 --policies random,sffm --out frames96.npz
+    python tools/collect_frames.py --episodes 120 --camera-hfov 26.5 --out results/frames26/frames.npz
 """
 
 from __future__ import annotations
@@ -27,6 +28,9 @@ def main(argv: list[str] | None = None) -> int:
                     help="comma-separated policies driving the episodes in turn (baselines or a trained model)")
     ap.add_argument("--scenario", default="mixed", help="default | mixed | behind | FORMATION[-N] | a,b,...")
     ap.add_argument("--seed", type=int, default=0, help="seed of the first episode; episode i uses seed+i")
+    ap.add_argument("--camera-hfov", type=float, default=None, metavar="DEG",
+                    help="the camera's field of view, degrees (default Pepper's top camera, 56.3; the paper's "
+                         "Unity camera: 26.5). The encoder trained on these frames keeps it")
     args = ap.parse_args(argv)
 
     from ssbl_pb.analysis.evaluation import check_policy_spec
@@ -45,14 +49,17 @@ def main(argv: list[str] | None = None) -> int:
         raise UserError(f"--policies {args.policies!r}: expected at least one policy")
     for p in policies:
         check_policy_spec(p)
+    if args.camera_hfov is not None and not 5.0 <= args.camera_hfov <= 120.0:
+        raise UserError(f"--camera-hfov {args.camera_hfov}: expected 5..120 degrees")
     check_output_path(args.out, "--out", is_dir=False)
     from ssbl_pb.env.scenarios import ScenarioMix
 
     ScenarioMix(args.scenario)  # a bad scenario fails before any episode
     with progress_bar(args.episodes, "collect frames") as bar:
-        data = collect(args.episodes, args.size, args.seed, policies, args.scenario, bar)
+        data = collect(args.episodes, args.size, args.seed, policies, args.scenario, bar, args.camera_hfov)
     save_frames(args.out, data)
-    print(f"{len(data['frames'])} frames of {args.size}x{args.size} from {args.episodes} episodes -> {args.out}")
+    print(f"{len(data['frames'])} frames of {args.size}x{args.size} ({float(data['camera_hfov']):.1f} deg) from "
+          f"{args.episodes} episodes -> {args.out}")
     return 0
 
 

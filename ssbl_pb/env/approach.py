@@ -292,7 +292,7 @@ def make_env(obs_mode: str = "vector", camera_width: int = 84, camera_height: in
     """Entry point of ``ssbl_pb/ApproachGroup-v0``: the core env wrapped for ``obs_mode``.
 
     ``encoder`` (a ``tools/train_ae.py`` checkpoint; camera modes only) replaces the images by the frozen
-    encoder's features (``env.encoded``).
+    encoder's features (``env.encoded``) and sets the camera's field of view to the one it learned through.
 
     ``camera_yaml`` (a ROS camera_info YAML from ``tools/calibrate_camera.py``) makes the first-person camera
     match a calibrated camera: its intrinsics set the projection, its field of view and (when calibrated) its
@@ -305,6 +305,10 @@ def make_env(obs_mode: str = "vector", camera_width: int = 84, camera_height: in
 
     if obs_mode not in OBS_MODES:
         raise UserError(f"obs_mode {obs_mode!r}: expected one of {OBS_MODES}")
+    if encoder is not None:  # the camera the encoder learned through
+        from .encoded import with_encoder_camera
+
+        kwargs = with_encoder_camera(kwargs, encoder)
     kwargs, projection = core_kwargs(camera_width, camera_height, camera_yaml, robot_yaml, social_yaml, room_yaml,
                                      **kwargs)
     env = wrap_obs_mode(ApproachGroupEnv(**kwargs), obs_mode, camera_width, camera_height, projection)

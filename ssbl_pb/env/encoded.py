@@ -10,10 +10,15 @@ sideways) speed, as the original did. Two wrappers emit the same observation spa
 
 The encoder is frozen: ``FrozenEncoder`` holds it in eval mode (BatchNorm running statistics, no dropout)
 whatever ``train()`` is called with and keeps its weights out of every optimiser.
+
+An encoder only reads images like those it learned from, so the camera it learned through (its field of view,
+recorded from the frames file) is the camera of every env it runs in (``with_encoder_camera``).
 """
 
 from __future__ import annotations
 
+import dataclasses
+import math
 from pathlib import Path
 from typing import Any
 
@@ -24,6 +29,7 @@ from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
 from torch import nn
 
 from ..errors import UserError
+from ..params import RobotParams
 from ..perception.ae_train import checkpoint_info, load_autoencoder
 from ..perception.autoencoders import Autoencoder, to_input
 
@@ -74,6 +80,28 @@ def load_encoder(path: str | Path, resolution: int | None = None, arch: str | No
             raise UserError(f"encoder checkpoint {path} takes {have}x{have} images, the camera renders "
                             f"{resolution}x{resolution} (set camera_size: {have})")
     return FrozenEncoder(load_autoencoder(path, arch=arch))
+
+
+def encoder_camera(path: str | Path) -> dict[str, float]:
+    """The camera (``RobotParams`` keys) an encoder's frames were seen through: its field of view; ``{}`` for a
+    checkpoint written before it was recorded (those learned through Pepper's camera, the default)."""
+    hfov = (checkpoint_info(path)["extra"].get("summary") or {}).get("camera_hfov_deg")
+    return {} if hfov is None else {"camera_hfov_deg": float(hfov)}
+
+
+def with_encoder_camera(kwargs: dict[str, Any], path: str | Path) -> dict[str, Any]:
+    """Env keyword arguments whose ``robot`` camera is the encoder's; another one set there is an error."""
+    cam = encoder_camera(path)
+    if not cam:
+        return kwargs
+    robot = kwargs.get("robot") or {}
+    robot = dataclasses.asdict(robot) if isinstance(robot, RobotParams) else dict(robot)
+    for key, value in cam.items():
+        if key in robot and not math.isclose(float(robot[key]), value, abs_tol=1e-3):
+            raise UserError(f"robot {key} {robot[key]}: the encoder {path} learned from frames of a {value:g} deg "
+                            f"camera (tools/collect_frames.py --camera-hfov); leave {key} unset or collect frames "
+                            f"and train the encoder at {robot[key]}")
+    return {**kwargs, "robot": {**robot, **cam}}
 
 
 def features_space(encoder: FrozenEncoder, with_speed: bool) -> gym.spaces.Box:

@@ -14,6 +14,7 @@ from ..files import write_json, write_text
 from .ae_plots import keypoint_overlay, plot_losses, reconstructions
 from .ae_train import save_checkpoint, split_centres
 from .autoencoders import SAEV, Autoencoder
+from .frames import frames_hfov
 
 
 def example_frames(data: dict[str, np.ndarray], n: int = 6) -> np.ndarray:
@@ -41,7 +42,8 @@ def write_report(out: Path, model: Autoencoder, history: list[dict[str, float]],
     summary = {"arch": model.arch, "size": model.size.name, "resolution": model.size.input_size,
                "feature_dim": model.feature_dim, "steps": int(history[-1]["step"]),
                "train_seconds": history[-1]["seconds"], "frames": int(len(data["frames"])),
-               "final_val": {k[4:]: v for k, v in history[-1].items() if k.startswith("val_")}, **extra}
+               "final_val": {k[4:]: v for k, v in history[-1].items() if k.startswith("val_")},
+               "camera_hfov_deg": frames_hfov(data), **extra}
     save_checkpoint(out / "encoder.pt", model, {"summary": summary})
     buf = io.StringIO()
     writer = csv.DictWriter(buf, fieldnames=list(history[0]))

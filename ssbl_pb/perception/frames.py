@@ -17,6 +17,8 @@ members_rel    (N, M, 2) f4    members' positions in the robot frame (x forward,
 members_px     (N, M, 2) f4    the pixel (u, v) of each member's torso centre when in the image, else NaN
 policy         (N,) i1         index into ``policies``
 policies       (P,) str        the policies' names
+camera_hfov    () f4           the camera's horizontal (= vertical) field of view, degrees (optional: files
+                               written before it existed are Pepper's 56.3)
 =============  ==============  ==============================================================================
 """
 
@@ -62,8 +64,10 @@ def _member_pixels(world, cam, seg: np.ndarray) -> tuple[np.ndarray, np.ndarray]
 
 
 def collect(episodes: int, size: int, seed: int = 0, policies: tuple[str, ...] = DEFAULT_POLICIES,
-            scenario: str = "mixed", progress: Callable[[int], None] | None = None) -> dict[str, np.ndarray]:
-    """Run ``episodes`` episodes (seeds ``seed``, ``seed + 1``, ...; episode i driven by ``policies[i % P]``)."""
+            scenario: str = "mixed", progress: Callable[[int], None] | None = None,
+            camera_hfov_deg: float | None = None) -> dict[str, np.ndarray]:
+    """Run ``episodes`` episodes (seeds ``seed``, ``seed + 1``, ...; episode i driven by ``policies[i % P]``),
+    seen through Pepper's camera or, with ``camera_hfov_deg``, one of that field of view."""
     from ..analysis.evaluation import build_policy
     from ..env.approach import make_env
     from ..env.rollout import run_episode
@@ -71,7 +75,8 @@ def collect(episodes: int, size: int, seed: int = 0, policies: tuple[str, ...] =
 
     if not isinstance(episodes, int) or episodes < 1:
         raise FramesError(f"--episodes {episodes!r}: expected an integer >= 1")
-    env = make_env(obs_mode="vector", scenario=scenario)
+    robot = {} if camera_hfov_deg is None else {"camera_hfov_deg": float(camera_hfov_deg)}
+    env = make_env(obs_mode="vector", scenario=scenario, robot=robot)
     world = env.unwrapped.world
     cam = sim_camera(world.robot_params, size, size)
     built = [build_policy(name, env) for name in policies]
@@ -98,6 +103,7 @@ def collect(episodes: int, size: int, seed: int = 0, policies: tuple[str, ...] =
               "members_px": np.float32, "policy": np.int8}
     out = {k: np.asarray(v, dtype=dtypes[k]) for k, v in cols.items()}
     out["policies"] = np.asarray(policies)
+    out["camera_hfov"] = np.float32(world.robot_params.camera_hfov_deg)
     return out
 
 
@@ -137,7 +143,16 @@ def load_frames(path: str | Path, size: int | None = None) -> dict[str, np.ndarr
     if size is not None and f.shape[1] != size:
         raise FramesError(f"--frames {path}: frames are {f.shape[1]}x{f.shape[2]}, the encoder takes "
                           f"{size}x{size} (collect frames with --size {size})")
+    if "camera_hfov" in data and data["camera_hfov"].ndim != 0:
+        raise FramesError(f"--frames {path}: 'camera_hfov' has shape {data['camera_hfov'].shape}, expected a scalar")
     return data
+
+
+def frames_hfov(data: dict[str, np.ndarray]) -> float:
+    """The field of view (degrees) the frames were seen through; Pepper's for files without the key."""
+    from ..params import RobotParams
+
+    return float(data["camera_hfov"]) if "camera_hfov" in data else RobotParams().camera_hfov_deg
 
 
 def triplet_centres(episode: np.ndarray) -> np.ndarray:

@@ -26,6 +26,7 @@ from typing import Any
 
 import yaml
 
+from ..errors import UserError
 from ..params import ConfigError, _check, from_dict, load_yaml
 
 OBS_MODES = ("vector", "camera", "camera_speed")
@@ -196,6 +197,12 @@ class TrainConfig:
                f"a {self.encoder} checkpoint (encoder: {self.encoder}), it holds a {info['arch']} autoencoder")
         _check(info["resolution"] == self.camera_size, "config", "camera_size", self.camera_size,
                f"{info['resolution']}, the input resolution of encoder checkpoint {path}")
+        from ..env.encoded import with_encoder_camera
+
+        try:  # env.robot's camera may not contradict the one the encoder learned through
+            with_encoder_camera(dict(self.env), path)
+        except UserError as exc:
+            raise ConfigError(f"config.env.{exc}") from exc
 
     @property
     def steps_per_update(self) -> int:

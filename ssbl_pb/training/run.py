@@ -29,8 +29,13 @@ class RunError(UserError):
 
 
 def _env_kwargs(cfg: TrainConfig) -> dict[str, Any]:
-    return {"obs_mode": cfg.obs_mode, "scenario": cfg.scenario, "reward": dict(cfg.reward),
-            "camera_width": cfg.camera_size, "camera_height": cfg.camera_size, **cfg.env}
+    kwargs = {"obs_mode": cfg.obs_mode, "scenario": cfg.scenario, "reward": dict(cfg.reward),
+              "camera_width": cfg.camera_size, "camera_height": cfg.camera_size, **cfg.env}
+    if cfg.encoder_file:  # the camera the encoder learned through
+        from ..env.encoded import with_encoder_camera
+
+        kwargs = with_encoder_camera(kwargs, cfg.encoder_file)
+    return kwargs
 
 
 class EnvFactory:
