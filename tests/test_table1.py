@@ -128,3 +128,26 @@ def test_smoke_table_and_resume(tmp_path: Path) -> None:
     again = run_tool("table1.py", argv, timeout=120)  # every row finished: read back, nothing retrained
     assert again.returncode == 0, again.stderr[-2000:]
     assert {p: p.stat().st_mtime_ns for p in results} == stamps
+
+
+def test_encoders_must_have_learned_through_the_tables_camera(tmp_path: Path) -> None:
+    import torch
+
+    from ssbl_pb.analysis.table1 import prepare_encoders
+    from ssbl_pb.errors import UserError
+    from ssbl_pb.perception import autoencoders as A
+    from ssbl_pb.perception.ae_train import save_checkpoint
+
+    torch.manual_seed(0)
+    tiny = A.AESize("tiny", 24, (4, 6, 5), (3, 3, 3), 2, 12, (4, 4), 8, 6)
+    narrow = str(save_checkpoint(tmp_path / "narrow.pt", A.build("saev", tiny).eval(),
+                                 {"summary": {"camera_hfov_deg": 26.5}}))
+    full = BUDGETS["full"]
+    assert prepare_encoders(full, tmp_path, {"saev"}, {"saev": narrow}, camera_hfov_deg=26.5) == {"saev": narrow}
+    assert prepare_encoders(full, tmp_path, {"saev"}, {"saev": narrow}) == {"saev": narrow}  # unset: its own
+    with pytest.raises(UserError, match=r"saev encoder \S*narrow.pt: learned through a 26.5 deg camera, the table "
+                                        r"asks for --camera-hfov 56.3"):
+        prepare_encoders(full, tmp_path, {"saev"}, {"saev": narrow}, camera_hfov_deg=56.3)
+    with pytest.raises(UserError, match=r"--conv \S*nosuch.pt: file not found"):
+        prepare_encoders(full, tmp_path, {"conv"}, {"conv": str(tmp_path / "nosuch.pt")})
+    assert not (tmp_path / "frames.npz").exists()  # nothing trained or collected

@@ -36,6 +36,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--rows", help=f"comma-separated subset of: {', '.join(r.slug for r in ROWS)}")
     ap.add_argument("--saev", help="a trained SAEV checkpoint (tools/train_ae.py) instead of training one")
     ap.add_argument("--conv", help="a trained conv AE checkpoint instead of training one")
+    ap.add_argument("--camera-hfov", type=float, default=None, metavar="DEG",
+                    help="the camera rows' field of view, degrees, for the frames the encoders learn from (default "
+                         "Pepper's 56.3; the paper's Unity camera: 26.5); given encoders must have learned through it")
     ap.add_argument("--threads", type=int, default=1, help="torch threads per trial (default 1)")
     add_run_options(ap)
     args = ap.parse_args(argv)
@@ -65,7 +68,8 @@ def main(argv: list[str] | None = None) -> int:
     torch.set_num_threads(max(1, args.threads))
     args.out.mkdir(parents=True, exist_ok=True)
     # stage 1 beside the trials: on a cluster, every node reads the encoders from there
-    encoders = prepare_encoders(budget, where.path, {r.encoder for r in rows} & {"saev", "conv"}, given)
+    encoders = prepare_encoders(budget, where.path, {r.encoder for r in rows} & {"saev", "conv"}, given,
+                                camera_hfov_deg=args.camera_hfov)
     trials = row_trials(rows, args.seeds, budget, encoders, args.threads)
     try:
         outcome = where.run(trials, "table I")

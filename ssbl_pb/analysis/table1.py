@@ -121,9 +121,13 @@ def percent(value: float, random: float, baseline: float) -> float:
 
 # -- stage 1: encoders ---------------------------------------------------------------------------------------
 def prepare_encoders(budget: Budget, out: Path, archs: set[str], given: dict[str, str | None], seed: int = 0,
-                     progress: Any = None) -> dict[str, str]:
+                     progress: Any = None, camera_hfov_deg: float | None = None) -> dict[str, str]:
     """Checkpoint path per architecture in ``archs``: given ones as they are, else trained into
-    ``out/ae/ARCH`` (frames in ``out/frames.npz``), reusing what an earlier run of the table left there."""
+    ``out/ae/ARCH`` (frames in ``out/frames.npz``, seen through a camera of ``camera_hfov_deg``, default
+    Pepper's), reusing what an earlier run of the table left there. An encoder that learned through another
+    camera than ``camera_hfov_deg`` (when given) is refused."""
+    from ..env.encoded import encoder_camera
+    from ..params import RobotParams
     from ..perception.ae_report import write_report
     from ..perception.ae_train import AETrainParams, train_autoencoder
     from ..perception.autoencoders import SIZES
@@ -132,19 +136,23 @@ def prepare_encoders(budget: Budget, out: Path, archs: set[str], given: dict[str
     paths: dict[str, str] = {}
     frames_file = out / "frames.npz"
     for arch in sorted(archs):
-        if given.get(arch):
-            paths[arch] = str(given[arch])
-            continue
-        ckpt = out / "ae" / arch / "encoder.pt"
+        ckpt = Path(given[arch]) if given.get(arch) else out / "ae" / arch / "encoder.pt"
+        if given.get(arch) and not ckpt.is_file():
+            raise UserError(f"--{arch} {ckpt}: file not found (expected a tools/train_ae.py checkpoint)")
         if not ckpt.is_file():
             if not frames_file.is_file():
-                save_frames(frames_file, collect(budget.frames_episodes, SIZES["cpu"].input_size, seed))
+                save_frames(frames_file, collect(budget.frames_episodes, SIZES["cpu"].input_size, seed,
+                                                 camera_hfov_deg=camera_hfov_deg))
             data = load_frames(frames_file)
             params = AETrainParams(steps=budget.ae_steps, seed=seed, eval_every=max(1, min(250, budget.ae_steps)))
             model, history = train_autoencoder(data, arch, "cpu", params, progress)
             (out / "ae" / arch).mkdir(parents=True, exist_ok=True)
             write_report(out / "ae" / arch, model, history, data, {"frames_file": str(frames_file)})
-        paths[arch] = str(ckpt.resolve())
+        have = encoder_camera(ckpt).get("camera_hfov_deg", RobotParams().camera_hfov_deg)
+        if camera_hfov_deg is not None and abs(have - camera_hfov_deg) > 1e-3:
+            raise UserError(f"{arch} encoder {ckpt}: learned through a {have:g} deg camera, the table asks for "
+                            f"--camera-hfov {camera_hfov_deg:g} (give another --out or a matching encoder)")
+        paths[arch] = str(given[arch]) if given.get(arch) else str(ckpt.resolve())
     return paths
 
 
