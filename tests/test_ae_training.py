@@ -108,13 +108,41 @@ def test_frames_file_checks_name_the_problem(tmp_path: Path) -> None:
         load_frames(tmp_path / "d.npz")
 
 
+def test_a_run_resumed_from_its_snapshot_ends_as_an_uninterrupted_one(tmp_path: Path) -> None:
+    import dataclasses
+
+    torch.set_num_threads(1)
+    data = moving_square(12, 8)
+    params = AETrainParams(steps=12, batch=4, lr=3e-3, eval_every=4, val_every_episode=4)
+    saved: dict[int, Path] = {}
+
+    def keep(step: int, m: A.Autoencoder, state: dict) -> None:
+        saved[step] = save_checkpoint(tmp_path / f"s{step}.pt", m, {"step": step, "resume": state})
+
+    whole, history = train_autoencoder(data, "saev", TINY, params, on_eval=keep)
+    resumed, history2 = train_autoencoder(data, "saev", TINY, params, resume=saved[4])
+    for (name, a), b in zip(whole.state_dict().items(), resumed.state_dict().values(), strict=True):
+        assert torch.equal(a, b), name  # weights, BatchNorm statistics: dropout and batches replayed exactly
+    assert [r["step"] for r in history2] == [4, 8, 12] and history2[-1]["val_total"] == history[-1]["val_total"]
+    with pytest.raises(CheckpointError, match=r"--resume \S*s4.pt: lr is 0.003, this run's is 0.001"):
+        train_autoencoder(data, "saev", TINY, dataclasses.replace(params, lr=1e-3), resume=saved[4])
+    with pytest.raises(CheckpointError, match="architecture is 'saev', this run's is 'conv'"):
+        train_autoencoder(data, "conv", TINY, params, resume=saved[4])
+    with pytest.raises(CheckpointError, match="number of frames is 96, this run's is 80"):
+        train_autoencoder(moving_square(10, 8), "saev", TINY, params, resume=saved[4])
+    with pytest.raises(CheckpointError, match="already at step 8, --steps is 8"):
+        train_autoencoder(data, "saev", TINY, dataclasses.replace(params, steps=8), resume=saved[8])
+    with pytest.raises(CheckpointError, match="holds no training state"):
+        train_autoencoder(data, "saev", TINY, params, resume=save_checkpoint(tmp_path / "plain.pt", whole))
+
+
 @pytest.mark.parametrize("arch", A.ARCHS)
 def test_training_lowers_the_held_out_reconstruction_error(arch: str) -> None:
     torch.set_num_threads(1)
     params = AETrainParams(steps=80, batch=8, lr=3e-3, eval_every=20, val_every_episode=4)
     probe, seen = torch.rand(2, 3, 24, 24), []
 
-    def on_eval(step: int, m: A.Autoencoder) -> None:
+    def on_eval(step: int, m: A.Autoencoder, state: dict) -> None:
         with torch.inference_mode():
             seen.append((step, m.training, m.encode(probe).clone()))
 
@@ -156,8 +184,9 @@ def test_train_ae_tool_writes_checkpoint_and_figures(tmp_path: Path) -> None:
 
     data = moving_square(4, 12, size=64)
     save_frames(tmp_path / "f.npz", data)
-    res = run_tool("train_ae.py", ["--frames", str(tmp_path / "f.npz"), "--arch", "saev", "--steps", "3",
-                                   "--batch", "4", "--snapshot-every", "2", "--out", str(tmp_path / "ae")])
+    args = ["--frames", str(tmp_path / "f.npz"), "--arch", "saev", "--steps", "3", "--batch", "4", "--threads", "1",
+            "--snapshot-every", "2"]
+    res = run_tool("train_ae.py", [*args, "--out", str(tmp_path / "ae")])
     assert res.returncode == 0, res.stderr
     names = sorted(p.name for p in (tmp_path / "ae").iterdir())
     assert names == ["encoder.pt", "history.csv", "keypoints.png", "losses.png", "reconstructions.png",
@@ -165,6 +194,11 @@ def test_train_ae_tool_writes_checkpoint_and_figures(tmp_path: Path) -> None:
     assert [p.name for p in (tmp_path / "ae" / "snapshots").iterdir()] == ["encoder_step2.pt"]
     assert load_autoencoder(tmp_path / "ae" / "snapshots" / "encoder_step2.pt", "saev", "cpu", 64)
     assert load_autoencoder(tmp_path / "ae" / "encoder.pt", "saev", "cpu", 64).feature_dim == 48
+    snap = tmp_path / "ae" / "snapshots" / "encoder_step2.pt"
+    res = run_tool("train_ae.py", [*args, "--out", str(tmp_path / "again"), "--resume", str(snap)])
+    assert res.returncode == 0, res.stderr
+    whole, resumed = (torch.load(tmp_path / d / "encoder.pt", weights_only=True)["state_dict"] for d in ("ae", "again"))
+    assert all(torch.equal(whole[k], resumed[k]) for k in whole)
 
 
 @pytest.mark.slow

@@ -10,6 +10,8 @@ Examples:
     python tools/train_ae.py --frames frames.npz --arch conv --steps 500 --out results/ae/conv_quick
     python tools/train_ae.py --frames frames96.npz --arch saev --size paper --out results/ae/saev_paper
     python tools/train_ae.py --frames frames.npz --arch saev --steps 16000 --snapshot-every 2000 --out results/ae/long
+    python tools/train_ae.py --frames frames.npz --arch saev --steps 16000 --snapshot-every 2000 --out results/ae/long \
+        --resume results/ae/long/snapshots/encoder_step6000.pt
 """
 
 from __future__ import annotations
@@ -38,6 +40,10 @@ def main(argv: list[str] | None = None) -> int:
                     help="also write DIR/snapshots/encoder_stepN.pt every N steps (a multiple of the evaluation "
                          "interval, min(250, steps/10)), for a learning curve of tools/bench_camera.py; kept if "
                          "the run is interrupted; 0: none")
+    ap.add_argument("--resume", type=Path, metavar="SNAPSHOT",
+                    help="continue an interrupted run from one of its snapshots (same frames, arch, size, batch, "
+                         "lr, seed and --snapshot-every steps' evaluation interval): the result is that of an "
+                         "uninterrupted run")
     args = ap.parse_args(argv)
 
     from ssbl_pb.errors import UserError
@@ -58,7 +64,7 @@ def main(argv: list[str] | None = None) -> int:
     from ssbl_pb.cli import make_bar
     from ssbl_pb.files import check_output_path, output_dir
     from ssbl_pb.perception.ae_report import write_report
-    from ssbl_pb.perception.ae_train import save_checkpoint, train_autoencoder
+    from ssbl_pb.perception.ae_train import checkpoint_info, save_checkpoint, train_autoencoder
 
     torch.set_num_threads(max(1, args.threads))
     created, snapshots = not args.out.exists(), []
@@ -66,14 +72,17 @@ def main(argv: list[str] | None = None) -> int:
         check_output_path(args.out).mkdir(parents=True, exist_ok=True)
     try:
         with output_dir(args.out) as out:
-            def snapshot(step: int, model) -> None:
+            def snapshot(step: int, model, state: dict) -> None:
                 if args.snapshot_every and step % args.snapshot_every == 0:
                     snapshots.append(save_checkpoint(out / "snapshots" / f"encoder_step{step}.pt", model,
-                                                     {"step": step}))
+                                                     {"step": step, "resume": state}))
 
             bar = make_bar(params.steps, f"train {args.arch}", "step")
+            if args.resume:
+                bar.update(int(checkpoint_info(args.resume)["extra"].get("step", 0)))
             try:
-                model, history = train_autoencoder(data, args.arch, args.size, params, bar, on_eval=snapshot)
+                model, history = train_autoencoder(data, args.arch, args.size, params, bar, on_eval=snapshot,
+                                                   resume=args.resume)
             finally:
                 bar.close()
             summary = write_report(out, model, history, data, {"frames_file": str(args.frames), "lr": args.lr,

@@ -83,14 +83,19 @@ def evaluate_loss(model: Autoencoder, frames: torch.Tensor, centres: np.ndarray,
     return {k: v / len(centres) for k, v in sums.items()}
 
 
+RESUMED = ("batch", "lr", "eval_every", "val_every_episode", "seed")  # what a resumed run must share
+
+
 def train_autoencoder(data: dict[str, np.ndarray], arch: str, size: str | AESize, params: AETrainParams,
                       progress: Any = None, max_val: int = 512,
-                      on_eval: Callable[[int, Autoencoder], None] | None = None,
-                      ) -> tuple[Autoencoder, list[dict[str, float]]]:
+                      on_eval: Callable[[int, Autoencoder, dict[str, Any]], None] | None = None,
+                      resume: str | Path | None = None) -> tuple[Autoencoder, list[dict[str, float]]]:
     """Train a fresh ``arch`` autoencoder on a frames file's arrays; returns it (eval mode) and its history
     (one row per ``eval_every`` steps: step, seconds, training parts averaged since the last row, validation
-    parts on up to ``max_val`` held-out triplets). ``on_eval(step, model)``, when given, runs after each row
-    (model in eval mode; training resumes after it): snapshots for a learning curve."""
+    parts on up to ``max_val`` held-out triplets). ``on_eval(step, model, state)``, when given, runs after each
+    row (model in eval mode; training resumes after it): ``state`` is what ``resume`` needs, so a checkpoint
+    saved with ``{"resume": state}`` as its extra (a snapshot) continues exactly where it was written: the same
+    weights, optimiser moments, random streams and history as an uninterrupted run."""
     torch.manual_seed(params.seed)
     rng = np.random.default_rng(params.seed)
     model = build(arch, size)
@@ -105,10 +110,19 @@ def train_autoencoder(data: dict[str, np.ndarray], arch: str, size: str | AESize
     val_c = rng.permutation(val_c)[:max_val]
     opt = torch.optim.Adam(model.parameters(), lr=params.lr)
     history: list[dict[str, float]] = []
+    start, offset = 1, 0.0
+    if resume is not None:
+        state = _resume_state(resume, model, params, len(frames))
+        model.load_state_dict(read_checkpoint(resume)["state_dict"])
+        opt.load_state_dict(state["optimizer"])
+        rng.bit_generator.state = state["numpy_rng"]
+        torch.set_rng_state(state["torch_rng"])
+        history = [dict(r) for r in state["history"]]
+        start, offset = int(state["step"]) + 1, float(history[-1]["seconds"]) if history else 0.0
     acc: dict[str, float] = {}
     t0, n_acc = time.perf_counter(), 0
     model.train()
-    for step in range(1, params.steps + 1):
+    for step in range(start, params.steps + 1):
         batch = triplets(frames, rng.choice(train_c, params.batch))
         loss, parts = triplet_loss(model, batch, params.weights)
         opt.zero_grad(set_to_none=True)
@@ -121,7 +135,7 @@ def train_autoencoder(data: dict[str, np.ndarray], arch: str, size: str | AESize
             progress.update(1)
         if step % params.eval_every == 0 or step == params.steps:
             val = evaluate_loss(model, frames, val_c, params.weights)
-            row = {"step": step, "seconds": round(time.perf_counter() - t0, 1)}
+            row = {"step": step, "seconds": round(offset + time.perf_counter() - t0, 1)}
             row |= {f"train_{k}": v / n_acc for k, v in acc.items()} | {f"val_{k}": v for k, v in val.items()}
             history.append(row)
             acc, n_acc = {}, 0
@@ -129,9 +143,29 @@ def train_autoencoder(data: dict[str, np.ndarray], arch: str, size: str | AESize
                 progress.set_postfix_str(f"val loss {val['total']:.4f}")
             if on_eval is not None:
                 model.eval()
-                on_eval(step, model)
+                state = {"step": step, "optimizer": opt.state_dict(), "numpy_rng": rng.bit_generator.state,
+                         "torch_rng": torch.get_rng_state(), "history": [dict(r) for r in history],
+                         "params": {k: getattr(params, k) for k in RESUMED}, "frames": len(frames)}
+                on_eval(step, model, state)
                 model.train()
     return model.eval(), history
+
+
+def _resume_state(path: str | Path, model: Autoencoder, params: AETrainParams, n_frames: int) -> dict[str, Any]:
+    """A snapshot's resume state, checked against the run it is to continue."""
+    blob = read_checkpoint(path)
+    state = blob["extra"].get("resume")
+    if not isinstance(state, dict):
+        raise CheckpointError(f"--resume {path}: holds no training state (tools/train_ae.py --snapshot-every "
+                              f"writes snapshots that do)")
+    for what, have, want in (("architecture", blob["arch"], model.arch), ("size", blob["size"], model.size.name),
+                             ("number of frames", state.get("frames"), n_frames),
+                             *((k, state["params"].get(k), getattr(params, k)) for k in RESUMED)):
+        if have != want:
+            raise CheckpointError(f"--resume {path}: {what} is {have!r}, this run's is {want!r}")
+    if not state["step"] < params.steps:
+        raise CheckpointError(f"--resume {path}: already at step {state['step']}, --steps is {params.steps}")
+    return state
 
 
 # -- checkpoints ---------------------------------------------------------------------------------------------
