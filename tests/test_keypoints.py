@@ -102,6 +102,12 @@ def test_keypoint_precision_feet_tolerate_noise_that_torso_rows_do_not() -> None
     u = 32.0 - f * lateral / depth
     want = np.mean(((31.0 + f * 1.15 / depth) < 64) & (u >= 0) & (u < 64), where=held)
     assert res["feet_in_image"] == pytest.approx(want, abs=0.02)
+    # frames seen through the paper's 26.5 deg camera: the feet are projected through that one
+    narrow = keypoint_precision(frames | {"camera_hfov": np.float32(26.5)}, noise_px=(0.0,))
+    f = 32.0 / np.tan(np.radians(26.5 / 2))
+    u = 32.0 - f * lateral / depth
+    want = np.mean(((31.0 + f * 1.15 / depth) < 64) & (u >= 0) & (u < 64), where=held)
+    assert narrow["feet_in_image"] == pytest.approx(want, abs=0.02) and want < 0.5 * res["feet_in_image"]
 
 
 def test_pets_person_boxes_stand_on_their_ground_points(shared_data) -> None:

@@ -104,6 +104,7 @@ def keypoint_tracking(frames: dict[str, np.ndarray], saev: str, episodes: int = 
                       ) -> dict[str, Any]:
     """SAEV keypoint detector calibrated on the training episodes' frames, then the tracker in simulation
     (``sim_eval.evaluate_sim``, the same drive and scoring as the segmentation and colour detectors)."""
+    from ..env.encoded import encoder_camera
     from ..params import RobotParams
     from .keypoints import KeypointDetector, calibrate, encode_keypoints, plane_projection
     from .probe import visible_members
@@ -111,13 +112,14 @@ def keypoint_tracking(frames: dict[str, np.ndarray], saev: str, episodes: int = 
 
     model = load_autoencoder(saev, arch="saev")
     s = model.size.input_size
-    project = plane_projection(sim_camera(RobotParams(), s, s))
+    robot = RobotParams(**encoder_camera(saev))  # the camera the encoder learned through
+    project = plane_projection(sim_camera(robot, s, s))
     train_c, _ = split_centres(frames["episode"], 10)
     uv, rho = encode_keypoints(model, frames["frames"][train_c])
     calib = calibrate(uv, rho, visible_members(frames)[train_c], project)
     det = KeypointDetector(model, calib, project)
     res = evaluate_sim(SimEvalParams(episodes=episodes, steps=steps, width=s, height=s, detector="saev"),
-                       custom=lambda w: det(w.render_first_person(s, s)[0]))
+                       custom=lambda w: det(w.render_first_person(s, s)[0]), robot_params=robot)
     return res | {"calibration": {"keypoints": list(calib.keypoints), "heights_m": list(calib.heights),
                                   "train_median_m": [round(v, 3) for v in calib.train_median_m]}}
 
@@ -130,13 +132,14 @@ def keypoint_precision(frames: dict[str, np.ndarray], noise_px: tuple[float, ...
     sightings and split as ``probe_encoders``; ``feet_in_image``: the held-out sightings whose feet are in view
     (a close member's are below the image: this cue is an idealisation there)."""
     from ..params import RobotParams
+    from .frames import frames_hfov
     from .probe import pixel_probe, visible_members
     from .sim_eval import sim_camera
 
     train_c, val_c = split_centres(frames["episode"], 10)
     members = visible_members(frames)
     side = frames["frames"].shape[1]
-    cam = sim_camera(RobotParams(), side, side)
+    cam = sim_camera(RobotParams(camera_hfov_deg=frames_hfov(frames)), side, side)
     cues = {"torso": frames["members_px"].astype(float),
             "feet": cam.ground_to_pixel(np.nan_to_num(members.reshape(-1, 2))).reshape(members.shape)}
     rng = np.random.default_rng(seed)

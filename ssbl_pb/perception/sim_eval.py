@@ -135,7 +135,8 @@ def _drive(world: World, t: float) -> np.ndarray:
 
 def evaluate_sim(params: SimEvalParams | None = None, tracker: TrackerParams | None = None,
                  world_params: WorldParams | None = None,
-                 custom: Callable[[World], np.ndarray] | None = None) -> dict[str, float]:
+                 custom: Callable[[World], np.ndarray] | None = None,
+                 robot_params: RobotParams | None = None) -> dict[str, float]:
     """Run episodes; returns position-error statistics (m) of tracks against members within ``max_range``.
 
     ``custom(world) -> (n, 2)`` robot-frame detections replaces the named detector (``detector`` is then only
@@ -144,7 +145,7 @@ def evaluate_sim(params: SimEvalParams | None = None, tracker: TrackerParams | N
     if custom is None and p.detector not in ("seg", "colour"):
         raise UserError(f"detector = {p.detector!r}: expected 'seg' or 'colour'")
     rng = np.random.default_rng(p.seed)
-    world = World(world_params, groups=GroupModel("paper"))  # the groups its benchmarks were measured on
+    world = World(world_params, robot_params, groups=GroupModel("paper"))  # the groups its benchmarks used
     errors, visible, tracked = [], 0, 0
     try:
         cam = sim_camera(world.robot_params, p.width, p.height)
