@@ -36,7 +36,7 @@ def main(argv: list[str] | None = None) -> int:
     from ssbl_pb.analysis.evaluation import check_policy_spec
     from ssbl_pb.errors import UserError
     from ssbl_pb.files import check_output_path
-    from ssbl_pb.perception.frames import collect, save_frames
+    from ssbl_pb.perception.frames import check_hfov, collect, save_frames
 
     if args.out.suffix != ".npz":
         raise UserError(f"--out {args.out}: expected a .npz file name")
@@ -49,8 +49,7 @@ def main(argv: list[str] | None = None) -> int:
         raise UserError(f"--policies {args.policies!r}: expected at least one policy")
     for p in policies:
         check_policy_spec(p)
-    if args.camera_hfov is not None and not 5.0 <= args.camera_hfov <= 120.0:
-        raise UserError(f"--camera-hfov {args.camera_hfov}: expected 5..120 degrees")
+    check_hfov(args.camera_hfov)
     check_output_path(args.out, "--out", is_dir=False)
     from ssbl_pb.env.scenarios import ScenarioMix
 

@@ -46,11 +46,13 @@ def main(argv: list[str] | None = None) -> int:
     from ssbl_pb.analysis.table1 import find_row, get_budget
     from ssbl_pb.errors import UserError
     from ssbl_pb.perception.ae_train import checkpoint_info
+    from ssbl_pb.perception.frames import check_hfov
     from ssbl_pb.sweep.cli import TrialsRoot
 
     budget = get_budget(args.budget)
     if args.seeds < 1:
         raise UserError(f"--seeds {args.seeds}: expected an integer >= 1")
+    check_hfov(args.camera_hfov)
     rows = [find_row(s) for s in args.rows.split(",")] if args.rows else list(ROWS)
     given = {"saev": args.saev, "conv": args.conv}
     for arch, path in given.items():

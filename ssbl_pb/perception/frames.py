@@ -148,6 +148,12 @@ def load_frames(path: str | Path, size: int | None = None) -> dict[str, np.ndarr
     return data
 
 
+def check_hfov(deg: float | None, flag: str = "--camera-hfov") -> None:
+    """A camera field of view a user asked for: None (Pepper's) or 5..120 degrees."""
+    if deg is not None and not 5.0 <= deg <= 120.0:
+        raise FramesError(f"{flag} {deg:g}: expected 5..120 degrees")
+
+
 def frames_hfov(data: dict[str, np.ndarray]) -> float:
     """The field of view (degrees) the frames were seen through; Pepper's for files without the key."""
     from ..params import RobotParams
