@@ -122,6 +122,8 @@ CASES = [
     C("train_ae.py", "--frames", "{file}", "--arch", "saev", "--out", "{out}", expect="not a readable .npz"),
     C("train_ae.py", "--frames", "{tmp}/none.npz", "--arch", "conv", "--out", "{out}", expect="file not found"),
     C("train_ae.py", "--frames", "{file}", "--arch", "saev", "--steps", "0", "--out", "{out}", expect="--steps 0"),
+    C("train_ae.py", "--frames", "{file}", "--arch", "saev", "--resume", "{tmp}/nosuch.pt", "--out", "{out}",
+      expect="nosuch.pt: file not found"),
     C("train_ae.py", "--frames", "{file}", "--arch", "saev", "--snapshot-every", "300", "--out", "{out}",
       expect="--snapshot-every 300: expected 0 or a multiple of the evaluation interval 250"),
     # groups calibration (issue 14)

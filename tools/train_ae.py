@@ -57,6 +57,11 @@ def main(argv: list[str] | None = None) -> int:
     if args.snapshot_every < 0 or args.snapshot_every % params.eval_every:
         raise UserError(f"--snapshot-every {args.snapshot_every}: expected 0 or a multiple of the evaluation "
                         f"interval {params.eval_every}")
+    if args.resume:  # a missing or foreign snapshot fails before any folder is made
+        from ssbl_pb.perception.ae_train import checkpoint_info
+
+        if "resume" not in checkpoint_info(args.resume)["extra"]:
+            raise UserError(f"--resume {args.resume}: holds no training state (a snapshot of --snapshot-every does)")
     data = load_frames(args.frames, get_size(args.size).input_size)
 
     import torch
@@ -64,7 +69,7 @@ def main(argv: list[str] | None = None) -> int:
     from ssbl_pb.cli import make_bar
     from ssbl_pb.files import check_output_path, output_dir
     from ssbl_pb.perception.ae_report import write_report
-    from ssbl_pb.perception.ae_train import checkpoint_info, save_checkpoint, train_autoencoder
+    from ssbl_pb.perception.ae_train import save_checkpoint, train_autoencoder
 
     torch.set_num_threads(max(1, args.threads))
     created, snapshots = not args.out.exists(), []
