@@ -3,6 +3,7 @@ training with encoder conv / saev and evaluating the result (training/config.py,
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -109,6 +110,36 @@ def test_an_encoder_brings_the_camera_it_learned_through(checkpoints: dict[str, 
     assert _env_kwargs(load_config(None, cfg))["robot"] == {"camera_hfov_deg": 26.5}  # training and evaluations
     with pytest.raises(ConfigError, match=r"config.env.robot camera_hfov_deg 40.0: the encoder"):
         load_config(None, cfg | {"env": {"robot": {"camera_hfov_deg": 40.0}}})
+
+
+def _camera_yaml(path: Path, hfov_deg: float) -> str:
+    """A ROS camera_info YAML of a 640x480 pinhole with the given horizontal field of view."""
+    f = 320 / math.tan(math.radians(hfov_deg) / 2)
+    path.write_text(f"image_width: 640\nimage_height: 480\ncamera_name: t\n"
+                    f"camera_matrix: {{rows: 3, cols: 3, data: [{f}, 0.0, 319.5, 0.0, {f}, 239.5, 0.0, 0.0, 1.0]}}\n"
+                    "distortion_model: plumb_bob\ndistortion_coefficients: {rows: 1, cols: 5, data: [0, 0, 0, 0, 0]}\n")
+    return str(path)
+
+
+def test_a_calibrated_camera_must_be_the_encoders(checkpoints: dict[str, Path], tmp_path: Path) -> None:
+    torch.manual_seed(0)
+    narrow = str(save_checkpoint(tmp_path / "narrow.pt", A.build("saev", TINY).eval(),
+                                 {"summary": {"camera_hfov_deg": 26.5}}))
+    kw = {"obs_mode": "camera", "camera_width": 24, "camera_height": 24}
+    pepper_like = _camera_yaml(tmp_path / "pepper.yaml", 58.0)  # tan ratio 1.033 to 56.3: within 5 %
+    env = make_env(**kw, encoder=str(checkpoints["saev"]), camera_yaml=pepper_like)
+    assert env.unwrapped.robot_params.camera_hfov_deg == pytest.approx(58.0, abs=0.01)  # the calibrated one
+    env.close()
+    with pytest.raises(UserError, match=r"camera_yaml \S*pepper.yaml: a 58.0 deg camera, the encoder \S*narrow.pt "
+                                        r"learned from frames of a 26.5 deg camera \(people 0.42x"):
+        make_env(**kw, encoder=narrow, camera_yaml=pepper_like)
+    wide = _camera_yaml(tmp_path / "wide.yaml", 62.0)  # tan ratio 0.89 to Pepper's 56.3
+    with pytest.raises(UserError, match=r"a 62.0 deg camera, the encoder \S*saev.pt learned from frames of a "
+                                        r"56.3 deg camera \(people 0.89x"):
+        make_env(**kw, encoder=str(checkpoints["saev"]), camera_yaml=wide)
+    cfg = {"obs_mode": "camera", "encoder": "saev", "encoder_checkpoint": narrow, "camera_size": 24}
+    with pytest.raises(ConfigError, match=r"config.env.camera_yaml \S*pepper.yaml: a 58.0 deg camera"):
+        load_config(None, cfg | {"env": {"camera_yaml": pepper_like}})
 
 
 def test_config_checks_the_encoder_checkpoint(checkpoints: dict[str, Path]) -> None:

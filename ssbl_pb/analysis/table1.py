@@ -126,8 +126,7 @@ def prepare_encoders(budget: Budget, out: Path, archs: set[str], given: dict[str
     ``out/ae/ARCH`` (frames in ``out/frames.npz``, seen through a camera of ``camera_hfov_deg``, default
     Pepper's), reusing what an earlier run of the table left there. An encoder that learned through another
     camera than ``camera_hfov_deg`` (when given) is refused."""
-    from ..env.encoded import encoder_camera
-    from ..params import RobotParams
+    from ..env.encoded import encoder_hfov
     from ..perception.ae_report import write_report
     from ..perception.ae_train import AETrainParams, train_autoencoder
     from ..perception.autoencoders import SIZES
@@ -148,7 +147,7 @@ def prepare_encoders(budget: Budget, out: Path, archs: set[str], given: dict[str
             model, history = train_autoencoder(data, arch, "cpu", params, progress)
             (out / "ae" / arch).mkdir(parents=True, exist_ok=True)
             write_report(out / "ae" / arch, model, history, data, {"frames_file": str(frames_file)})
-        have = encoder_camera(ckpt).get("camera_hfov_deg", RobotParams().camera_hfov_deg)
+        have = encoder_hfov(ckpt)
         if camera_hfov_deg is not None and abs(have - camera_hfov_deg) > 1e-3:
             raise UserError(f"{arch} encoder {ckpt}: learned through a {have:g} deg camera, the table asks for "
                             f"--camera-hfov {camera_hfov_deg:g} (give another --out or a matching encoder)")

@@ -292,7 +292,8 @@ def make_env(obs_mode: str = "vector", camera_width: int = 84, camera_height: in
     """Entry point of ``ssbl_pb/ApproachGroup-v0``: the core env wrapped for ``obs_mode``.
 
     ``encoder`` (a ``tools/train_ae.py`` checkpoint; camera modes only) replaces the images by the frozen
-    encoder's features (``env.encoded``) and sets the camera's field of view to the one it learned through.
+    encoder's features (``env.encoded``) and sets the camera's field of view to the one it learned through (a
+    ``camera_yaml`` must agree with it within 5 % magnification and then sets it).
 
     ``camera_yaml`` (a ROS camera_info YAML from ``tools/calibrate_camera.py``) makes the first-person camera
     match a calibrated camera: its intrinsics set the projection, its field of view and (when calibrated) its
@@ -308,7 +309,8 @@ def make_env(obs_mode: str = "vector", camera_width: int = 84, camera_height: in
     if encoder is not None:  # the camera the encoder learned through
         from .encoded import with_encoder_camera
 
-        kwargs = with_encoder_camera(kwargs, encoder)
+        kwargs = with_encoder_camera({**kwargs, "camera_yaml": camera_yaml}, encoder)
+        kwargs.pop("camera_yaml")
     kwargs, projection = core_kwargs(camera_width, camera_height, camera_yaml, robot_yaml, social_yaml, room_yaml,
                                      **kwargs)
     env = wrap_obs_mode(ApproachGroupEnv(**kwargs), obs_mode, camera_width, camera_height, projection)

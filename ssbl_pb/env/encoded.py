@@ -89,8 +89,36 @@ def encoder_camera(path: str | Path) -> dict[str, float]:
     return {} if hfov is None else {"camera_hfov_deg": float(hfov)}
 
 
+def encoder_hfov(path: str | Path) -> float:
+    """The horizontal field of view (degrees) an encoder learned through (Pepper's when none was recorded)."""
+    return encoder_camera(path).get("camera_hfov_deg", RobotParams().camera_hfov_deg)
+
+
+# A calibrated camera (``camera_yaml``) may differ from the encoder's by this much in magnification,
+# tan(hfov/2) ratio: 5 % moves a keypoint at the image border by under 2 px of a 64-px frame, while Pepper's
+# nominal 56.3 deg against a calibrated unit's few-percent spread stays within it (our choice; the paper has none).
+CALIBRATED_MAGNIFICATION_TOL = 0.05
+
+
+def check_calibrated_camera(camera_yaml: str | Path, path: str | Path) -> None:
+    """Refuse a calibrated camera whose field of view is not the one the encoder learned through."""
+    from ..perception.camera import PinholeCamera
+
+    learned = encoder_hfov(path)
+    have = PinholeCamera.from_yaml(camera_yaml).fov_deg()[0]
+    ratio = math.tan(math.radians(learned) / 2) / math.tan(math.radians(have) / 2)
+    if abs(ratio - 1) > CALIBRATED_MAGNIFICATION_TOL:
+        raise UserError(f"camera_yaml {camera_yaml}: a {have:.1f} deg camera, the encoder {path} learned from "
+                        f"frames of a {learned:g} deg camera (people {ratio:.2f}x their size there; at most "
+                        f"{CALIBRATED_MAGNIFICATION_TOL:.0%} apart); collect frames through this camera "
+                        f"(tools/collect_frames.py --camera-hfov {have:.1f}) and train the encoder on them")
+
+
 def with_encoder_camera(kwargs: dict[str, Any], path: str | Path) -> dict[str, Any]:
-    """Env keyword arguments whose ``robot`` camera is the encoder's; another one set there is an error."""
+    """Env keyword arguments whose ``robot`` camera is the encoder's; another one set there is an error, and so
+    is a calibrated camera (``camera_yaml``, whose field of view then applies) too far from it."""
+    if kwargs.get("camera_yaml") is not None:
+        check_calibrated_camera(kwargs["camera_yaml"], path)
     cam = encoder_camera(path)
     if not cam:
         return kwargs
