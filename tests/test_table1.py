@@ -58,6 +58,22 @@ def test_held_out_return_gets_its_own_percentages_and_ordering() -> None:
     statement = "CameraOnly + SAEV + LSTM >= CameraOnly + conv + LSTM"
     assert dict(ordering_checks(rows))[statement] is False
     assert dict(ordering_checks(rows, "test_percent"))[statement] is True
+    assert math.isnan(saev["test_jerk_cost"])  # trials that did not record it
+
+
+def test_jerk_cost_is_averaged_and_shown(tmp_path: Path) -> None:
+    from ssbl_pb.analysis.table1_report import write_table
+
+    results = [_res("Vector + LSTM", s, 10.0) | {"jerk_cost": 1.0 + s} for s in (0, 1)]
+    results += [_res("Random policy", s, 0.0) | {"jerk_cost": 30.0} for s in (0, 1)]
+    results += [_res("CameraOnly + SAEV + FF", 0, 5.0)]  # an older trial: no jerk cost recorded
+    rows = {r["row"]: r for r in write_table(tmp_path, results, BUDGETS["smoke"], "cmd")}
+    assert rows["Vector + LSTM"]["test_jerk_cost"] == pytest.approx(1.5)
+    assert rows["Vector + LSTM"]["test_jerk_cost_sd"] == pytest.approx(0.7071, abs=1e-4)
+    md = (tmp_path / "table1.md").read_text()
+    assert "| held-out percent | jerk cost | success |" in md
+    assert "| 1.50 ± 0.71 | 50 % | 2 |" in md and "| 30.00 | 50 % | 2 |" in md
+    assert "| CameraOnly + SAEV + FF | 5.000 | 50.0 % | - | - | - | 50 % | 1 |" in md
 
 
 def test_ordering_pairs_seeds_and_tests_them_by_hand() -> None:
@@ -117,6 +133,7 @@ def test_smoke_table_and_resume(tmp_path: Path) -> None:
                                         "Random policy"]
     for r in rows:
         assert set(r) >= {"row", "reward", "percent", "success_rate", "seeds"} and r["seeds"] == [0]
+        assert r["test_jerk_cost"] > 0  # every policy here changes its speed: the jerk cost takes some return
     assert rows[0]["percent"] == pytest.approx(100.0) and rows[-1]["percent"] == pytest.approx(0.0)
     md = (out / "table1.md").read_text()
     assert "| CameraSpeed + SAEV + LSTM |" in md and "79.80 %" in md

@@ -193,7 +193,9 @@ def _test_episodes(spec: str, episodes: int, seed: int = BENCH_SEED, reward: dic
 
     res = run_episodes(Setup(spec, env_kwargs=(("reward", reward or {}),)), range(seed, seed + episodes))
     return {"success_rate": float(np.mean([r.metrics["success"] for r in res])),
-            "mean_return": float(np.mean([r.metrics["return"] for r in res]))}
+            "mean_return": float(np.mean([r.metrics["return"] for r in res])),
+            # the part of the return the jerk cost takes (our addition to eq. 15; docs/decisions.md "Smoothness")
+            "jerk_cost": float(-np.mean([r.metrics["term_smoothness"] for r in res]))}
 
 
 def _column(path: Path, name: str) -> list[float]:

@@ -45,11 +45,13 @@ def aggregate(results: list[dict[str, Any]]) -> list[dict[str, Any]]:
         (rew, rew_sd), (pct, pct_sd) = _stats([r["reward"] for r in runs]), _stats(pcts)
         (ret, ret_sd), (tpct, tpct_sd) = _stats([r.get("mean_return", float("nan")) for r in runs]), _stats(test_pcts)
         succ, succ_sd = _stats([r["success_rate"] for r in runs])
+        jerk, jerk_sd = _stats([r.get("jerk_cost", float("nan")) for r in runs])
         out.append({"row": row.label, "reward": rew, "reward_sd": rew_sd, "percent": pct, "percent_sd": pct_sd,
                     "percent_by_seed": pcts,
                     "test_return": ret, "test_return_sd": ret_sd, "test_percent": tpct,
                     "test_percent_sd": tpct_sd, "test_percent_by_seed": test_pcts,
-                    "success_rate": succ, "success_rate_sd": succ_sd, "seeds": [r["seed"] for r in runs],
+                    "success_rate": succ, "success_rate_sd": succ_sd, "test_jerk_cost": jerk,
+                    "test_jerk_cost_sd": jerk_sd, "seeds": [r["seed"] for r in runs],
                     "paper_reward": row.paper_reward, "paper_percent": row.paper_percent,
                     "steps": [r["steps"] for r in runs], "seconds": [r["seconds"] for r in runs]})
     return out
@@ -149,16 +151,19 @@ def write_rows(out: Path, rows: list[dict[str, Any]], budget: Budget, command: s
              "ssbl_pb/analysis/table1.py for why not the smoothed training reward); percentage: 0 % = random policy, "
              f"100 % = Vector + LSTM, per seed; held-out return and success: the model that evaluation chose, on "
              f"{budget.test_episodes} held-out episodes (seeds from 500000; no maximum over noisy evaluations, so "
-             "the less biased of the two). Mean ± sd over seeds.", "",
-             "| row | reward | percent | held-out return | held-out percent | success | seeds | paper reward "
-             "| paper percent |",
-             "|---|---|---|---|---|---|---|---|---|"]
+             "the less biased of the two); jerk cost: the part of the held-out return the smoothness term "
+             "takes (our addition to the paper's reward, eq. 15; '-' where the row's trials did not record it). "
+             "Mean ± sd over seeds.", "",
+             "| row | reward | percent | held-out return | held-out percent | jerk cost | success | seeds "
+             "| paper reward | paper percent |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
     nan = float("nan")
     for r in rows:
         lines.append(f"| {r['row']} | {_fmt(r['reward'], r['reward_sd'])} | "
                      f"{_fmt(r['percent'], r['percent_sd'], 1, ' %')} | "
                      f"{_fmt(r.get('test_return', nan), r.get('test_return_sd'))} | "
                      f"{_fmt(r.get('test_percent', nan), r.get('test_percent_sd'), 1, ' %')} | "
+                     f"{_fmt(r.get('test_jerk_cost', nan), r.get('test_jerk_cost_sd'), 2)} | "
                      f"{_fmt(100 * r['success_rate'], 100 * r['success_rate_sd'], 0, ' %')} | {len(r['seeds'])} | "
                      f"{_fmt(r['paper_reward'])} | {_fmt(r['paper_percent'], None, 2, ' %')} |")
     lines += ["", "The paper's ordering (on the mean percentages; per seed and a paired t-test beside: with a "
