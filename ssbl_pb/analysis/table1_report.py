@@ -30,20 +30,11 @@ def _percents(runs: list[dict[str, Any]], by: dict[tuple[str, int], dict[str, An
     return out
 
 
-def _with_task_return(r: dict[str, Any]) -> dict[str, Any]:
-    """A run with ``task_return``: its held-out return without the jerk cost (when it recorded both)."""
-    if "mean_return" in r and "jerk_cost" in r:
-        return {**r, "task_return": r["mean_return"] + r["jerk_cost"]}
-    return r
-
-
 def aggregate(results: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """Rows in the paper's order with mean and spread over seeds; percentages per seed against that seed's
     random and Vector+LSTM rows (NaN where either is missing). ``reward`` is the best periodic evaluation (the
     table's criterion); ``test_return`` the held-out mean return of the model it chose (``mean_return``: more
-    episodes, fresh seeds, no maximum over noisy evaluations), with its own percentages beside; ``task_percent``
-    the percentages of that return without the jerk cost (``jerk_cost``), which the paper's reward does not have."""
-    results = [_with_task_return(r) for r in results]
+    episodes, fresh seeds, no maximum over noisy evaluations), with its own percentages beside."""
     by = {(r["row"], r["seed"]): r for r in results}
     out = []
     for row in ROWS:
@@ -55,15 +46,12 @@ def aggregate(results: list[dict[str, Any]]) -> list[dict[str, Any]]:
         (ret, ret_sd), (tpct, tpct_sd) = _stats([r.get("mean_return", float("nan")) for r in runs]), _stats(test_pcts)
         succ, succ_sd = _stats([r["success_rate"] for r in runs])
         jerk, jerk_sd = _stats([r.get("jerk_cost", float("nan")) for r in runs])
-        task_pcts = _percents(runs, by, "task_return")
-        task_pct, task_pct_sd = _stats(task_pcts)
         out.append({"row": row.label, "reward": rew, "reward_sd": rew_sd, "percent": pct, "percent_sd": pct_sd,
                     "percent_by_seed": pcts,
                     "test_return": ret, "test_return_sd": ret_sd, "test_percent": tpct,
                     "test_percent_sd": tpct_sd, "test_percent_by_seed": test_pcts,
                     "success_rate": succ, "success_rate_sd": succ_sd, "test_jerk_cost": jerk,
-                    "test_jerk_cost_sd": jerk_sd, "task_percent": task_pct, "task_percent_sd": task_pct_sd,
-                    "task_percent_by_seed": task_pcts, "seeds": [r["seed"] for r in runs],
+                    "test_jerk_cost_sd": jerk_sd, "seeds": [r["seed"] for r in runs],
                     "paper_reward": row.paper_reward, "paper_percent": row.paper_percent,
                     "steps": [r["steps"] for r in runs], "seconds": [r["seconds"] for r in runs]})
     return out
@@ -97,8 +85,7 @@ def ordering_detail(rows: list[dict[str, Any]], key: str = "percent") -> list[di
     or when every difference is equal). With a handful of seeds only a large p says anything: that the
     verdict on the means may be noise. ``paper_holds``: the same statement on the paper's Table I (its
     CameraOnly + SAEV + FF, 57.06 %, is below CameraOnly + conv + FF, 61.18 %, and its best row 79.80 %).
-    ``key``: ``percent`` (of the table's reward), ``test_percent`` (of the held-out return) or ``task_percent``
-    (of the held-out return without the jerk cost)."""
+    ``key``: ``percent`` (of the table's reward) or ``test_percent`` (of the held-out return)."""
     from scipy import stats
 
     by = {r["row"]: r for r in rows if math.isfinite(r.get(key, float("nan")))}
@@ -165,11 +152,11 @@ def write_rows(out: Path, rows: list[dict[str, Any]], budget: Budget, command: s
              f"100 % = Vector + LSTM, per seed; held-out return and success: the model that evaluation chose, on "
              f"{budget.test_episodes} held-out episodes (seeds from 500000; no maximum over noisy evaluations, so "
              "the less biased of the two); jerk cost: the part of the held-out return the smoothness term "
-             "takes (our addition to the paper's reward, eq. 15; '-' where the row's trials did not record it), "
-             "and the held-out percent without it. Mean ± sd over seeds.", "",
-             "| row | reward | percent | held-out return | held-out percent | jerk cost | held-out percent "
-             "without it | success | seeds | paper reward | paper percent |",
-             "|---|---|---|---|---|---|---|---|---|---|---|"]
+             "takes (our addition to the paper's reward, eq. 15; '-' where the row's trials did not record it). "
+             "Mean ± sd over seeds.", "",
+             "| row | reward | percent | held-out return | held-out percent | jerk cost | success | seeds "
+             "| paper reward | paper percent |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
     nan = float("nan")
     for r in rows:
         lines.append(f"| {r['row']} | {_fmt(r['reward'], r['reward_sd'])} | "
@@ -177,7 +164,6 @@ def write_rows(out: Path, rows: list[dict[str, Any]], budget: Budget, command: s
                      f"{_fmt(r.get('test_return', nan), r.get('test_return_sd'))} | "
                      f"{_fmt(r.get('test_percent', nan), r.get('test_percent_sd'), 1, ' %')} | "
                      f"{_fmt(r.get('test_jerk_cost', nan), r.get('test_jerk_cost_sd'), 2)} | "
-                     f"{_fmt(r.get('task_percent', nan), r.get('task_percent_sd'), 1, ' %')} | "
                      f"{_fmt(100 * r['success_rate'], 100 * r['success_rate_sd'], 0, ' %')} | {len(r['seeds'])} | "
                      f"{_fmt(r['paper_reward'])} | {_fmt(r['paper_percent'], None, 2, ' %')} |")
     lines += ["", "The paper's ordering (on the mean percentages; per seed and a paired t-test beside: with a "
@@ -189,10 +175,5 @@ def write_rows(out: Path, rows: list[dict[str, Any]], budget: Budget, command: s
     if any(d["holds"] is not None for d in held_out):
         lines += ["", "The same statements on the held-out percentages:", ""]
         lines += [f"- {d['statement']}: {_verdict({**d, 'paper_holds': None})}" for d in held_out]
-    task = ordering_detail(rows, "task_percent")
-    if any(d["holds"] is not None for d in task):
-        lines += ["", "The same statements on the held-out percentages without the jerk cost (the reward's other "
-                  "terms, closer to the paper's, which has no smoothness term):", ""]
-        lines += [f"- {d['statement']}: {_verdict({**d, 'paper_holds': None})}" for d in task]
     lines += ["", f"Budget: {budget}", ""]
     write_text(out / "table1.md", "\n".join(lines))
