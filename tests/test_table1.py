@@ -42,6 +42,7 @@ def test_aggregate_takes_percentages_per_seed() -> None:
     assert checks["CameraSpeed + SAEV + LSTM >= 80 %"] is True
     assert checks["CameraOnly + SAEV + FF > Random policy"] is None  # row missing
     assert math.isnan(cs["test_percent"])  # no held-out returns given
+    assert rows["Vector + LSTM"]["success_percent_by_seed"] == [100.0, 100.0] and cs["success_percent"] == 50.0
 
 
 def test_held_out_return_gets_its_own_percentages_and_ordering() -> None:
@@ -59,6 +60,11 @@ def test_held_out_return_gets_its_own_percentages_and_ordering() -> None:
     assert dict(ordering_checks(rows))[statement] is False
     assert dict(ordering_checks(rows, "test_percent"))[statement] is True
     assert math.isnan(saev["test_jerk_cost"])  # trials that did not record it
+    # held-out success (all 0.5 here): >= holds in both seeds, > (against random) in none
+    success = {d["statement"]: d for d in ordering_detail(rows, "success_percent")}
+    assert success[statement]["holds"] is True and success[statement]["seeds_holding"] == 2
+    assert success["CameraOnly + SAEV + LSTM > Random policy"]["holds"] is False
+    assert "CameraSpeed + SAEV + LSTM >= 80 %" not in success  # the target is on the reward's scale
 
 
 def test_jerk_cost_is_averaged_and_shown(tmp_path: Path) -> None:
