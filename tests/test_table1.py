@@ -68,18 +68,23 @@ def test_held_out_return_gets_its_own_percentages_and_ordering() -> None:
 
 
 def test_jerk_cost_is_averaged_and_shown(tmp_path: Path) -> None:
-    from ssbl_pb.analysis.table1_report import write_table
+    from ssbl_pb.analysis.table1_report import write_rows, write_table
 
-    results = [_res("Vector + LSTM", s, 10.0) | {"jerk_cost": 1.0 + s} for s in (0, 1)]
-    results += [_res("Random policy", s, 0.0) | {"jerk_cost": 30.0} for s in (0, 1)]
+    results = [_res("Vector + LSTM", s, 10.0, 1.0) | {"jerk_cost": 1.0 + s} for s in (0, 1)]
+    results += [_res("Random policy", s, 0.0, 0.0) | {"jerk_cost": 30.0} for s in (0, 1)]
     results += [_res("CameraOnly + SAEV + FF", 0, 5.0)]  # an older trial: no jerk cost recorded
     rows = {r["row"]: r for r in write_table(tmp_path, results, BUDGETS["smoke"], "cmd")}
     assert rows["Vector + LSTM"]["test_jerk_cost"] == pytest.approx(1.5)
     assert rows["Vector + LSTM"]["test_jerk_cost_sd"] == pytest.approx(0.7071, abs=1e-4)
     md = (tmp_path / "table1.md").read_text()
     assert "| held-out percent | jerk cost | success |" in md
-    assert "| 1.50 ± 0.71 | 50 % | 2 |" in md and "| 30.00 | 50 % | 2 |" in md
+    assert "| 1.50 ± 0.71 | 100 % | 2 |" in md and "| 30.00 | 0 % | 2 |" in md
     assert "| CameraOnly + SAEV + FF | 5.000 | 50.0 % | - | - | - | 50 % | 1 |" in md
+    # a committed table1.json of before success_percent: its statements on success still come out
+    old = [{k: v for k, v in r.items() if not k.startswith("success_percent")} for r in rows.values()]
+    write_rows(tmp_path, old, BUDGETS["smoke"], "cmd")
+    assert "- Vector + LSTM > CameraSpeed + SAEV + LSTM: row missing" in (tmp_path / "table1.md").read_text()
+    assert "- CameraOnly + SAEV + FF > Random policy: holds\n" in (tmp_path / "table1.md").read_text()
 
 
 def test_ordering_pairs_seeds_and_tests_them_by_hand() -> None:

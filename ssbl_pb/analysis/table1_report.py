@@ -150,6 +150,8 @@ def write_table(out: Path, results: list[dict[str, Any]], budget: Budget, comman
 def write_rows(out: Path, rows: list[dict[str, Any]], budget: Budget, command: str) -> None:
     """Write ``out/table1.json`` and ``out/table1.md`` from aggregated rows (``aggregate``, or a table1.json read
     back: the report of a committed table is rewritten from it alone)."""
+    # a table written before success_percent was kept: its mean from success_rate (no per-seed detail)
+    rows = [{"success_percent": 100 * r["success_rate"], **r} for r in rows]
     write_json(out / "table1.json", rows)
     lines = [f"# Table I (budget `{budget.name}`)", "", f"Produced by `{command}`.", "",
              "Reward: the best periodic evaluation's mean return (our reward's scale, not the paper's; see "
