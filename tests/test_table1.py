@@ -149,6 +149,9 @@ def test_smoke_table_and_resume(tmp_path: Path) -> None:
     md = (out / "table1.md").read_text()
     assert "| CameraSpeed + SAEV + LSTM |" in md and "79.80 %" in md
     assert (out / "ae" / "saev" / "keypoints.png").is_file() and (out / "ae" / "conv" / "encoder.pt").is_file()
+    from ssbl_pb.env.encoded import encoder_hfov  # the table's camera by default: the paper's 26.5 deg
+
+    assert encoder_hfov(out / "ae" / "saev" / "encoder.pt") == encoder_hfov(out / "ae" / "conv" / "encoder.pt") == 26.5
     results = sorted((out / "trials").glob("*/result.json"))
     assert [p.parent.name for p in results] == ["cameraonly_conv_ff,seed=0", "cameraspeed_saev_lstm,seed=0",
                                                 "random_policy,seed=0", "vector_lstm,seed=0"]

@@ -8,14 +8,17 @@ each row for each seed as a trial of the sweeps' machinery (tools/sweep.py): on 
 default one per core) or, with --address, as Ray Tune trials on a cluster (docs/scale-out.md). Writes
 DIR/table1.md and DIR/table1.json; every row's run is DIR/trials/ROW,seed=S/ (its result.json marks it
 finished), logs in DIR/logs/, so running the same command again after an interruption runs only unfinished rows.
+The camera rows see through the paper's 26.5 deg camera (--camera-hfov; encoders given must have learned through
+the same: tools/collect_frames.py --camera-hfov 26.5, then tools/train_ae.py).
 
 Examples:
     python tools/table1.py --budget smoke --seeds 1 --out results/table1_smoke      # a few minutes
     python tools/table1.py --budget full --seeds 3 --out /nfs/table1 --address HEAD:6379   # rows on a cluster
     python tools/table1.py --budget full --seeds 1 --out results/table1             # hours; resumable
     python tools/table1.py --budget medium --seeds 1 --out results/table1_medium     # about 2 h
-    python tools/table1.py --budget full --seeds 1 --out results/table1 --saev results/ae/saev/encoder.pt \\
-        --conv results/ae/conv/encoder.pt --rows vector_lstm,random_policy,cameraspeed_saev_lstm
+    python tools/table1.py --budget full --seeds 1 --out results/table1 --saev results/fov26/ae/saev/encoder.pt \\
+        --conv results/fov26/ae/conv/encoder.pt --rows vector_lstm,random_policy,cameraspeed_saev_lstm
+    python tools/table1.py --budget full --seeds 2 --out results/table1_pepper --camera-hfov 56.3   # Pepper's camera
 """
 
 from __future__ import annotations
@@ -27,7 +30,7 @@ from ssbl_pb.sweep.cli import add_run_options
 
 
 def main(argv: list[str] | None = None) -> int:
-    from ssbl_pb.analysis.table1 import BUDGETS, ROWS
+    from ssbl_pb.analysis.table1 import BUDGETS, ROWS, TABLE_CAMERA_HFOV
 
     ap = ArgumentParser(description=__doc__)
     ap.add_argument("--budget", required=True, help=f"one of {', '.join(BUDGETS)}")
@@ -36,9 +39,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--rows", help=f"comma-separated subset of: {', '.join(r.slug for r in ROWS)}")
     ap.add_argument("--saev", help="a trained SAEV checkpoint (tools/train_ae.py) instead of training one")
     ap.add_argument("--conv", help="a trained conv AE checkpoint instead of training one")
-    ap.add_argument("--camera-hfov", type=float, default=None, metavar="DEG",
+    ap.add_argument("--camera-hfov", type=float, default=TABLE_CAMERA_HFOV, metavar="DEG",
                     help="the camera rows' field of view, degrees, for the frames the encoders learn from (default "
-                         "Pepper's 56.3; the paper's Unity camera: 26.5); given encoders must have learned through it")
+                         f"{TABLE_CAMERA_HFOV:g}, the paper's Unity camera; Pepper's own: 56.3); given encoders must "
+                         "have learned through it")
     ap.add_argument("--threads", type=int, default=1, help="torch threads per trial (default 1)")
     add_run_options(ap)
     args = ap.parse_args(argv)
