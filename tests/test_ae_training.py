@@ -8,7 +8,9 @@ import numpy as np
 import pytest
 import torch
 
+from ssbl_pb.errors import UserError
 from ssbl_pb.perception import autoencoders as A
+from ssbl_pb.perception.ae_losses import LossWeights
 from ssbl_pb.perception.ae_train import (
     AETrainParams,
     CheckpointError,
@@ -126,6 +128,10 @@ def test_a_run_resumed_from_its_snapshot_ends_as_an_uninterrupted_one(tmp_path: 
     assert [r["step"] for r in history2] == [4, 8, 12] and history2[-1]["val_total"] == history[-1]["val_total"]
     with pytest.raises(CheckpointError, match=r"--resume \S*s4.pt: lr is 0.003, this run's is 0.001"):
         train_autoencoder(data, "saev", TINY, dataclasses.replace(params, lr=1e-3), resume=saved[4])
+    weights_differ = r"loss weights is \{.*'smoothness': 0.001.*\}, this run's is \{.*'smoothness': 0.05"
+    with pytest.raises(CheckpointError, match=weights_differ):
+        train_autoencoder(data, "saev", TINY, dataclasses.replace(params, weights=LossWeights(smoothness=0.05)),
+                          resume=saved[4])
     with pytest.raises(CheckpointError, match="architecture is 'saev', this run's is 'conv'"):
         train_autoencoder(data, "conv", TINY, params, resume=saved[4])
     with pytest.raises(CheckpointError, match="number of frames is 96, this run's is 80"):
@@ -154,6 +160,19 @@ def test_training_lowers_the_held_out_reconstruction_error(arch: str) -> None:
     first, last = history[0]["val_reconstruction"], history[-1]["val_reconstruction"]
     assert last < 0.7 * first, [round(r["val_reconstruction"], 4) for r in history]
     assert [r["step"] for r in history] == [20, 40, 60, 80]
+
+
+def test_a_larger_smoothness_weight_steadies_the_keypoints() -> None:
+    torch.set_num_threads(1)
+    data = moving_square(24, 8)
+    jitter = {}
+    for w in (0.0, 5.0):
+        params = AETrainParams(steps=40, batch=8, lr=3e-3, eval_every=20, val_every_episode=4,
+                               weights=LossWeights(smoothness=w))
+        jitter[w] = train_autoencoder(data, "saev", TINY, params)[1][-1]["val_smoothness"]
+    assert jitter[5.0] < 0.5 * jitter[0.0], jitter
+    with pytest.raises(UserError, match=r"--smoothness-weight -1.0: expected a finite number >= 0"):
+        LossWeights(smoothness=-1.0)
 
 
 def test_checkpoint_round_trip_and_checks(tmp_path: Path) -> None:

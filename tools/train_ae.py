@@ -9,6 +9,7 @@ Examples:
     python tools/train_ae.py --frames results/frames/frames.npz --arch saev --out results/ae/saev
     python tools/train_ae.py --frames frames.npz --arch conv --steps 500 --out results/ae/conv_quick
     python tools/train_ae.py --frames frames96.npz --arch saev --size paper --out results/ae/saev_paper
+    python tools/train_ae.py --frames frames.npz --arch saev --smoothness-weight 0.05 --out results/ae/saev_steady
     python tools/train_ae.py --frames frames.npz --arch saev --steps 16000 --snapshot-every 2000 --out results/ae/long
     python tools/train_ae.py --frames frames.npz --arch saev --steps 16000 --snapshot-every 2000 --out results/ae/long \
         --resume results/ae/long/snapshots/encoder_step6000.pt
@@ -34,6 +35,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--steps", type=int, default=3000, help="optimiser steps (default 3000)")
     ap.add_argument("--batch", type=int, default=32, help="frame triplets per step (default 32)")
     ap.add_argument("--lr", type=float, default=1e-3, help="Adam learning rate (default 1e-3)")
+    ap.add_argument("--smoothness-weight", type=float, metavar="W",
+                    help="weight of Finn's smoothness loss, the keypoints' (SAEV) or code's (conv) squared second "
+                         "difference over consecutive frames (default 0.001, the original's; "
+                         "larger: steadier features)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--threads", type=int, default=2, help="torch threads (default 2)")
     ap.add_argument("--snapshot-every", type=int, default=0, metavar="N",
@@ -47,13 +52,16 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
 
     from ssbl_pb.errors import UserError
+    from ssbl_pb.perception.ae_losses import LossWeights
     from ssbl_pb.perception.ae_train import AETrainParams
     from ssbl_pb.perception.autoencoders import build, get_size
     from ssbl_pb.perception.frames import load_frames
 
     build(args.arch, args.size)  # unknown arch / size: exit 2 before reading anything
     params = AETrainParams(steps=args.steps, batch=args.batch, lr=args.lr, seed=args.seed,
-                           eval_every=max(1, min(250, args.steps // 10)))
+                           eval_every=max(1, min(250, args.steps // 10)),
+                           weights=LossWeights() if args.smoothness_weight is None
+                           else LossWeights(smoothness=args.smoothness_weight))
     if args.snapshot_every < 0 or args.snapshot_every % params.eval_every:
         raise UserError(f"--snapshot-every {args.snapshot_every}: expected 0 or a multiple of the evaluation "
                         f"interval {params.eval_every}")
@@ -91,7 +99,8 @@ def main(argv: list[str] | None = None) -> int:
             finally:
                 bar.close()
             summary = write_report(out, model, history, data, {"frames_file": str(args.frames), "lr": args.lr,
-                                                                "batch": args.batch, "seed": args.seed})
+                                                                "batch": args.batch, "seed": args.seed,
+                                                                "smoothness_weight": params.weights.smoothness})
     except BaseException:
         if snapshots:
             print(f"snapshots kept: {snapshots[-1].parent} (last {snapshots[-1].name}); no encoder.pt",

@@ -4,18 +4,25 @@ reconstruction 1.0, Finn's smoothness 0.001 and presence 0.1 (SAEV only, as ``(r
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import torch
 from torch.nn import functional as F
 
+from ..errors import UserError
 from .autoencoders import Autoencoder, downsample
 
 
 @dataclasses.dataclass(frozen=True)
 class LossWeights:
     reconstruction: float = 1.0
-    smoothness: float = 0.001
+    smoothness: float = 0.001  # the original's; tools/train_ae.py --smoothness-weight
     presence: float = 0.1  # SAEV only; the conv AE's code has no presence
+
+    def __post_init__(self) -> None:
+        for name, v in dataclasses.asdict(self).items():
+            if not (isinstance(v, int | float) and math.isfinite(v) and v >= 0):
+                raise UserError(f"--{name}-weight {v!r}: expected a finite number >= 0")
 
 
 def smoothness(prev: torch.Tensor, cur: torch.Tensor, nxt: torch.Tensor) -> torch.Tensor:

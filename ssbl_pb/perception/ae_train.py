@@ -145,7 +145,8 @@ def train_autoencoder(data: dict[str, np.ndarray], arch: str, size: str | AESize
                 model.eval()
                 state = {"step": step, "optimizer": opt.state_dict(), "numpy_rng": rng.bit_generator.state,
                          "torch_rng": torch.get_rng_state(), "history": [dict(r) for r in history],
-                         "params": {k: getattr(params, k) for k in RESUMED}, "frames": len(frames)}
+                         "params": {k: getattr(params, k) for k in RESUMED}, "frames": len(frames),
+                         "weights": dataclasses.asdict(params.weights)}
                 on_eval(step, model, state)
                 model.train()
     return model.eval(), history
@@ -160,6 +161,8 @@ def _resume_state(path: str | Path, model: Autoencoder, params: AETrainParams, n
                               f"writes snapshots that do)")
     for what, have, want in (("architecture", blob["arch"], model.arch), ("size", blob["size"], model.size.name),
                              ("number of frames", state.get("frames"), n_frames),
+                             ("loss weights", state.get("weights", dataclasses.asdict(LossWeights())),
+                              dataclasses.asdict(params.weights)),
                              *((k, state["params"].get(k), getattr(params, k)) for k in RESUMED)):
         if have != want:
             raise CheckpointError(f"--resume {path}: {what} is {have!r}, this run's is {want!r}")
