@@ -122,6 +122,8 @@ CASES = [
     C("train_ae.py", "--frames", "{file}", "--arch", "saev", "--out", "{out}", expect="not a readable .npz"),
     C("train_ae.py", "--frames", "{tmp}/none.npz", "--arch", "conv", "--out", "{out}", expect="file not found"),
     C("train_ae.py", "--frames", "{file}", "--arch", "saev", "--steps", "0", "--out", "{out}", expect="--steps 0"),
+    C("train_ae.py", "--frames", "{file}", "--arch", "saev", "--smoothness-weight", "-1", "--out", "{out}",
+      expect="--smoothness-weight -1.0: expected a finite number >= 0"),
     C("train_ae.py", "--frames", "{file}", "--arch", "saev", "--resume", "{tmp}/nosuch.pt", "--out", "{out}",
       expect="nosuch.pt: file not found"),
     C("train_ae.py", "--frames", "{file}", "--arch", "saev", "--snapshot-every", "300", "--out", "{out}",
