@@ -47,8 +47,8 @@ def main(argv: list[str] | None = None) -> int:
                          "the run is interrupted; 0: none")
     ap.add_argument("--resume", type=Path, metavar="SNAPSHOT",
                     help="continue an interrupted run from one of its snapshots (same frames, arch, size, batch, "
-                         "lr, seed and --snapshot-every steps' evaluation interval): the result is that of an "
-                         "uninterrupted run")
+                         "lr, seed, smoothness weight and --snapshot-every steps' evaluation interval): the result "
+                         "is that of an uninterrupted run")
     args = ap.parse_args(argv)
 
     from ssbl_pb.errors import UserError
