@@ -87,6 +87,8 @@ CASES = [
     C("train_pb.py", "--resume", "{tmp}/none", expect="not a run directory"),
     C("train_pb.py", "--config", "{tmp}/none.yaml", "--out", "{out}", expect="none.yaml: file not found"),
     C("train_pb.py", "--total-steps", "0", "--out", "{out}", expect="total_steps"),
+    C("train_pb.py", "--set", "feature_smoothing=0.5", "--out", "{out}",
+      expect="feature_smoothing = 0.5: expected 1 for encoder 'none'"),
     # tracking
     C("track.py", "{tmp}/none.avi", "--calib", "{tmp}/none.xml", "--out", "{out}", expect="none"),
     C("track.py", "{file}", "--calib", "{tmp}/none.xml", "--out", "{file}/tracks", expect="is a file"),
@@ -168,6 +170,8 @@ CASES = [
     C("table1.py", "--budget", "huge", "--out", "{out}", expect="--budget 'huge'"),
     C("table1.py", "--budget", "smoke", "--seeds", "0", "--out", "{out}", expect="--seeds 0"),
     C("table1.py", "--budget", "smoke", "--camera-hfov", "0", "--out", "{out}", expect="--camera-hfov 0: expected"),
+    C("table1.py", "--budget", "smoke", "--feature-smoothing", "0", "--out", "{out}",
+      expect="--feature-smoothing 0.0: expected a number in (0, 1]"),
     C("table1.py", "--budget", "smoke", "--rows", "nosuch", "--out", "{out}", expect="row 'nosuch'"),
     C("table1.py", "--budget", "smoke", "--saev", "{file}", "--out", "{out}", expect="unreadable"),
     C("table1.py", "--budget", "smoke", "--out", "{file}", expect="not a directory"),

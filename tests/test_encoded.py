@@ -62,6 +62,72 @@ def test_single_and_batched_wrappers_emit_the_same_features(checkpoints: dict[st
     assert np.allclose(infos[0]["terminal_observation"], single_obs, atol=1e-5)
 
 
+def _ema(raw: list[np.ndarray], alpha: float) -> list[np.ndarray]:
+    """The low-pass ``y_t = y_{t-1} + alpha (x_t - y_{t-1})`` of one episode's features, by hand."""
+    out = [raw[0]]
+    for x in raw[1:]:
+        out.append(out[-1] + alpha * (x - out[-1]))
+    return out
+
+
+def test_feature_smoothing_low_passes_the_code_within_each_episode(checkpoints: dict[str, Path]) -> None:
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    path, alpha = str(checkpoints["saev"]), 0.25
+
+    def venv() -> DummyVecEnv:  # env 0 ends after 3 steps, env 1 after 5: one restarts while the other goes on
+        v = DummyVecEnv([lambda n=n: make_env(obs_mode="camera_speed", camera_width=24, camera_height=24,
+                                              task={"max_steps": n}) for n in (3, 5)])
+        v.seed(3)
+        return v
+
+    raw, low = EncodedVecEnv(venv(), load_encoder(path, 24)), EncodedVecEnv(venv(), load_encoder(path, 24), alpha)
+    a = np.zeros((2, 2), np.float32)  # the actions do not depend on the features: both runs see the same frames
+    seen_raw, seen_low, last_raw, last_low = [raw.reset()], [low.reset()], [], []
+    for _ in range(5):
+        r, _, d_raw, i_raw = raw.step(a)
+        f, _, d_low, i_low = low.step(a)
+        assert (d_raw == d_low).all()
+        seen_raw.append(r)
+        seen_low.append(f)
+        if d_raw[0] and len(last_raw) == 0:
+            last_raw.append(i_raw[0]["terminal_observation"])
+            last_low.append(i_low[0]["terminal_observation"])
+    assert np.allclose(seen_low[0], seen_raw[0])  # the first frame passes unfiltered
+    code = slice(0, 15)  # the speed (last two entries) is not filtered
+    ep1 = _ema([o[1, code] for o in seen_raw[:5]] + [seen_raw[5][1, code]], alpha)[:5]
+    assert np.allclose([o[1, code] for o in seen_low[:5]], ep1, atol=1e-5)
+    assert np.allclose([o[:, 15:] for o in seen_low], [o[:, 15:] for o in seen_raw])
+    ep0 = _ema([seen_raw[t][0, code] for t in range(3)] + [last_raw[0][code]], alpha)
+    assert np.allclose([seen_low[t][0, code] for t in range(3)], ep0[:3], atol=1e-5)
+    assert np.allclose(last_low[0][code], ep0[3], atol=1e-5)  # the last frame with its episode's past
+    assert not np.allclose(last_low[0][code], last_raw[0][code], atol=1e-3)
+    assert np.allclose(seen_low[3][0], seen_raw[3][0])  # env 0's next episode starts afresh
+    assert np.allclose(seen_low[4][0, code], _ema([seen_raw[3][0, code], seen_raw[4][0, code]], alpha)[1],
+                       atol=1e-5)
+
+    single = make_env(obs_mode="camera_speed", camera_width=24, camera_height=24, encoder=path,
+                      feature_smoothing=alpha, task={"max_steps": 5})
+    obs = [single.reset(seed=4)[0]] + [single.step(a[1])[0] for _ in range(4)]  # DummyVecEnv seeds env 1 with 3+1
+    assert np.allclose(obs, [o[1] for o in seen_low[:5]], atol=1e-5)  # the one-env wrapper filters alike
+    assert np.allclose(single.reset(seed=4)[0], seen_low[0][1], atol=1e-5)  # reset forgets the last episode
+    single.close()
+
+
+def test_feature_smoothing_is_checked(checkpoints: dict[str, Path]) -> None:
+    saev = str(checkpoints["saev"])
+    cfg = {"obs_mode": "camera", "encoder": "saev", "encoder_checkpoint": saev, "camera_size": 24}
+    assert load_config(None, cfg | {"feature_smoothing": 0.5}).feature_smoothing == 0.5
+    with pytest.raises(ConfigError, match=r"feature_smoothing = 0: expected a number in \(0, 1\]"):
+        load_config(None, cfg | {"feature_smoothing": 0})
+    with pytest.raises(ConfigError, match=r"feature_smoothing = 0.5: expected 1 for encoder 'none'"):
+        load_config(None, {"feature_smoothing": 0.5})
+    with pytest.raises(UserError, match=r"feature_smoothing 1.5: expected a number in \(0, 1\]"):
+        make_env(obs_mode="camera", camera_width=24, camera_height=24, encoder=saev, feature_smoothing=1.5)
+    with pytest.raises(UserError, match=r"feature_smoothing 0.5: filters a frozen encoder's features"):
+        make_env(obs_mode="camera", camera_width=24, camera_height=24, feature_smoothing=0.5)
+
+
 def test_frozen_encoder_stays_in_eval_mode_when_its_owner_trains(checkpoints: dict[str, Path]) -> None:
     enc = load_encoder(checkpoints["conv"])
     owner = torch.nn.Sequential(torch.nn.Linear(2, 2), enc)
@@ -160,18 +226,22 @@ def test_config_checks_the_encoder_checkpoint(checkpoints: dict[str, Path]) -> N
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("obs_mode,policy", [("camera_speed", "lstm"), ("camera", "ff")])
+@pytest.mark.parametrize("obs_mode,policy,smoothing", [("camera_speed", "lstm", 1.0), ("camera", "ff", 0.5)])
 def test_train_and_evaluate_a_camera_policy(checkpoints: dict[str, Path], tmp_path: Path, obs_mode: str,
-                                            policy: str) -> None:
+                                            policy: str, smoothing: float) -> None:
     from ssbl_pb.analysis.evaluation import Setup, evaluate
+    from ssbl_pb.env.trained import policy_env_kwargs
     from ssbl_pb.training.run import train
 
     cfg = load_config(None, {"obs_mode": obs_mode, "encoder": "saev", "policy": policy, "camera_size": 24,
+                             "feature_smoothing": smoothing,
                              "encoder_checkpoint": str(checkpoints["saev"]), "n_envs": 2, "total_steps": 64,
                              "eval_every": 32, "eval_episodes": 1, "baseline_episodes": 1, "checkpoint_every": 64,
                              "env": {"task": {"max_steps": 20}}, "ppo": {"n_steps": 16, "batch_size": 16}})
     summary = train(cfg, tmp_path / "run")
     assert summary["steps"] == 64 and summary["best_eval"] is not None
+    # the features' low-pass travels with the model to every env it is evaluated in
+    assert policy_env_kwargs(str(tmp_path / "run")).get("feature_smoothing", 1.0) == smoothing
     summary, results = evaluate(Setup(str(tmp_path / "run"), env_kwargs=(("task", {"max_steps": 20}),)), 2, 5,
                                 tmp_path / "eval")
     assert len(results) == 2 and summary["policy"] == str(tmp_path / "run")

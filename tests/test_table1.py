@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from ssbl_pb.analysis.table1 import BUDGETS, ROWS, find_row, percent, row_trials, smoothed_best
+from ssbl_pb.analysis.table1 import BUDGETS, ROWS, find_row, percent, row_config, row_trials, smoothed_best
 from ssbl_pb.analysis.table1_report import aggregate, ordering_checks, ordering_detail
 
 
@@ -121,6 +121,16 @@ def test_rows_are_sweep_trials_and_a_finished_one_is_read_back(tmp_path: Path) -
     assert trials[0].definition()["encoder"] is None and trials[1].definition()["encoder"] == "/x/saev.pt"
     # frozen-encoder features reach the policy raw, the vector standardised; a table run otherwise is stale
     assert [t.definition()["normalize_obs"] for t in trials[:2]] == [True, False]
+    assert all("feature_smoothing" not in t.definition() for t in trials)  # off: the definitions run before
+    low = row_trials(rows, 1, BUDGETS["full"], {"saev": "/x/saev.pt"}, feature_smoothing=0.5)
+    assert "feature_smoothing" not in low[0].definition()  # the vector row has no features to filter
+    assert low[1].definition()["feature_smoothing"] == 0.5  # a table with the low-pass is another table
+    from ssbl_pb.perception import autoencoders as A
+    from ssbl_pb.perception.ae_train import save_checkpoint
+
+    saev_ckpt = save_checkpoint(tmp_path / "saev.pt", A.build("saev", A.SIZES["cpu"]).eval())
+    cfgs = [row_config(r, 0, BUDGETS["full"], {"saev": str(saev_ckpt)}, 0.5) for r in rows]
+    assert "feature_smoothing" not in cfgs[0] and cfgs[1]["feature_smoothing"] == 0.5
     done = _res("Vector + FF", 1, -5.0)
     path = trial_dir(tmp_path, trials[2].name) / RESULT
     path.parent.mkdir(parents=True)

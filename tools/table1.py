@@ -43,11 +43,15 @@ def main(argv: list[str] | None = None) -> int:
                     help="the camera rows' field of view, degrees, for the frames the encoders learn from (default "
                          f"{TABLE_CAMERA_HFOV:g}, the paper's Unity camera; Pepper's own: 56.3); given encoders must "
                          "have learned through it")
+    ap.add_argument("--feature-smoothing", type=float, default=1.0, metavar="ALPHA",
+                    help="low-pass of the camera rows' encoded features over each episode, the newest frame's "
+                         "weight in (0, 1] (default 1: off; docs/decisions.md, 'The jerk cost in Table I')")
     ap.add_argument("--threads", type=int, default=1, help="torch threads per trial (default 1)")
     add_run_options(ap)
     args = ap.parse_args(argv)
 
     from ssbl_pb.analysis.table1 import find_row, get_budget
+    from ssbl_pb.env.encoded import check_feature_smoothing
     from ssbl_pb.errors import UserError
     from ssbl_pb.perception.ae_train import checkpoint_info
     from ssbl_pb.perception.frames import check_hfov
@@ -57,6 +61,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.seeds < 1:
         raise UserError(f"--seeds {args.seeds}: expected an integer >= 1")
     check_hfov(args.camera_hfov)
+    check_feature_smoothing(args.feature_smoothing, "--feature-smoothing")
     rows = [find_row(s) for s in args.rows.split(",")] if args.rows else list(ROWS)
     given = {"saev": args.saev, "conv": args.conv}
     for arch, path in given.items():
@@ -76,7 +81,7 @@ def main(argv: list[str] | None = None) -> int:
     # stage 1 beside the trials: on a cluster, every node reads the encoders from there
     encoders = prepare_encoders(budget, where.path, {r.encoder for r in rows} & {"saev", "conv"}, given,
                                 camera_hfov_deg=args.camera_hfov)
-    trials = row_trials(rows, args.seeds, budget, encoders, args.threads)
+    trials = row_trials(rows, args.seeds, budget, encoders, args.threads, args.feature_smoothing)
     try:
         outcome = where.run(trials, "table I")
     finally:

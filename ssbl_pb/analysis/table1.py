@@ -173,8 +173,10 @@ def features_raw(row: Row) -> bool:
     return row.encoder in ("conv", "saev")
 
 
-def row_config(row: Row, seed: int, budget: Budget, encoders: dict[str, str]) -> dict[str, Any]:
-    """The training config (``training.config`` keys) of a row."""
+def row_config(row: Row, seed: int, budget: Budget, encoders: dict[str, str], feature_smoothing: float = 1.0
+               ) -> dict[str, Any]:
+    """The training config (``training.config`` keys) of a row (``feature_smoothing``: the camera rows' low-pass
+    of the encoded features, ``env.encoded``; 1 = off)."""
     cfg: dict[str, Any] = {**_default_reward(), "normalize_obs": not features_raw(row),
         "name": f"{row.slug}_s{seed}", "obs_mode": row.obs_mode, "encoder": row.encoder, "policy": row.policy,
         "scenario": "default", "seed": seed, "n_envs": budget.n_envs, "safety_shield": False,
@@ -187,6 +189,8 @@ def row_config(row: Row, seed: int, budget: Budget, encoders: dict[str, str]) ->
 
         cfg["encoder_checkpoint"] = encoders[row.encoder]
         cfg["camera_size"] = int(checkpoint_info(encoders[row.encoder])["resolution"])
+        if feature_smoothing != 1.0:
+            cfg["feature_smoothing"] = feature_smoothing
     return cfg
 
 
@@ -209,8 +213,8 @@ def _column(path: Path, name: str) -> list[float]:
         return [float(r[name]) for r in csv.DictReader(fh)]
 
 
-def run_row(row: Row, seed: int, budget: Budget, run_dir: Path, encoders: dict[str, str] | None = None
-            ) -> dict[str, Any]:
+def run_row(row: Row, seed: int, budget: Budget, run_dir: Path, encoders: dict[str, str] | None = None,
+            feature_smoothing: float = 1.0) -> dict[str, Any]:
     """Train (into ``run_dir``, a normal run directory) and evaluate one row for one seed."""
     t0 = time.perf_counter()
     if row.obs_mode == "random":
@@ -225,7 +229,7 @@ def run_row(row: Row, seed: int, budget: Budget, run_dir: Path, encoders: dict[s
         from ..training.config import load_config
         from ..training.run import train
 
-        cfg = load_config(None, row_config(row, seed, budget, encoders or {}))
+        cfg = load_config(None, row_config(row, seed, budget, encoders or {}, feature_smoothing))
         summary = train(cfg, run_dir, overwrite=True)
         returns = _column(run_dir / "learning_curve.csv", "return")
         evals = _column(run_dir / "eval.csv", "mean_return")
@@ -248,6 +252,7 @@ class RowTrial:
     budget: Budget
     encoders: tuple[tuple[str, str], ...] = ()  # (arch, checkpoint path) the camera rows use
     threads: int = 1  # torch threads in the trial's process (does not change what it computes)
+    feature_smoothing: float = 1.0  # the camera rows' low-pass of the encoded features (1 = off)
 
     @property
     def name(self) -> str:
@@ -256,17 +261,19 @@ class RowTrial:
     def definition(self) -> dict[str, Any]:
         return {"kind": "table1_row", "row": self.row.label, "seed": self.seed,
                 "budget": dataclasses.asdict(self.budget), "encoder": dict(self.encoders).get(self.row.encoder),
-                "normalize_obs": not features_raw(self.row)}
+                "normalize_obs": not features_raw(self.row)} | (
+                    {"feature_smoothing": self.feature_smoothing}
+                    if self.feature_smoothing != 1.0 and features_raw(self.row) else {})
 
     def __call__(self, trial_dir: Path) -> dict[str, Any]:
         import torch
 
         torch.set_num_threads(max(1, self.threads))
-        return run_row(self.row, self.seed, self.budget, trial_dir, dict(self.encoders))
+        return run_row(self.row, self.seed, self.budget, trial_dir, dict(self.encoders), self.feature_smoothing)
 
 
-def row_trials(rows: list[Row], seeds: int, budget: Budget, encoders: dict[str, str], threads: int = 1
-               ) -> list[RowTrial]:
+def row_trials(rows: list[Row], seeds: int, budget: Budget, encoders: dict[str, str], threads: int = 1,
+               feature_smoothing: float = 1.0) -> list[RowTrial]:
     """Every row x seed ``0 .. seeds-1`` (seed-major: a seed's rows finish together, its percentages first)."""
     enc = tuple(sorted(encoders.items()))
-    return [RowTrial(row, seed, budget, enc, threads) for seed in range(seeds) for row in rows]
+    return [RowTrial(row, seed, budget, enc, threads, feature_smoothing) for seed in range(seeds) for row in rows]

@@ -288,12 +288,14 @@ def _merge_yaml(kwargs: dict[str, Any], key: str, path: str | None) -> None:
 
 def make_env(obs_mode: str = "vector", camera_width: int = 84, camera_height: int = 84,
              camera_yaml: str | None = None, robot_yaml: str | None = None, social_yaml: str | None = None,
-             room_yaml: str | list[str] | None = None, encoder: str | None = None, **kwargs: Any) -> gym.Env:
+             room_yaml: str | list[str] | None = None, encoder: str | None = None, feature_smoothing: float = 1.0,
+             **kwargs: Any) -> gym.Env:
     """Entry point of ``ssbl_pb/ApproachGroup-v0``: the core env wrapped for ``obs_mode``.
 
     ``encoder`` (a ``tools/train_ae.py`` checkpoint; camera modes only) replaces the images by the frozen
     encoder's features (``env.encoded``) and sets the camera's field of view to the one it learned through (a
-    ``camera_yaml`` must agree with it within 5 % magnification and then sets it).
+    ``camera_yaml`` must agree with it within 5 % magnification and then sets it); ``feature_smoothing`` < 1
+    low-passes those features over the episode (``env.encoded``).
 
     ``camera_yaml`` (a ROS camera_info YAML from ``tools/calibrate_camera.py``) makes the first-person camera
     match a calibrated camera: its intrinsics set the projection, its field of view and (when calibrated) its
@@ -317,7 +319,10 @@ def make_env(obs_mode: str = "vector", camera_width: int = 84, camera_height: in
     if encoder is not None:
         from .encoded import EncodedObservation, load_encoder
 
-        env = EncodedObservation(env, load_encoder(encoder, camera_width))
+        env = EncodedObservation(env, load_encoder(encoder, camera_width), feature_smoothing)
+    elif feature_smoothing != 1.0:
+        raise UserError(f"feature_smoothing {feature_smoothing!r}: filters a frozen encoder's features; give an "
+                        "encoder (or leave it at 1)")
     return env
 
 

@@ -11,6 +11,10 @@ sideways) speed, as the original did. Two wrappers emit the same observation spa
 The encoder is frozen: ``FrozenEncoder`` holds it in eval mode (BatchNorm running statistics, no dropout)
 whatever ``train()`` is called with and keeps its weights out of every optimiser.
 
+``feature_smoothing`` (config key; 1 = off) low-passes the code over an episode's frames before the policy sees it,
+``y_t = y_{t-1} + alpha (code_t - y_{t-1})`` (the speed is not filtered): SAEV's keypoints jitter from frame to
+frame, and a feed-forward policy passes the jitter on to the wheels (docs/decisions.md, "The jerk cost in Table I").
+
 An encoder only reads images like those it learned from, so the camera it learned through (its field of view,
 recorded from the frames file) is the camera of every env it runs in (``with_encoder_camera``).
 """
@@ -32,6 +36,7 @@ from ..errors import UserError
 from ..params import RobotParams
 from ..perception.ae_train import checkpoint_info, load_autoencoder
 from ..perception.autoencoders import Autoencoder, to_input
+from .wrappers import ExponentialFilter
 
 ENCODED_ARCHS = ("conv", "saev")
 
@@ -150,6 +155,20 @@ def _with_speed(features: np.ndarray, speed: np.ndarray | None) -> np.ndarray:
     return out.astype(np.float32, copy=False)
 
 
+def check_feature_smoothing(alpha: Any, where: str = "feature_smoothing") -> float:
+    """``alpha`` of the features' low-pass as a float in (0, 1], else a ``UserError`` naming ``where``."""
+    if isinstance(alpha, bool) or not isinstance(alpha, int | float) or not 0 < alpha <= 1:
+        raise UserError(f"{where} {alpha!r}: expected a number in (0, 1] (the weight of the newest frame's "
+                        "features; 1 = no filter)")
+    return float(alpha)
+
+
+def feature_filter(alpha: float) -> ExponentialFilter | None:
+    """The low-pass of the encoded features (None for ``alpha`` 1: the features as encoded)."""
+    alpha = check_feature_smoothing(alpha)
+    return ExponentialFilter(alpha) if alpha < 1.0 else None
+
+
 def _check_camera_space(space: gym.Space, encoder: FrozenEncoder) -> bool:
     """Whether ``space`` is CameraSpeed's (else CameraOnly's); raises unless its images fit the encoder."""
     image = space["image"] if isinstance(space, gym.spaces.Dict) else space
@@ -165,39 +184,58 @@ def _check_camera_space(space: gym.Space, encoder: FrozenEncoder) -> bool:
 class EncodedObservation(gym.ObservationWrapper):
     """One camera env's images replaced by the frozen encoder's features (plus speed in CameraSpeed mode)."""
 
-    def __init__(self, env: gym.Env, encoder: FrozenEncoder) -> None:
+    def __init__(self, env: gym.Env, encoder: FrozenEncoder, feature_smoothing: float = 1.0) -> None:
         super().__init__(env)
         self.encoder = encoder
+        self.filter = feature_filter(feature_smoothing)
         self.with_speed = _check_camera_space(env.observation_space, encoder)
         self.observation_space = features_space(encoder, self.with_speed)
 
+    def reset(self, **kwargs: Any) -> tuple[np.ndarray, dict]:
+        if self.filter is not None:
+            self.filter.reset()
+        return super().reset(**kwargs)
+
     def observation(self, observation: Any) -> np.ndarray:
         images, speed = _split(observation)
-        return _with_speed(self.encoder.encode(images[None])[0], speed)
+        features = self.encoder.encode(images[None])[0]
+        return _with_speed(features if self.filter is None else self.filter(features), speed)
 
 
 class EncodedVecEnv(VecEnvWrapper):
     """A VecEnv of camera envs whose images are encoded together, once per step (terminal observations too)."""
 
-    def __init__(self, venv: VecEnv, encoder: FrozenEncoder) -> None:
+    def __init__(self, venv: VecEnv, encoder: FrozenEncoder, feature_smoothing: float = 1.0) -> None:
         self.encoder = encoder
+        self.filter = feature_filter(feature_smoothing)
         self.with_speed = _check_camera_space(venv.observation_space, encoder)
         super().__init__(venv, observation_space=features_space(encoder, self.with_speed))
 
-    def _encode(self, obs: Any) -> np.ndarray:
-        images, speed = _split(obs)
-        return _with_speed(self.encoder.encode(images), speed)
-
     def reset(self) -> np.ndarray:
-        return self._encode(self.venv.reset())
+        if self.filter is not None:
+            self.filter.reset()
+        images, speed = _split(self.venv.reset())
+        features = self.encoder.encode(images)
+        return _with_speed(features if self.filter is None else self.filter(features), speed)
 
     def step_wait(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[dict]]:
         obs, rewards, dones, infos = self.venv.step_wait()
+        images, speed = _split(obs)
+        features = self.encoder.encode(images)
         ends = [i for i, info in enumerate(infos) if "terminal_observation" in info]
         if ends:  # PPO bootstraps truncated episodes from these: they must be features too
             last = [infos[i]["terminal_observation"] for i in ends]
             batch = {k: np.stack([o[k] for o in last]) for k in last[0]} if isinstance(last[0], dict) \
                 else np.stack(last)
-            for i, f in zip(ends, self._encode(batch), strict=True):
+            last_images, last_speed = _split(batch)
+            last_features = self.encoder.encode(last_images)
+            if self.filter is not None:  # an episode's last frame, filtered with its episode's past
+                whole = features.copy()
+                whole[ends] = last_features
+                last_features = self.filter.peek(whole)[ends]
+            for i, f in zip(ends, _with_speed(last_features, last_speed), strict=True):
                 infos[i]["terminal_observation"] = f
-        return self._encode(obs), rewards, dones, infos
+        if self.filter is not None:
+            self.filter.reset(rows=[i for i, d in enumerate(dones) if d])  # a new episode's first frame
+            features = self.filter(features)
+        return _with_speed(features, speed), rewards, dones, infos

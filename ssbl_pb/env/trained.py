@@ -53,8 +53,8 @@ OBSERVATION_KEYS = ("waypoints", "waypoints_near_group")  # env arguments that c
 def policy_env_kwargs(spec: str) -> dict[str, Any]:
     """The env a trained model needs beyond the defaults: what its observation was made of (config ``env``'s
     ``OBSERVATION_KEYS``: the waypoints in furnished rooms); for a model on a frozen autoencoder (config
-    ``encoder`` conv / saev), its camera mode, image size and encoder checkpoint (looked up beside the model,
-    then beside its run directory, then as written); ``{}`` for a baseline."""
+    ``encoder`` conv / saev), its camera mode, image size, features' low-pass and encoder checkpoint (looked up
+    beside the model, then beside its run directory, then as written); ``{}`` for a baseline."""
     from .policies import BASELINES
 
     if spec in BASELINES:
@@ -74,8 +74,10 @@ def policy_env_kwargs(spec: str) -> dict[str, Any]:
         raise ModelError(f"{model}: its encoder checkpoint {name!r} (config encoder_checkpoint) is not beside the "
                          f"model nor at that path")
     size = int(config.get("camera_size", 84))
+    smoothing = {"feature_smoothing": float(config["feature_smoothing"])} if config.get("feature_smoothing", 1) != 1 \
+        else {}
     return {**seen, "obs_mode": config["obs_mode"], "camera_width": size, "camera_height": size,
-            "encoder": str(found[0])}
+            "encoder": str(found[0]), **smoothing}
 
 
 def copy_policy(spec: str, dest: Path) -> list[str]:

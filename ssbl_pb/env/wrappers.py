@@ -91,17 +91,18 @@ class ShieldWrapper(gym.Wrapper):
         return obs, r, terminated, truncated, info
 
 
-class ActionFilter:
-    """The stateful filter behind ``ActionSmoothing`` (also used by trained policies at inference and, one row
-    per copy, by the batched training env)."""
+class ExponentialFilter:
+    """``y_t = y_{t-1} + alpha (x_t - y_{t-1})`` per row of a batch (or of one vector), started at the first
+    input; ``alpha = 1`` passes the input through. The stateful filter behind the action smoothing and the
+    encoded features' low-pass (``env.encoded``)."""
 
     def __init__(self, alpha: float) -> None:
         self.alpha = float(alpha)
         self.state: np.ndarray | None = None
-        self._fresh: np.ndarray | None = None  # rows (of a batch of actions) whose episode has just begun
+        self._fresh: np.ndarray | None = None  # rows (of a batch) whose episode has just begun
 
     def reset(self, rows: list[int] | None = None) -> None:
-        """Forget the past actions (of the given rows of a batch only, when ``rows`` is given)."""
+        """Forget the past inputs (of the given rows of a batch only, when ``rows`` is given)."""
         if rows is None or self.state is None:
             self.state, self._fresh = None, None
             return
@@ -109,15 +110,26 @@ class ActionFilter:
             self._fresh = np.zeros(len(self.state), dtype=bool)
         self._fresh[rows] = True
 
-    def __call__(self, action: np.ndarray) -> np.ndarray:
-        a = np.clip(np.asarray(action, dtype=np.float32), -1.0, 1.0)
+    def peek(self, x: np.ndarray) -> np.ndarray:
+        """The output for input ``x`` without advancing the state (rows flagged fresh pass ``x`` through)."""
+        x = np.asarray(x, dtype=np.float32)
         if self.state is None:
-            self.state = a
-        else:
-            new = (self.state + self.alpha * (a - self.state)).astype(np.float32)
-            self.state = new if self._fresh is None else np.where(self._fresh[:, None], a, new)
-            self._fresh = None
+            return x
+        new = (self.state + self.alpha * (x - self.state)).astype(np.float32)
+        return new if self._fresh is None else np.where(self._fresh[:, None], x, new)
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        self.state = self.peek(x)
+        self._fresh = None
         return self.state
+
+
+class ActionFilter(ExponentialFilter):
+    """The action smoothing's filter (``ActionSmoothing``; also used by trained policies at inference and, one
+    row per copy, by the batched training env): actions clipped to [-1, 1], then filtered."""
+
+    def __call__(self, action: np.ndarray) -> np.ndarray:
+        return super().__call__(np.clip(np.asarray(action, dtype=np.float32), -1.0, 1.0))
 
 
 def wrap_obs_mode(env: gym.Env, obs_mode: str, width: int = 84, height: int = 84,

@@ -94,6 +94,8 @@ class TrainConfig:
     camera_size: int = 84
     # the frozen autoencoder of encoder conv / saev (tools/train_ae.py); empty = the shipped SAEV encoder
     encoder_checkpoint: str = ""
+    # low-pass of the frozen encoder's features over an episode, the newest frame's weight (env.encoded; 1 = off)
+    feature_smoothing: float = 1.0
     action_smoothing: float = 0.4  # agent-side action filter (env.wrappers.ActionSmoothing); 1.0 = off
     safety_shield: bool = True  # agent-side safety shield (env.shield), the last action stage; it reads the
     #                             Vector observation, so camera modes train without it
@@ -163,6 +165,12 @@ class TrainConfig:
                "true or false")
         _check(isinstance(self.action_smoothing, int | float) and 0 < self.action_smoothing <= 1, "config",
                "action_smoothing", self.action_smoothing, "a number in (0, 1] (1 = off)")
+        _check(not isinstance(self.feature_smoothing, bool) and isinstance(self.feature_smoothing, int | float)
+               and 0 < self.feature_smoothing <= 1, "config", "feature_smoothing", self.feature_smoothing,
+               "a number in (0, 1] (1 = off)")
+        if self.feature_smoothing != 1:
+            _check(self.encoder in ("conv", "saev"), "config", "feature_smoothing", self.feature_smoothing,
+                   f"1 for encoder {self.encoder!r} (it filters a frozen encoder's features: encoder conv or saev)")
         _check(isinstance(self.env, dict), "config", "env", self.env, "a mapping of env arguments")
         unknown = sorted(set(self.env) - set(env_keys()))
         _check(not unknown, "config", "env", unknown, f"keys among {env_keys()} (the config sets obs_mode, "
@@ -216,7 +224,7 @@ def env_keys() -> list[str]:
     from ..env.approach import ApproachGroupEnv, make_env
 
     own = {"obs_mode", "scenario", "reward", "camera_width", "camera_height", "render_mode", "render_width",
-           "record", "self", "kwargs"}
+           "record", "self", "kwargs", "feature_smoothing"}
     names = [*inspect.signature(make_env).parameters, *inspect.signature(ApproachGroupEnv.__init__).parameters]
     return sorted(set(names) - own)
 

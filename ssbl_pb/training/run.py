@@ -97,7 +97,7 @@ def make_vec_env(cfg: TrainConfig, seed: int) -> Any:
     if cfg.encoder_file:  # frozen autoencoder: all envs' images encoded in one batch per step (env.encoded)
         from ..env.encoded import EncodedVecEnv, load_encoder
 
-        venv = EncodedVecEnv(venv, load_encoder(cfg.encoder_file, cfg.camera_size))
+        venv = EncodedVecEnv(venv, load_encoder(cfg.encoder_file, cfg.camera_size), cfg.feature_smoothing)
     if cfg.policy_obs_mode == "vector":
         return VecNormalize(venv, norm_obs=cfg.standardises_obs, norm_reward=True, gamma=cfg.ppo.gamma)
     if cfg.obs_mode == "camera_speed":
@@ -161,6 +161,7 @@ def _callbacks(cfg: TrainConfig, run_dir: Path) -> list[Any]:
     eval_kwargs = _env_kwargs(cfg)  # evaluated with the ramps' final weights, comparable across the run
     if cfg.encoder_file:
         eval_kwargs["encoder"] = cfg.encoder_file
+        eval_kwargs["feature_smoothing"] = cfg.feature_smoothing
     eval_kwargs["reward"] = {**eval_kwargs["reward"], **{k: v[1] for k, v in cfg.reward_ramp.items()}}
     ramp = [RewardRampCallback(cfg.reward_ramp, cfg.reward_ramp_fraction, cfg.total_steps)] if cfg.reward_ramp else []
     return ramp + [ProgressCallback(cfg.total_steps), EpisodeLogCallback(run_dir / "learning_curve.csv"),
