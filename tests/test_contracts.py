@@ -179,6 +179,7 @@ CASES = [
     C("table1.py", "--budget", "smoke", "--out", "{out}", "--workers", "0", expect="--workers"),
     C("bench_camera.py", "--only", "nosuch", "--out", "{out}.json", expect="unknown part(s) ['nosuch']"),
     C("bench_camera.py", "--only", "probe", "--out", "{out}.json", expect="--only probe needs --frames"),
+    C("bench_camera.py", "--only", "jitter", "--out", "{out}.json", expect="--only jitter needs --frames"),
     C("train_pb.py", "--obs-mode", "camera", "--encoder", "conv", "--set", "encoder_checkpoint={file}",
       "--out", "{out}", expect="encoder checkpoint"),
     # sweeps (issue 16): bad specs, no cluster at the address, storage that cannot be written

@@ -261,3 +261,30 @@ def test_shipped_camera_speed_saev_policy_runs_with_its_encoder() -> None:
         assert action.shape == (2,) and np.all(np.abs(action) <= 1)
         obs, *_ = env.step(action)
     env.close()
+
+
+def test_low_pass_episodes_restarts_at_each_episode() -> None:
+    from ssbl_pb.env.encoded import low_pass_episodes
+
+    x = np.array([[0.0], [4.0], [8.0], [2.0], [6.0]], np.float32)
+    got = low_pass_episodes(x, np.array([0, 0, 0, 1, 1]), 0.5)
+    # episode 0: 0, 0 + 0.5 (4 - 0) = 2, 2 + 0.5 (8 - 2) = 5; episode 1 starts again: 2, 2 + 0.5 (6 - 2) = 4
+    assert np.allclose(got[:, 0], [0.0, 2.0, 5.0, 2.0, 4.0])
+    assert np.array_equal(low_pass_episodes(x, np.zeros(5), 1.0), x)
+
+
+def test_feature_jitter_by_hand_and_falls_with_the_low_pass(checkpoints: dict[str, Path]) -> None:
+    from ssbl_pb.perception.camera_bench import feature_jitter
+    from tests.test_ae_training import moving_square
+
+    data = moving_square(10, 12)
+    res = feature_jitter(data, {k: str(v) for k, v in checkpoints.items()}, alphas=(1.0, 0.5, 0.2))
+    enc = load_encoder(checkpoints["saev"])
+    f = enc.encode(data["frames"])
+    f = f / (f.std(axis=0) + 1e-6)
+    same = data["episode"][1:] == data["episode"][:-1]
+    assert res["saev/alpha=1"]["first_difference"] == pytest.approx(np.abs(np.diff(f, axis=0))[same].mean(),
+                                                                     abs=1e-4)
+    for arch in A.ARCHS:
+        second = [res[f"{arch}/alpha={a:g}"]["second_difference"] for a in (1.0, 0.5, 0.2)]
+        assert second[0] > second[1] > second[2] > 0, second

@@ -1,8 +1,9 @@
 #!/usr/bin/env python
 """Benchmarks of the camera state representations: encoder frames/s, camera-mode training throughput against
 the raw TinyRenderer frame rate, the autoencoders' training time and quality, a linear probe of the features
-to the members' positions (SAEV vs conv), the keypoint precision that probe asks for, and the SAEV keypoint
-detector in the simulated tracker.
+to the members' positions (SAEV vs conv), the keypoint precision that probe asks for, the features' jitter from
+frame to frame (as encoded and low-passed, config feature_smoothing), and the SAEV keypoint detector in the
+simulated tracker.
 
 Writes OUT (JSON) and prints a Markdown summary (docs/benchmarks.md, "Camera state representations").
 
@@ -11,6 +12,8 @@ Examples:
         --conv results/ae/conv/encoder.pt --out results/bench_camera.json
     python tools/bench_camera.py --only precision --frames results/frames/frames.npz --out results/precision.json
     python tools/bench_camera.py --only encoders --out results/bench_encoders.json
+    python tools/bench_camera.py --only jitter --frames results/fov26/frames.npz \
+        --saev results/fov26/ae/saev/encoder.pt --conv results/fov26/ae/conv/encoder.pt --out results/jitter.json
 """
 
 from __future__ import annotations
@@ -20,7 +23,7 @@ from pathlib import Path
 
 from ssbl_pb.cli import ArgumentParser, run
 
-PARTS = ("encoders", "throughput", "autoencoders", "probe", "precision", "tracking", "pets")
+PARTS = ("encoders", "throughput", "autoencoders", "probe", "precision", "jitter", "tracking", "pets")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -44,7 +47,8 @@ def main(argv: list[str] | None = None) -> int:
     if bad := sorted(set(parts) - set(PARTS)):
         raise UserError(f"--only {args.only!r}: unknown part(s) {bad}; expected {list(PARTS)}")
     needs = {"throughput": ["saev"], "autoencoders": ["saev", "conv"], "probe": ["frames", "saev", "conv"],
-             "precision": ["frames"], "tracking": ["frames", "saev"], "pets": ["pets"]}
+             "precision": ["frames"], "jitter": ["frames", "saev", "conv"], "tracking": ["frames", "saev"],
+             "pets": ["pets"]}
     for part in parts:
         for what in needs.get(part, []):
             if getattr(args, what) is None:
@@ -57,7 +61,7 @@ def main(argv: list[str] | None = None) -> int:
         raise UserError(f"--pets {args.pets}: expected a folder holding {list(pets_files)}")
     check_output_path(args.out, "--out", is_dir=False)
     frames = None
-    if args.frames is not None and {"probe", "precision", "tracking"} & set(parts):
+    if args.frames is not None and {"probe", "precision", "jitter", "tracking"} & set(parts):
         from ssbl_pb.perception.frames import load_frames
 
         frames = load_frames(args.frames, 64)
@@ -84,6 +88,8 @@ def main(argv: list[str] | None = None) -> int:
         res["probe"] = cb.probe_encoders(frames, {"saev": str(args.saev), "conv": str(args.conv)})
     if "precision" in parts:
         res["precision"] = cb.keypoint_precision(frames)
+    if "jitter" in parts:
+        res["jitter"] = cb.feature_jitter(frames, {"saev": str(args.saev), "conv": str(args.conv)})
     if "tracking" in parts:
         res["tracking_saev"] = cb.keypoint_tracking(frames, str(args.saev))
     if "pets" in parts:

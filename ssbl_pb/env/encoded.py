@@ -169,6 +169,20 @@ def feature_filter(alpha: float) -> ExponentialFilter | None:
     return ExponentialFilter(alpha) if alpha < 1.0 else None
 
 
+def low_pass_episodes(features: np.ndarray, episode: np.ndarray, alpha: float) -> np.ndarray:
+    """Consecutive frames' features (N, F) as the wrappers' low-pass gives them, restarting at each new
+    ``episode`` number (offline, e.g. on a frames file)."""
+    filt = feature_filter(alpha)
+    if filt is None:
+        return np.asarray(features, dtype=np.float32)
+    out = np.empty_like(features, dtype=np.float32)
+    for t, x in enumerate(features):
+        if t and episode[t] != episode[t - 1]:
+            filt.reset()
+        out[t] = filt(x)
+    return out
+
+
 def _check_camera_space(space: gym.Space, encoder: FrozenEncoder) -> bool:
     """Whether ``space`` is CameraSpeed's (else CameraOnly's); raises unless its images fit the encoder."""
     image = space["image"] if isinstance(space, gym.spaces.Dict) else space

@@ -76,7 +76,6 @@ def probe_encoders(frames: dict[str, np.ndarray], checkpoints: dict[str, str], m
     """Linear probe of each encoder's features -> visible members' positions; held-out = validation episodes.
     With ``mlp``, the same rows read by a small MLP too (``NAME_mlp``: whether the features carry the members
     at all; a few minutes on one core)."""
-    from ..env.encoded import FrozenEncoder
     from .probe import member_probe, pixel_probe, visible_members
 
     train_c, val_c = split_centres(frames["episode"], 10)
@@ -89,14 +88,49 @@ def probe_encoders(frames: dict[str, np.ndarray], checkpoints: dict[str, str], m
         out["true_torso_pixels_mlp"] = pixel_probe(px[train_c], members[train_c], px[val_c], members[val_c],
                                                    reader="mlp")
     for name, path in checkpoints.items():
-        enc = FrozenEncoder(load_autoencoder(path))
-        feats = np.concatenate([enc.encode(frames["frames"][i:i + 512]) for i in range(0, len(frames["frames"]),
-                                                                                         512)])
+        feats = _encode_all(path, frames["frames"])
         out[name] = member_probe(feats[train_c], members[train_c], feats[val_c], members[val_c])
-        out[name]["feature_dim"] = enc.feature_dim
+        out[name]["feature_dim"] = feats.shape[1]
         if mlp:
             out[f"{name}_mlp"] = member_probe(feats[train_c], members[train_c], feats[val_c], members[val_c],
                                               reader="mlp")
+    return out
+
+
+def _encode_all(path: str, images: np.ndarray) -> np.ndarray:
+    from ..env.encoded import FrozenEncoder
+
+    enc = FrozenEncoder(load_autoencoder(path))
+    return np.concatenate([enc.encode(images[i:i + 512]) for i in range(0, len(images), 512)])
+
+
+def feature_jitter(frames: dict[str, np.ndarray], checkpoints: dict[str, str],
+                   alphas: tuple[float, ...] = (1.0, 0.5, 0.3)) -> dict[str, dict[str, Any]]:
+    """How much each encoder's features jump between consecutive frames of an episode, against how much they
+    vary over the whole file (each feature's standard deviation), as encoded and through the features' low-pass
+    (``feature_smoothing`` alpha; 1 = none): the mean absolute first and second differences in those units, and
+    the linear probe (held-out median member error, m) on the features the policy would see."""
+    from ..env.encoded import low_pass_episodes
+    from .probe import member_probe, visible_members
+
+    episode = np.asarray(frames["episode"])
+    same = episode[1:] == episode[:-1]
+    same2 = same[1:] & same[:-1]
+    train_c, val_c = split_centres(episode, 10)
+    members = visible_members(frames)
+    out: dict[str, dict[str, Any]] = {}
+    for name, path in checkpoints.items():
+        raw = _encode_all(path, frames["frames"])
+        spread = raw.std(axis=0) + 1e-6
+        for alpha in alphas:
+            seen = low_pass_episodes(raw, episode, alpha)
+            f = seen / spread
+            d1 = np.abs(np.diff(f, axis=0))[same]
+            d2 = np.abs(f[2:] - 2 * f[1:-1] + f[:-2])[same2]
+            probe = member_probe(seen[train_c], members[train_c], seen[val_c], members[val_c])
+            out[f"{name}/alpha={alpha:g}"] = {"first_difference": round(float(d1.mean()), 4),
+                                              "second_difference": round(float(d2.mean()), 4),
+                                              "probe_median_m": probe.get("median_m")}
     return out
 
 
