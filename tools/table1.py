@@ -45,7 +45,7 @@ def main(argv: list[str] | None = None) -> int:
                          "have learned through it")
     ap.add_argument("--feature-smoothing", type=float, default=1.0, metavar="ALPHA",
                     help="low-pass of the camera rows' encoded features over each episode, the newest frame's "
-                         "weight in (0, 1] (default 1: off; docs/decisions.md, 'The jerk cost in Table I')")
+                         "weight in (0, 1] (default 1: off; docs/decisions.md, 'A low-pass on the encoded features')")
     ap.add_argument("--threads", type=int, default=1, help="torch threads per trial (default 1)")
     add_run_options(ap)
     args = ap.parse_args(argv)
