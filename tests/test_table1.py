@@ -165,6 +165,10 @@ def test_smoke_table_and_resume(tmp_path: Path) -> None:
     results = sorted((out / "trials").glob("*/result.json"))
     assert [p.parent.name for p in results] == ["cameraonly_conv_ff,seed=0", "cameraspeed_saev_lstm,seed=0",
                                                 "random_policy,seed=0", "vector_lstm,seed=0"]
+    tasks = {p.parent.name: json.loads(p.read_text())["task"] for p in results}  # the table's low-pass by default
+    assert tasks["cameraspeed_saev_lstm,seed=0"]["feature_smoothing"] == 0.3
+    assert tasks["cameraonly_conv_ff,seed=0"]["feature_smoothing"] == 0.3 and "feature_smoothing" not in tasks[
+        "vector_lstm,seed=0"]
     stamps = {p: p.stat().st_mtime_ns for p in results}
     again = run_tool("table1.py", argv, timeout=120)  # every row finished: read back, nothing retrained
     assert again.returncode == 0, again.stderr[-2000:]

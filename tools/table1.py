@@ -30,7 +30,7 @@ from ssbl_pb.sweep.cli import add_run_options
 
 
 def main(argv: list[str] | None = None) -> int:
-    from ssbl_pb.analysis.table1 import BUDGETS, ROWS, TABLE_CAMERA_HFOV
+    from ssbl_pb.analysis.table1 import BUDGETS, ROWS, TABLE_CAMERA_HFOV, TABLE_FEATURE_SMOOTHING
 
     ap = ArgumentParser(description=__doc__)
     ap.add_argument("--budget", required=True, help=f"one of {', '.join(BUDGETS)}")
@@ -43,9 +43,10 @@ def main(argv: list[str] | None = None) -> int:
                     help="the camera rows' field of view, degrees, for the frames the encoders learn from (default "
                          f"{TABLE_CAMERA_HFOV:g}, the paper's Unity camera; Pepper's own: 56.3); given encoders must "
                          "have learned through it")
-    ap.add_argument("--feature-smoothing", type=float, default=1.0, metavar="ALPHA",
+    ap.add_argument("--feature-smoothing", type=float, default=TABLE_FEATURE_SMOOTHING, metavar="ALPHA",
                     help="low-pass of the camera rows' encoded features over each episode, the newest frame's "
-                         "weight in (0, 1] (default 1: off; docs/decisions.md, 'A low-pass on the encoded features')")
+                         f"weight in (0, 1] (default {TABLE_FEATURE_SMOOTHING:g}; 1: off, the paper's raw features; "
+                         "docs/decisions.md, 'A low-pass on the encoded features')")
     ap.add_argument("--threads", type=int, default=1, help="torch threads per trial (default 1)")
     add_run_options(ap)
     args = ap.parse_args(argv)
