@@ -9,7 +9,7 @@ demo: setup
 	$(PY) tools/main_job.py
 
 test: setup
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q -n auto --dist loadfile
 
 lint: setup
 	.venv/bin/ruff check .
