@@ -338,6 +338,7 @@ def test_every_config_loads_and_the_shipped_camera_policy_is_the_one_its_config_
     shipped = yaml.safe_load((SHIPPED["camera_speed_saev"] / "config.yaml").read_text())
     # the run's name and encoder path are its own; unset normalize_obs (auto) is what the run saved as null
     for key in ("name", "encoder_checkpoint", "normalize_obs"):
-        documented.pop(key, None), shipped.pop(key, None)
+        documented.pop(key, None)
+        shipped.pop(key, None)
     assert shipped == documented
     assert shipped["policy"] == "lstm" and shipped["feature_smoothing"] == 0.3
