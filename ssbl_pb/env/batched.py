@@ -126,7 +126,7 @@ class BatchedApproach:
         for attempt in range(tries):
             try:
                 return spawn_layout(rng, self.world_params, self.robot_params, self.social, n, formation, start,
-                                    self.groups, room, self.keep)
+                                    self.groups, room, self.keep, self.task)
             except NoPlace:
                 if attempt == tries - 1:
                     raise

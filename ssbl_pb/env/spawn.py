@@ -36,10 +36,11 @@ class NoPlace(ConfigError):
 
 def spawn_layout(rng: np.random.Generator, world: WorldParams, robot: RobotParams, social: SocialParams, n: int,
                  formation: str, start: str = "any", groups: GroupModel | None = None, room: Room | None = None,
-                 keep: float = 0.0) -> tuple[np.ndarray, Layout, np.ndarray]:
+                 keep: float = 0.0, task: TaskParams | None = None) -> tuple[np.ndarray, Layout, np.ndarray]:
     """A group's centre (2,) and layout (``layouts.Layout``) and the robot's pose (x, y, yaw) for one episode in
-    ``room`` (default: the empty ``world.room_size``); ``keep`` as ``humans.Group``'s. ``NoPlace`` when 1000 group
-    places fail. With obstacles, ``Approach.fits`` must also hold."""
+    ``room`` (default: the empty ``world.room_size``); ``keep`` as ``humans.Group``'s; ``task``: the task whose
+    intimate zone the way in keeps out of (default ``TaskParams()``). ``NoPlace`` when 1000 group places fail.
+    With obstacles, ``Approach.fits`` must also hold."""
     if not isinstance(n, int | np.integer) or not 2 <= n <= MAX_HUMANS:
         raise ConfigError(f"n_humans = {n!r}: expected an integer in [2, {MAX_HUMANS}]")
     if start not in ("any", "behind"):
@@ -51,7 +52,8 @@ def spawn_layout(rng: np.random.Generator, world: WorldParams, robot: RobotParam
     margin = extent + social.human_radius + world.wall_margin
     robot_margin = robot.length / 2 + world.wall_margin
     angles = np.arctan2(layout.offsets[:, 1], layout.offsets[:, 0])
-    approach = Approach(layout, social, robot, keep, room) if furnished else None
+    intimate_zone = (task or TaskParams()).intimate_zone
+    approach = Approach(layout, social, robot, keep, room, intimate_zone) if furnished else None
     where = f"the room {room.source}" if room is not None else f"world.room_size = {world.room_size}"
     if 2 * margin > min(sx, sy):  # a small furnished room and a wide real group: draw another room
         raise NoPlace(f"{where}: {min(sx, sy)} m across is too small for a group of {n} ({formation}) that needs "
@@ -83,16 +85,17 @@ class Approach:
     robot at its place (the slot at rest, toward the robot) and on the way in along the slot's ray keeps its
     footprint's reach plus ``GROUP_CLEARANCE`` from obstacles and walls; the robot's start keeps its reach plus
     ``START_CLEARANCE``, and a path keeping that clearance leads from the start to where that way in begins, around
-    the group (its keep-out disc: the members' bodies plus the footprint's reach and the intimate zone, as the
-    shaping's route keeps, ``reward.route_length``)."""
+    the group (its keep-out disc: the members' bodies plus the footprint's reach and the task's
+    ``intimate_zone``, as the shaping's route keeps, ``reward.route_length``)."""
 
-    def __init__(self, layout: Layout, social: SocialParams, robot: RobotParams, keep: float, room: Room) -> None:
+    def __init__(self, layout: Layout, social: SocialParams, robot: RobotParams, keep: float, room: Room,
+                 intimate_zone: float) -> None:
         self.offsets, self.room, self.reach = layout.offsets, room, robot.reach
         ring = np.hypot(self.offsets[:, 0], self.offsets[:, 1])
         self.members = float(ring.max()) + social.human_radius + GROUP_CLEARANCE
         self.radius, self.keep = layout.radius, 0.0 if layout.paper else keep
         self.joined = layout.joined_radius
-        self.keep_out = float(ring.max()) + social.human_radius + robot.reach + TaskParams().intimate_zone
+        self.keep_out = float(ring.max()) + social.human_radius + robot.reach + intimate_zone
 
     def fits(self, centre: np.ndarray, xy: np.ndarray) -> bool:
         room = self.room
@@ -195,20 +198,21 @@ def _connected(field: np.ndarray, x0: float, y0: float, size_x: float, size_y: f
 
 
 def fitting_sizes(room: Room, world: WorldParams | None = None, robot: RobotParams | None = None,
-                  social: SocialParams | None = None, tries: int = 3) -> list[int]:
+                  social: SocialParams | None = None, tries: int = 3, task: TaskParams | None = None) -> list[int]:
     """Group sizes (2-5, calibrated vis-a-vis groups) for which ``spawn_layout`` finds a place in ``room`` (with the
-    default robot and social parameters; ``tries`` seeded attempts each), for telling a user what a room holds."""
+    given parameters, default ones where None; ``tries`` seeded attempts each), for telling a user what a room
+    holds."""
     from .layouts import slot_keep
-    from .task import TaskParams
 
     world, robot, social = world or WorldParams(), robot or RobotParams(), social or SocialParams()
-    task = TaskParams()
+    task = task or TaskParams()
     keep = slot_keep(social, robot.reach, task.intimate_zone, task.route_margin)
     out = []
     for n in range(2, MAX_HUMANS + 1):
         for seed in range(tries):
             try:
-                spawn_layout(np.random.default_rng(seed), world, robot, social, n, "vis_a_vis", room=room, keep=keep)
+                spawn_layout(np.random.default_rng(seed), world, robot, social, n, "vis_a_vis", room=room, keep=keep,
+                             task=task)
             except NoPlace:
                 continue
             out.append(n)
