@@ -16,6 +16,7 @@ from ..errors import UserError
 from ..params import RobotParams, SocialParams
 from . import forces
 from . import observation as ob
+from .task import TaskParams
 
 BASELINES = ("sffm", "random", "straight")
 
@@ -54,16 +55,17 @@ class SFFMRobotParams:
     its place's clearance (at least beyond the intimate zone) instead of the whole personal zone where that is
     smaller (on the paper's circle it rarely is): 0 % of 40 calibrated default starts joined with the personal
     zone, 90 % with this (docs/decisions.md, "Groups as real people stand").
+
+    The robot's body radius (``RobotParams.radius``) and the intimate zone (``TaskParams.intimate_zone``) are not
+    fields here: ``SFFMPolicy`` takes them from the robot and the task it is given.
     """
 
     weight_cohesion: float = 1.0
     weight_equality: float = 1.0
     weight_repulsion: float = 2.0
-    robot_radius: float = 0.2275  # RobotParams().radius
     saturation: float = 0.3  # soft normalisation of cohesion and equality (as the members')
-    zone_margin: float = 0.3  # m beyond the place's clearance (TaskParams.proximity_band: Pepper's braking
-    #                           distance plus 0.1 m) ...
-    intimate_zone: float = 0.45  # ... and never less than beyond the intimate zone (TaskParams.intimate_zone)
+    zone_margin: float = 0.3  # m beyond the place's clearance, and never less than beyond the intimate zone
+    #                           (TaskParams.proximity_band: Pepper's braking distance plus 0.1 m)
 
 
 class SFFMPolicy(Policy):
@@ -74,9 +76,22 @@ class SFFMPolicy(Policy):
     normalised: full speed far from equilibrium, slowing linearly near it.
     """
 
-    def __init__(self, social: SocialParams | None = None, params: SFFMRobotParams | None = None) -> None:
+    def __init__(self, social: SocialParams | None = None, params: SFFMRobotParams | None = None,
+                 robot: RobotParams | None = None, task: TaskParams | None = None) -> None:
+        """``robot`` and ``task`` (defaults where None): the body radius and the intimate zone the robot keeps."""
         self.social = social or SocialParams()
         self.params = params or SFFMRobotParams()
+        self.robot = robot or RobotParams()
+        self.task = task or TaskParams()
+
+    def personal_zone(self, members: np.ndarray, slot: np.ndarray) -> float:
+        """Centre distance (m) inside which a member repels the robot (``SFFMRobotParams``): the personal zone, or
+        ``zone_margin`` beyond the place's clearance (at least beyond the intimate zone) where that is smaller,
+        plus both body radii. ``members`` (k, 2) and ``slot`` (2,) in metres."""
+        s, q = self.social, self.params
+        bodies = s.human_radius + self.robot.radius
+        place = float(np.hypot(*(members - slot).T).min()) - bodies  # the place's clearance
+        return min(s.personal_radius, max(place, self.task.intimate_zone) + q.zone_margin) + bodies
 
     def force(self, obs: np.ndarray) -> np.ndarray:
         """The combined motion force at the robot, body frame."""
@@ -89,9 +104,7 @@ class SFFMPolicy(Policy):
         radius = max(float(obs[4]) * ob.POS_SCALE, math.hypot(*(slot - centre)))
         agents = np.vstack([members, np.zeros((1, 2))])
         me, everyone = len(members), np.ones((len(agents), len(agents)), dtype=np.bool_)
-        bodies = s.human_radius + q.robot_radius
-        place = float(np.hypot(*(members - slot).T).min()) - bodies  # the place's clearance
-        d_p = min(s.personal_radius, max(place, q.intimate_zone) + q.zone_margin) + bodies
+        d_p = self.personal_zone(members, slot)
         f_r = np.array(forces.repulsion_on(me, agents, np.full(everyone.shape, d_p), everyone))
         f_e = np.array(forces.equality_on(me, agents, s.social_radius, everyone)[:2])
         f_c = np.array(forces.cohesion_on(me, agents, float(centre[0]), float(centre[1]), radius, s.social_radius,
@@ -136,10 +149,10 @@ class StraightPolicy(Policy):
 
 
 def make_policy(name: str, robot: RobotParams | None = None, social: SocialParams | None = None,
-                seed: int | None = 0) -> Policy:
-    """A baseline by name: one of ``BASELINES``."""
+                seed: int | None = 0, task: TaskParams | None = None) -> Policy:
+    """A baseline by name: one of ``BASELINES`` (for the env's ``robot``, ``social`` and ``task``; None: defaults)."""
     if name == "sffm":
-        return SFFMPolicy(social)
+        return SFFMPolicy(social, robot=robot, task=task)
     if name == "random":
         return RandomPolicy(2, seed)
     if name == "straight":
