@@ -25,6 +25,27 @@ from .scenarios import ScenarioMix
 from .task import TaskParams
 from .world import World
 
+# ``WorldParams`` fields the scenario sets (``scenarios``). Given to the env they are refused, never honoured
+# (``World.reset`` alone reads them): a dict names them, so any value is refused; an instance cannot tell a value
+# given from its default, so a value other than the default is refused; a room YAML's ``world`` section is a dict.
+GROUP_FIELDS = ("n_humans", "formation")
+
+
+def check_group_fields(world: Any, where: str = "") -> None:
+    """Raise if ``world`` (a ``WorldParams``, a dict or None) sets the group (``GROUP_FIELDS``); ``where`` prefixes
+    the message (a room YAML's path)."""
+    if isinstance(world, dict):
+        given = {k: world[k] for k in GROUP_FIELDS if k in world}
+    elif isinstance(world, WorldParams):
+        default = WorldParams()
+        given = {k: getattr(world, k) for k in GROUP_FIELDS if getattr(world, k) != getattr(default, k)}
+    else:
+        return
+    if given:
+        k = sorted(given)[0]
+        raise ConfigError(f"{where}world.{k} = {given[k]!r}: the scenario sets the group (e.g. scenario "
+                          f"'circular-4' for four members in a circle); remove world.{k}")
+
 
 def _params(cls: type, value: Any, name: str) -> Any:
     if value is None:
@@ -60,6 +81,7 @@ def parse_env_params(scenario: str, world: Any, robot: Any, social: Any, reward:
     room of its own size, one drawn per episode, and the empty room keeps ``world``'s size."""
     from ..params import load_yaml
 
+    check_group_fields(world)
     paths = [] if room_yaml is None else [room_yaml] if isinstance(room_yaml, str | Path) else list(room_yaml)
     if not paths and room_yaml is not None:
         raise ConfigError("room_yaml = []: expected a room YAML or a list of them")
@@ -69,6 +91,7 @@ def parse_env_params(scenario: str, world: Any, robot: Any, social: Any, reward:
             raise ConfigError(f"room_yaml[{k}] = {path!r}: expected the path of a room YAML (tools/import_map.py)")
         data = load_yaml(path)
         room_world = merged(world if len(paths) == 1 else None, "world", str(path), data, "world")
+        check_group_fields(data["world"], f"{path}: ")
         if len(paths) == 1:
             world = room_world
         obstacles = read_obstacles(path, data)
@@ -79,10 +102,6 @@ def parse_env_params(scenario: str, world: Any, robot: Any, social: Any, reward:
     if "map" in mix.rooms and obstacles is None:
         raise ConfigError(f"scenario {scenario!r}: room 'map' needs a room YAML with obstacles (--room-yaml, "
                           + (f"{room_yaml} has no 'obstacles:' section)" if room_yaml else "none given)"))
-    fixed = sorted({"n_humans", "formation"} & set(world)) if isinstance(world, dict) else []
-    if fixed:
-        raise ConfigError(f"world.{fixed[0]} = {world[fixed[0]]!r}: the scenario sets the group (e.g. scenario "
-                          f"'circular-4' for four members in a circle); remove world.{fixed[0]}")
     world_p, social_p = _params(WorldParams, world, "world"), _params(SocialParams, social, "social")
     furniture_p = _params(FurnitureParams, furniture, "furniture")
     biggest = max(max(sc.sizes) for sc in mix.members)
