@@ -2,14 +2,15 @@
 
 A tool's ``if __name__ == "__main__": run(main)`` gives it the contract the README promises: a ``UserError`` is
 one line on stderr and exit 2; Ctrl-C exits 130 and SIGTERM 143 with one line (code that must save or stop
-first catches ``KeyboardInterrupt``, which SIGTERM raises too, as ``Terminated``); any other exception is a bug
-and keeps its traceback.
+first catches ``KeyboardInterrupt``, which SIGTERM raises too, as ``Terminated``), also when a shell started the
+tool in the background (with SIGINT ignored); any other exception is a bug and keeps its traceback.
 """
 
 from __future__ import annotations
 
 import argparse
 import contextlib
+import math
 import os
 import signal
 import sys
@@ -23,7 +24,7 @@ from .errors import EXIT_SIGINT, EXIT_SIGTERM, EXIT_USAGE, Terminated, UserError
 T = TypeVar("T")
 
 __all__ = ["EXIT_USAGE", "ArgumentParser", "UserError", "fail", "run", "progress", "progress_bar", "make_bar",
-           "int_at_least", "int_in", "command_line"]
+           "int_at_least", "int_in", "float_in", "command_line"]
 
 
 def fail(exc: BaseException | str) -> int:
@@ -67,6 +68,24 @@ def int_in(low: int, high: int | None) -> Callable[[str], int]:
     return parse
 
 
+def float_in(low: float, high: float, low_open: bool = False) -> Callable[[str], float]:
+    """An argparse type: a finite number in [low, high] (``(low, high]`` when ``low_open``); NaN and inf are
+    refused, as are numbers that argparse's ``float`` alone would let through."""
+    want = f"a number in {'(' if low_open else '['}{low:g}, {high:g}]"
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r}: expected {want}") from None
+        if not (math.isfinite(value) and (value > low if low_open else value >= low) and value <= high):
+            raise argparse.ArgumentTypeError(f"{text}: expected {want}")
+        return value
+
+    parse.__name__ = want
+    return parse
+
+
 def command_line(tool: str, argv: list[str] | None = None) -> str:
     """``python TOOL ARGS`` as typed (``argv``, else this process's arguments), for reports that say how they
     were made."""
@@ -81,8 +100,10 @@ def _raise_terminated(signum: int, frame: Any) -> None:
 
 def run(main: Callable[..., int], argv: list[str] | None = None) -> NoReturn:
     """Run a tool's ``main(argv) -> exit code`` under the contract above and exit with its code."""
-    with contextlib.suppress(ValueError):  # not the main thread (tests calling run): leave SIGTERM alone
+    with contextlib.suppress(ValueError):  # not the main thread (tests calling run): leave the handlers alone
         signal.signal(signal.SIGTERM, _raise_terminated)
+        # a shell starts background jobs with SIGINT ignored, and Python then installs no handler of its own
+        signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
         code = main(argv)
     except UserError as exc:
@@ -94,6 +115,27 @@ def run(main: Callable[..., int], argv: list[str] | None = None) -> NoReturn:
         print("interrupted (Ctrl-C)", file=sys.stderr)
         code = EXIT_SIGINT
     sys.exit(code)
+
+
+def die_with_parent(parent: int) -> None:
+    """In a worker process: be killed when the process ``parent`` (its parent's pid) ends, even by SIGKILL
+    (Linux: ``PR_SET_PDEATHSIG``; elsewhere a daemon thread polls the parent pid each second)."""
+    if sys.platform.startswith("linux"):
+        import ctypes
+
+        pr_set_pdeathsig = 1
+        with contextlib.suppress(OSError, AttributeError):
+            ctypes.CDLL(None, use_errno=True).prctl(pr_set_pdeathsig, signal.SIGKILL, 0, 0, 0)
+            if os.getppid() != parent:  # the parent died before the call
+                os._exit(1)
+            return
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(1.0)
+        os._exit(1)
+
+    threading.Thread(target=watch, daemon=True, name="die-with-parent").start()
 
 
 class DeferredSignals:

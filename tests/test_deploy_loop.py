@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 
@@ -10,7 +11,7 @@ import numpy as np
 import pytest
 
 from ssbl_pb.calib.dynamics_log import read_log as read_dynamics_log
-from ssbl_pb.deploy.faults import EXIT_CODES
+from ssbl_pb.deploy.faults import EXIT_CODES, StaleOdometry
 from ssbl_pb.deploy.frames import Frames
 from ssbl_pb.deploy.log import RunLog, read_log
 from ssbl_pb.deploy.loop import DeployLoop, DeployParams, Setup, deploy_shield
@@ -31,8 +32,9 @@ class FrozenCamera(SimClock):
         super().sleep(seconds)
 
 
-def make_loop(seed=11, policy="sffm", folder=None, clock_cls=SimClock, groups="calibrated", **params):
-    robot = SimRobot("default", seed, groups=groups)
+def make_loop(seed=11, policy="sffm", folder=None, clock_cls=SimClock, groups="calibrated", robot_cls=SimRobot,
+              **params):
+    robot = robot_cls("default", seed, groups=groups)
     clock = clock_cls(robot)
     social = SocialParams()
     if policy == "vector":
@@ -124,3 +126,136 @@ def test_duration_ends_the_run(tmp_path):
     rows = read_log(tmp_path)
     assert len(rows) == 10 and rows[-1]["t"] == pytest.approx(0.9)
     assert json.loads((tmp_path / "log.jsonl").read_text().splitlines()[0])["state"] == "settle"
+
+
+# -- issue 39: the stop path under every fault ---------------------------------------------------------------
+class FrozenOdometry(SimRobot):
+    """Odometry that keeps answering its reading at ``freeze_at`` s (pose and velocity) while the base moves on."""
+
+    freeze_at = 2.0
+    _frozen = None
+
+    def odometry(self):
+        if self.t < self.freeze_at:
+            return super().odometry()
+        if self._frozen is None:
+            self._frozen = super().odometry()
+        return dataclasses.replace(self._frozen, stamp=self.clock())  # stamped on receipt, as NAOqi's
+
+
+def test_frozen_odometry_while_moving_stops_the_run_with_exit_6():
+    loop, robot, _ = make_loop(11, "straight", robot_cls=FrozenOdometry, stale_s=0.5)
+    outcome, message = loop.run()
+    assert outcome == "stale_odometry" and loop.exit_code == 6, message
+    assert "frozen" in message
+    assert 2.0 + 0.5 < robot.t <= 2.0 + 0.5 + 0.1 + 1e-9  # the first tick past the limit
+    assert robot._cmd.tolist() == [0.0, 0.0, 0.0] and robot.closed
+
+
+def test_a_standing_robot_whose_pose_does_not_change_is_not_stale():
+    from ssbl_pb.deploy.robot import Odometry
+
+    loop, _, _ = make_loop(11)
+    still = Odometry(np.zeros(3), np.zeros(3), 0.0)
+    for t in np.arange(0.0, 5.0, 0.1):  # a standing base: the same pose for 5 s is what it should report
+        loop._check_odometry(dataclasses.replace(still, stamp=t), t)
+    moving = Odometry(np.zeros(3), np.array([0.1, 0.0, 0.0]), 5.0)
+    loop._check_odometry(moving, 5.0)
+    with pytest.raises(StaleOdometry, match="pose unchanged for 0.70 s"):
+        loop._check_odometry(dataclasses.replace(moving, stamp=5.6), 5.6)
+
+
+def test_the_loop_clamps_every_command_to_its_max_speed(tmp_path):
+    # the simulated robot clamps to its own 0.35 m/s only: the loop's --max-speed must hold for every robot
+    loop, robot, log = make_loop(11, "straight", tmp_path, duration_s=4.0, max_speed=0.2)
+    loop.run()
+    log.close()
+    rows = read_log(tmp_path)
+    asked = max(math.hypot(*r["cmd_policy"][:2]) for r in rows)
+    sent = max(math.hypot(r["cmd_vx"], r["cmd_vy"]) for r in rows)
+    assert asked > 0.3 and sent == pytest.approx(0.2, abs=1e-9)
+
+
+class StopRaises(SimRobot):
+    """A robot whose stop fails with a robot error that is not a DeployFault (a qi RuntimeError)."""
+
+    def stop(self):
+        super().stop()
+        raise RuntimeError("ALMotion.stopMove: robot error")
+
+
+def test_a_failing_stop_still_stops_perception_and_closes_the_robot_and_is_reported():
+    loop, robot, _ = make_loop(11, "random", robot_cls=StopRaises, duration_s=1.0)
+    stopped = []
+    loop.s.perception.stop = lambda: stopped.append(True)
+    with pytest.raises(RuntimeError, match="robot error"):  # the run ended cleanly: the stop's error is reported
+        loop.run()
+    assert stopped and robot.closed and loop.outcome == "exception" and loop.exit_code == 1
+    assert loop.stop_note.startswith("stop not confirmed (RuntimeError")
+
+
+def test_a_failing_stop_does_not_mask_the_runs_own_error():
+    class Broken:
+        def predict(self, obs, state=None, episode_start=None, deterministic=True):
+            raise ZeroDivisionError("policy bug")
+
+    loop, robot, _ = make_loop(11, Broken(), robot_cls=StopRaises)
+
+    def perception_fails():
+        raise OSError("camera thread")
+
+    loop.s.perception.stop = perception_fails
+    with pytest.raises(ZeroDivisionError, match="policy bug"):
+        loop.run()
+    assert robot.closed and "robot error" in loop.stop_note  # every step ran; the first error is the one shown
+
+
+def test_the_shield_s_interventions_are_logged_and_summarised(tmp_path):
+    from ssbl_pb.env.shield import SafetyShield
+    from ssbl_pb.env.task import TaskParams
+
+    class Charging:
+        """Full speed toward the place, whatever is in the way; the deploy shield brakes it."""
+
+        shield = SafetyShield(deploy_shield(RobotParams(), SocialParams(), TaskParams(), 0.45, at_place=True))
+
+        def predict(self, obs, state=None, episode_start=None, deterministic=True):
+            toward = np.asarray(obs[:2], dtype=np.float32)
+            return self.shield(obs, toward / max(float(np.hypot(*toward)), 1e-6)), None
+
+    loop, _, log = make_loop(11, Charging(), tmp_path, duration_s=20.0)
+    loop.run()
+    log.close()
+    rows = read_log(tmp_path)
+    acted = [r for r in rows if r.get("shield")]
+    policy_rows = [r for r in rows if "shield" in r]
+    assert acted and len(policy_rows) > len(acted)
+    for r in acted:
+        assert r["shield"]["rules"] and set(r["shield"]["rules"]) <= {"members", "obstacles", "slide", "velocity",
+                                                                      "ospace", "place"}
+        assert math.hypot(*r["shield"]["cmd_before"][:2]) > math.hypot(*r["cmd_policy"][:2]) - 1e-6
+    summary = log.summary("duration", 3, "", {})
+    assert summary["policy_ticks"] == len(policy_rows) and summary["shield_interventions"] == len(acted)
+    assert summary["shield_intervention_rate"] == pytest.approx(len(acted) / len(policy_rows))
+
+
+def test_a_learned_policy_runs_only_at_its_training_rate():
+    from ssbl_pb.deploy.__main__ import _rate
+    from ssbl_pb.errors import UserError
+
+    assert _rate("vector", None) == pytest.approx(10.0) and _rate("vector", 10.0) == 10.0
+    with pytest.raises(UserError, match="--rate 20: the policy 'vector' was trained at 10 Hz"):
+        _rate("vector", 20.0)
+    assert _rate("sffm", 20.0) == 20.0 and _rate("sffm", None) == pytest.approx(10.0)  # baselines: any rate
+    with pytest.raises(UserError, match="--rate 60"):
+        _rate("sffm", 60.0)
+
+
+def test_auto_detector_follows_what_the_robot_says_it_is():
+    from types import SimpleNamespace
+
+    from ssbl_pb.deploy.__main__ import detector_for
+
+    assert detector_for("auto", SimpleNamespace(identity={"detector": "colour"})) == "colour"  # the virtual Pepper
+    assert detector_for("auto", SimpleNamespace(identity=None)) == "hog"  # a real Pepper
+    assert detector_for("hog", SimpleNamespace(identity={"detector": "colour"})) == "hog"  # asked for: kept

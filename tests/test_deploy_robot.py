@@ -73,23 +73,78 @@ def test_frames_without_a_map_are_odometry_with_no_walls_near():
     assert fr.walls(pose).tolist() == [5.0, 5.0, 5.0, 5.0]  # the middle of the 10 m training room
 
 
+class _Future:
+    """A qi future as the watchdog polls it: answered (with or without an error) or not yet."""
+
+    def __init__(self, answered: bool = True, error: bool = False) -> None:
+        self.answered, self.error = answered, error
+
+    def isFinished(self) -> bool:  # noqa: N802 - qi's names
+        return self.answered
+
+    def hasError(self) -> bool:  # noqa: N802
+        return self.error
+
+
+class _Motion:
+    """ALMotion whose stopMove answers as ``answers`` says, in turn (then answers at once)."""
+
+    def __init__(self, *answers: _Future | Exception) -> None:
+        self.answers, self.calls = list(answers), 0
+
+    def stopMove(self, _async=False):  # noqa: N802 - NAOqi's name
+        self.calls += 1
+        answer = self.answers.pop(0) if self.answers else _Future()
+        if isinstance(answer, Exception):
+            raise answer
+        return answer
+
+
 def test_watchdog_stops_an_armed_base_once_heartbeats_stop():
     from ssbl_pb.deploy.watchdog import Watchdog
 
-    class Motion:
-        stops = 0
-
-        def stopMove(self, _async=False):  # noqa: N802 - NAOqi's name
-            Motion.stops += 1
-            return type("Done", (), {"value": lambda self, timeout: None})()
-
-    dog = Watchdog(Motion(), limit_s=0.5)
-    assert not dog._expire(100.0)  # never armed: a robot driven by something else is left alone
+    motion = _Motion()
+    dog = Watchdog(motion, limit_s=0.5)
+    assert dog._expire(100.0) is None  # never armed: a robot driven by something else is left alone
     dog.heartbeat()
     t = dog.last
-    assert not dog._expire(t + 0.4)
-    assert dog._expire(t + 0.6) and Motion.stops == 1
-    assert not dog._expire(t + 5.0) and Motion.stops == 1  # once, then disarmed until the next heartbeat
+    assert dog._expire(t + 0.4) is None
+    assert dog._expire(t + 0.6) == "sent" and motion.calls == 1
+    assert dog._expire(t + 0.62) == "stopped" and dog.stops == 1  # ALMotion answered: confirmed, disarmed
+    assert dog._expire(t + 5.0) is None and motion.calls == 1  # once, then disarmed until the next heartbeat
     dog.heartbeat()
     dog.disarm()  # a run that ended normally
-    assert not dog._expire(dog.last + 5.0) and Motion.stops == 1
+    assert dog._expire(dog.last + 5.0) is None and motion.calls == 1
+
+
+def test_watchdog_stays_armed_and_sends_again_until_a_stop_is_confirmed():
+    """Issue 39: a stopMove that times out (no answer) or fails must not end the watchdog: it stays armed and
+    sends stopMove again every retry period until ALMotion confirms one."""
+    from ssbl_pb.deploy.watchdog import RETRY_S, Watchdog
+
+    lost = _Future(answered=False)  # the first call is never answered (a slow or stalled robot)
+    motion = _Motion(lost, _Future(error=True), RuntimeError("Future timeout."), _Future(answered=False))
+    dog = Watchdog(motion, limit_s=0.5)
+    dog.heartbeat()
+    t = dog.last + 0.6
+    assert dog._expire(t) == "sent"
+    assert dog._expire(t + 0.5 * RETRY_S) is None  # waits one retry period for the answer
+    assert dog._expire(t + 1.1 * RETRY_S) == "retry" and motion.calls == 2  # unanswered: sent again
+    assert dog._expire(t + 1.2 * RETRY_S) == "retry" and motion.calls == 3  # that one failed: at once again
+    assert dog._expire(t + 2.3 * RETRY_S) == "retry" and motion.calls == 4  # raised: still armed, again
+    assert dog.armed and dog.stops == 0
+    assert dog._expire(t + 3.4 * RETRY_S) == "retry" and motion.calls == 5
+    lost.answered = True  # the first call's answer finally arrives: the base is stopped
+    assert dog._expire(t + 3.5 * RETRY_S) == "stopped" and dog.stops == 1 and not dog.armed
+    assert dog._expire(t + 10.0) is None and motion.calls == 5
+
+
+def test_watchdog_tick_survives_a_bug_in_a_tick(capsys):
+    from ssbl_pb.deploy.watchdog import Watchdog, _tick
+
+    class Broken(Watchdog):
+        def _expire(self, now):
+            raise ZeroDivisionError("boom")
+
+    _tick(Broken(_Motion(), 0.5), 1.0)  # reports and returns: the loop goes on
+    assert "still armed" in capsys.readouterr().err

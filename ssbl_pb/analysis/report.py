@@ -42,7 +42,8 @@ def summarize(rows: list[dict[str, float]], extra: dict[str, Any] | None = None)
     for alias, key in SUMMARY_ALIASES.items():
         out[alias] = per[key]["mean"]
     for key in ("personal_zone_time_s", "human_displacement_m", "mean_jerk", "arrival_speed",
-                "outside_fov_time_s", "time_to_success_s", "path_length_m", "min_obstacle_clearance_m"):
+                "outside_fov_time_s", "time_to_success_s", "path_length_m", "min_obstacle_clearance_m",
+                "shield_intervention_rate"):
         out[key] = per[key]["mean"]
     out["metrics"] = per
     return out

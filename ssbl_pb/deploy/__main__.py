@@ -2,7 +2,7 @@
 
     python -m ssbl_pb.deploy --robot-ip 192.168.1.20 --policy vector --log-dir runs/deploy1        # NAOqi 2.5
     python -m ssbl_pb.deploy --url tcps://192.168.1.20:9503 --user nao --token PASS ...           # NAOqi 2.9
-    python -m ssbl_pb.deploy --robot-ip 127.0.0.1 --port 9559 --detector colour --log-dir runs/vp  # virtual Pepper
+    python -m ssbl_pb.deploy --robot-ip 127.0.0.1 --port 9559 --log-dir runs/vp   # the virtual Pepper
     python -m ssbl_pb.deploy ... --map room.yaml --start-pose 3.2 1.5 90   # paths on the map, the real walls
 
 Ends on success (joined the group), on --duration, or on a fault; the base is stopped first in every case and the
@@ -45,7 +45,9 @@ def _parser() -> argparse.ArgumentParser:
     ap.add_argument("--user", help="NAOqi 2.9 login user (default nao)")
     ap.add_argument("--token", help="NAOqi 2.9 login password/token")
     ap.add_argument("--policy", default="vector", help="vector (shipped) | run dir | .zip | sffm | straight | random")
-    ap.add_argument("--detector", default="hog", help="hog (real people) | colour (the virtual Pepper's proxies)")
+    ap.add_argument("--detector", default="auto", help="auto (default: colour on the virtual Pepper, which says "
+                    "what it is over qi; hog on a real robot) | hog (real people) | colour (the virtual Pepper's "
+                    "box proxies)")
     ap.add_argument("--camera-yaml", help="calibrated camera (tools/calibrate_camera.py); default nominal CameraTop")
     ap.add_argument("--robot-yaml", help="identified base dynamics (tools/identify_dynamics.py)")
     ap.add_argument("--social-yaml", help="calibrated group parameters (tools/calibrate_humans.py)")
@@ -57,7 +59,9 @@ def _parser() -> argparse.ArgumentParser:
                     help="with --map: the robot's start pose on the map (metres, degrees)")
     ap.add_argument("--log-dir", type=Path, help="output folder (default runs/deploy-DATE-TIME)")
     ap.add_argument("--max-speed", type=float, default=0.35, help="m/s clamp on the base speed (default 0.35)")
-    ap.add_argument("--rate", type=float, default=10.0, help="control rate in Hz (default 10, as trained)")
+    ap.add_argument("--rate", type=float, help="control rate in Hz (default: the policy's own, 10 Hz for every "
+                    "shipped one; a learned policy runs only at the rate it was trained at, since its action "
+                    "smoothing and shield assume that period)")
     ap.add_argument("--duration", type=float, default=60.0, help="give up after this many seconds (default 60)")
     ap.add_argument("--stop-distance", type=float, default=0.45,
                     help="stop when a tracked person is this close to the footprint (m, default 0.45)")
@@ -83,14 +87,17 @@ def _params(args: argparse.Namespace) -> Any:
     from .perceive import DETECTORS
 
     _number("--max-speed", args.max_speed, 0.0, 0.55, "m/s (Pepper's hardware max is 0.55)")
-    _number("--rate", args.rate, 0.0, 50.0, "Hz")
+    args.rate = _rate(args.policy, args.rate)
     _number("--duration", args.duration, 0.0, 86400.0, "s")
     _number("--stop-distance", args.stop_distance, 0.0, 3.0, "m")
     _number("--stale", args.stale, 0.0, 10.0, "s")
-    if args.detector not in DETECTORS:
-        raise UserError(f"--detector {args.detector!r}: expected one of {list(DETECTORS)}")
+    if args.detector not in ("auto", *DETECTORS):
+        raise UserError(f"--detector {args.detector!r}: expected one of {['auto', *DETECTORS]}")
     if args.start_pose is not None and args.map is None:
         raise UserError("--start-pose is a pose on a map: give --map room.yaml too")
+    if args.start_pose is not None and not all(math.isfinite(v) for v in args.start_pose):
+        raise UserError(f"--start-pose {' '.join(f'{v:g}' for v in args.start_pose)}: expected three finite "
+                        f"numbers X Y YAW (metres, degrees)")
     kwargs, _ = core_kwargs(camera_yaml=args.camera_yaml, robot_yaml=args.robot_yaml, social_yaml=args.social_yaml)
     robot = from_dict(RobotParams, kwargs.get("robot"), "robot")
     social = from_dict(SocialParams, kwargs.get("social"), "social")
@@ -123,9 +130,38 @@ def _policy(spec: str, robot: Any, social: Any, task: Any, stop_distance: float)
     from .loop import deploy_shield
 
     if spec in BASELINES:
-        return make_policy(spec, robot, social, seed=0)
+        return make_policy(spec, robot, social, seed=0, task=task)
     space = gym.spaces.Box(-ob.OBS_LIMIT, ob.OBS_LIMIT, shape=(ob.OBS_SIZE,), dtype=np.float32)
     return load_trained(spec, space, None, deploy_shield(robot, social, task, stop_distance, shield_at_place(spec)))
+
+
+def _rate(spec: str, rate: float | None) -> float:
+    """The control rate: ``--rate`` checked, by default the policy's own (its config's ``env.world.dt``). A learned
+    policy is refused any other: its action smoothing (alpha per step) and its shield (``control_period``) are
+    those of its training period, and so is what it learned; baselines run at any rate up to 50 Hz."""
+    from ..params import WorldParams
+
+    trained = None
+    if spec not in BASELINES:
+        from ..env.trained import resolve_model
+
+        world = (resolve_model(spec)[2].get("env") or {}).get("world") or {}
+        trained = 1.0 / float(world.get("dt", WorldParams.dt)) if isinstance(world, dict) else None
+    if rate is None:
+        return trained or 1.0 / WorldParams.dt
+    _number("--rate", rate, 0.0, 50.0, "Hz")
+    if trained is not None and abs(rate - trained) > 1e-6:
+        raise UserError(f"--rate {rate:g}: the policy {spec!r} was trained at {trained:g} Hz (its action smoothing "
+                        f"and shield assume that period); leave --rate out or give {trained:g}")
+    return rate
+
+
+def detector_for(name: str, robot: Any) -> str:
+    """``--detector auto``: the colour detector on a virtual Pepper (it says so over qi), HOG on a real one."""
+    if name != "auto":
+        return name
+    identity = getattr(robot, "identity", None)
+    return str(identity.get("detector", "colour")) if identity else "hog"
 
 
 def _warm_up(policy: Any) -> None:
@@ -186,6 +222,7 @@ def _run(args: argparse.Namespace, url: str, folder: Path, robot: Any, params: A
     from .plot import draw
 
     camera = PinholeCamera.from_yaml(args.camera_yaml) if args.camera_yaml else None
+    args.detector = detector_for(args.detector, robot)
     perception = Perception(robot, time.monotonic, args.detector, robot_params, camera, social=social)
     write_run(folder, {"url": url, "policy": args.policy, "groups": args.groups,
                        "detector": args.detector, "map": args.map, "deploy": dataclasses.asdict(params),

@@ -5,7 +5,10 @@ A tick row holds ``t`` (s since start), ``state``, the odometry pose ``odom_x/od
 sent ``cmd_vx/cmd_vy/cmd_wz`` under the column names ``tools/identify_dynamics.py`` reads (the log is a
 dynamics log as it stands), the measured body velocity ``vel``, the room- and map-frame poses, the policy's
 command before the clamp ``cmd_policy``, the tracked humans (odometry frame, with covariance), the group
-estimate, ``estimate_age_ms``, ``tick_ms`` (tick start to command sent), ``late`` and NAOqi events.
+estimate, ``estimate_age_ms``, ``tick_ms`` (tick start to command sent), ``late``, NAOqi events, and on policy
+ticks ``shield``: what the policy's safety shield changed (the action before and after it, the rules that acted,
+``cmd_before`` the body command it replaced), null where it changed nothing. The summary's
+``shield_intervention_rate`` is the share of policy ticks it changed.
 """
 
 from __future__ import annotations
@@ -54,6 +57,8 @@ class RunLog:
         self.age_ms: list[float] = []
         self.late = 0
         self.min_clearance = math.inf
+        self.policy_ticks = 0  # ticks the policy acted in (a ``shield`` entry), and those the shield changed
+        self.shielded = 0
 
     def write(self, row: dict[str, Any]) -> None:
         self._fh.write(json.dumps(_clean(row)) + "\n")
@@ -64,6 +69,9 @@ class RunLog:
         self.late += bool(row.get("late"))
         if row.get("min_clearance_m") is not None:
             self.min_clearance = min(self.min_clearance, float(row["min_clearance_m"]))
+        if "shield" in row:
+            self.policy_ticks += 1
+            self.shielded += row["shield"] is not None
 
     def summary(self, outcome: str, exit_code: int, message: str, extra: dict[str, Any]) -> dict[str, Any]:
         def pct(xs: list[float], q: float) -> float | None:
@@ -74,6 +82,8 @@ class RunLog:
                        "estimate_age_ms_median": pct(self.age_ms, 50),
                        "late_tick_fraction": self.late / len(self.tick_ms) if self.tick_ms else None,
                        "min_human_distance_m": self.min_clearance if math.isfinite(self.min_clearance) else None,
+                       "policy_ticks": self.policy_ticks, "shield_interventions": self.shielded,
+                       "shield_intervention_rate": self.shielded / self.policy_ticks if self.policy_ticks else None,
                        **extra})
 
     def close(self) -> None:

@@ -1,10 +1,12 @@
 """The deploy loop: odometry + the newest tracked people -> the Vector observation (the simulator's layout) ->
 the policy (with its smoothing and safety shield) -> the command clamp -> the robot, ``rate_hz`` times a second.
 
-Safety, on by default: speed clamped to ``max_speed``; the run stops when a tracked person comes within
-``stop_distance`` of the footprint, when the newest frame or odometry is older than ``stale_s``, on any
+Safety, on by default: every command clamped to ``max_speed`` here, whatever the robot; the run stops when a
+tracked person comes within ``stop_distance`` of the footprint, when the newest frame is older than ``stale_s``,
+when odometry is frozen for ``stale_s`` (its pose unchanged while its own velocity says the base moves), on any
 exception, on SIGINT/SIGTERM and on connection loss; every robot call is bounded; the base is stopped before
-the loop returns in every case (``faults.EXIT_CODES`` names how it ended). While fewer than two people are
+the loop returns in every case, and each shutdown step runs whatever the one before it did
+(``faults.EXIT_CODES`` names how it ended). While fewer than two people are
 known the robot turns in place to find the group (``search``); the run succeeds by the task's own rule
 (``TaskParams``) applied to the estimated group.
 """
@@ -33,7 +35,7 @@ from .frames import Frames
 from .group import GroupModel
 from .log import RunLog, dynamics_columns
 from .perceive import Perception
-from .robot import Robot
+from .robot import Robot, clamp_command
 
 
 @dataclasses.dataclass(frozen=True)
@@ -58,12 +60,15 @@ class DeployParams:
                   "first_frame_s")
         _check(self.rate_hz <= 50, "deploy", "rate_hz", self.rate_hz, "<= 50 Hz")
         _check(self.max_speed <= 0.55, "deploy", "max_speed", self.max_speed, "<= 0.55 m/s (Pepper's hardware max)")
-        _check(self.settle_s >= 0 and self.status_s >= 0, "deploy", "settle_s", self.settle_s, ">= 0")
+        _check(self.settle_s >= 0, "deploy", "settle_s", self.settle_s, ">= 0")
+        _check(self.status_s >= 0, "deploy", "status_s", self.status_s, ">= 0")
 
 
 ESTIMATE_MARGIN = 0.1  # m the policy's shield keeps beyond --stop-distance: the tracked people's error near the
 #   robot (virtual Pepper, seeded lockstep runs: 0.01-0.03 m along the line of sight, 0.03-0.08 m across it for a
 #   person just out of view) must not turn the policy's closest pass (0.5 m by the training shield) into a stop
+MOVING = 0.02  # m/s and rad/s: a reported velocity above this must move the pose within ``stale_s`` (odometry at
+#   10 Hz moves 2 mm a tick at this speed; a standing base's pose may not change at all, and is not stale)
 ARRIVAL_MARGIN = 0.1  # m inside the success rule's slot tolerance that deploy asks of its estimate: the shield's
 #   speed cap brings the robot in slowly right where the tolerance begins, and the slot estimated from tracked
 #   people errs by a few centimetres (virtual Pepper: 6 of 20 arrivals judged on the estimate were 0.31-0.33 m out)
@@ -103,6 +108,13 @@ class DeployLoop:
         self.status = status
         self.shield = ShieldParams.from_env(setup.robot_params, setup.social, setup.task)
         self.period = 1.0 / self.p.rate_hz
+        # the clamp of every command sent, whatever the robot implementation clamps itself
+        self.limits = dataclasses.replace(setup.robot_params, max_speed=min(setup.robot_params.max_speed,
+                                                                            self.p.max_speed))
+        self._odo_pose: np.ndarray | None = None
+        self._odo_fresh = -math.inf  # local time odometry was last seen consistent (moved, or says it stands)
+        self.shield_steps = 0  # policy ticks, and those the shield changed the command in
+        self.shield_interventions = 0
         self.outcome, self.message, self.stop_note = "exception", "", ""
         self._policy_state: Any = None
         self._approaching = False
@@ -154,16 +166,25 @@ class DeployLoop:
         action, self._policy_state = s.policy.predict(obs, state=self._policy_state, episode_start=start,
                                                       deterministic=True)
         heading = math.remainder(math.atan2(centre[1] - pose[1], centre[0] - pose[0]) - pose[2], 2 * math.pi)
-        a = np.zeros(3)
-        a[:min(3, np.size(action))] = np.ravel(action)[:3]
-        cmd = np.array(ob.action_command(*a, heading, s.task.turn, s.task.heading_gain, s.robot_params.max_speed,
-                                         s.robot_params.max_yaw_rate))
+        cmd = self._command(action, heading)
+        last = getattr(getattr(s.policy, "shield", None), "last", None)
+        shield = last.row() if last is not None else None  # what the policy's shield changed this tick
+        if shield is not None:
+            shield["cmd_before"] = self._command(np.asarray(shield["before"]), heading).tolist()
         slot_dist = float(np.hypot(*(slot - pose[:2])))
         success = (slot_dist < s.task.slot_tolerance - ARRIVAL_MARGIN and math.hypot(vel[0], vel[1]) < s.task.stop_speed
                    and abs(heading) < math.radians(s.task.heading_tolerance_deg))
         return cmd, {"centre": centre, "radius": radius, "joining": joining, "slot": slot, "slot_distance_m": slot_dist,
                      "heading_error_deg": math.degrees(heading), "action": np.asarray(action).ravel(),
-                     "success": success}
+                     "shield": shield, "success": success}
+
+    def _command(self, action: np.ndarray, heading: float) -> np.ndarray:
+        """The body command (forward, left, turn) of a policy action, turning toward the group centre."""
+        s = self.s
+        a = np.zeros(3)
+        a[:min(3, np.size(action))] = np.ravel(action)[:3]
+        return np.array(ob.action_command(*a, heading, s.task.turn, s.task.heading_gain, s.robot_params.max_speed,
+                                          s.robot_params.max_yaw_rate))
 
     def tick(self, t0: float, elapsed: float, late: bool) -> bool:
         """One control period; True when the run has succeeded."""
@@ -176,8 +197,7 @@ class DeployLoop:
         s.perception.odometry.append((odo.stamp, odo.pose))
         now = self.now()
         odom_ms = 1000.0 * (now - t0)
-        if now - odo.stamp > p.stale_s:
-            raise StaleOdometry(f"odometry is {now - odo.stamp:.2f} s old (limit {p.stale_s:g} s)")
+        self._check_odometry(odo, now)
         _, capture = s.perception.snapshot()
         if now - capture > p.stale_s:
             raise StaleFrame(f"newest camera frame is {now - capture:.2f} s old (limit {p.stale_s:g} s): camera "
@@ -199,7 +219,7 @@ class DeployLoop:
             cmd, info = self._act(odo.pose, odo.velocity, pos, mvel, rest)
             state = "joined" if info["success"] else "approach"
         t_send = self.now()
-        sent = s.robot.send(cmd)
+        sent = s.robot.send(clamp_command(cmd, self.limits))
         t_sent = self.now()
         tick_ms = 1000.0 * (t_sent - t0)
         cpu_ms = 1000.0 * (time.thread_time() - cpu0)  # this thread's CPU: the rest of tick_ms was waiting
@@ -219,6 +239,24 @@ class DeployLoop:
                 "late": late, "events": events})
         self._report(now, elapsed, state, len(members), sum(m.seen for m in members), info)
         return state == "joined"
+
+    def _check_odometry(self, odo: Any, now: float) -> None:
+        """``StaleOdometry`` when the reading is older than ``stale_s`` by its stamp, or frozen: its pose has not
+        changed for ``stale_s`` while its own velocity says the base moves (faster than ``MOVING``). A robot that
+        stamps readings on receipt (NAOqi's getRobotPosition has no time stamp) is judged by the second alone."""
+        p = self.p
+        if now - odo.stamp > p.stale_s:
+            raise StaleOdometry(f"odometry is {now - odo.stamp:.2f} s old (limit {p.stale_s:g} s)")
+        pose = np.asarray(odo.pose, dtype=float)
+        moving = bool(np.any(np.abs(np.asarray(odo.velocity, dtype=float)) > MOVING))
+        if self._odo_pose is None or not moving or np.any(pose != self._odo_pose):
+            self._odo_fresh = now
+        self._odo_pose = pose
+        if now - self._odo_fresh > p.stale_s:
+            v = np.asarray(odo.velocity, dtype=float)
+            raise StaleOdometry(f"odometry frozen: pose unchanged for {now - self._odo_fresh:.2f} s while the robot "
+                                f"reports moving at ({v[0]:.2f}, {v[1]:.2f}) m/s, {v[2]:.2f} rad/s (limit "
+                                f"{p.stale_s:g} s)")
 
     def _search(self, pose: np.ndarray, pos: np.ndarray) -> tuple[str, np.ndarray]:
         """Fewer than two people known: turn in place (toward the one known person's side first); after a full
@@ -299,26 +337,39 @@ class DeployLoop:
             self.outcome, self.message = "exception", f"{type(exc).__name__}: {exc}"
             raise
         finally:
-            self._shutdown()
+            failed = self._shutdown()
+        if failed is not None:  # the run itself ended cleanly: the shutdown's first error is the one to report
+            self.outcome, self.message = "exception", f"{type(failed).__name__}: {failed}"
+            raise failed
         return self.outcome, self.message
 
-    def _shutdown(self) -> None:
-        """Stop the base, the workers and the robot; a Ctrl-C or SIGTERM meanwhile is ignored (the run is
-        ending anyway; a second Ctrl-C must not cut the stop short)."""
+    def _shutdown(self) -> BaseException | None:
+        """Stop the base, the workers and the robot, each step whatever the one before it did (a camera left
+        subscribed would refuse the next run); returns the first error that is not a ``DeployFault`` (a bug or a
+        robot error: the caller reports it unless the run already has an error of its own, which stays the one
+        reported). A ``DeployFault`` from the stop (robot gone or frozen) becomes ``stop_note``. A Ctrl-C or
+        SIGTERM meanwhile is ignored (the run is ending anyway; a second Ctrl-C must not cut the stop short)."""
         old = {}
         if threading.current_thread() is threading.main_thread():
             for sig in (signal.SIGINT, signal.SIGTERM):
                 old[sig] = signal.signal(sig, signal.SIG_IGN)
+        first: BaseException | None = None
         try:
-            try:
-                self.s.robot.stop()
-            except DeployFault as fault:
-                self.stop_note = f"stop not confirmed ({fault})"
-            self.s.perception.stop()
-            self.s.robot.close()
+            for name, step in (("stop", self.s.robot.stop), ("perception", self.s.perception.stop),
+                               ("close", self.s.robot.close)):
+                try:
+                    step()
+                except DeployFault as fault:
+                    if name == "stop":
+                        self.stop_note = f"stop not confirmed ({fault})"
+                except Exception as exc:  # noqa: BLE001 - reported below; the next step must run
+                    if name == "stop":
+                        self.stop_note = f"stop not confirmed ({type(exc).__name__}: {exc})"
+                    first = first or exc
         finally:
             for sig, handler in old.items():
                 signal.signal(sig, handler)
+        return first
 
     @property
     def exit_code(self) -> int:

@@ -25,6 +25,7 @@ from .robot import Frame, Odometry, clamp_command
 MOTION = ("move", "stopMove", "getRobotPosition", "getRobotVelocity")
 VIDEO = ("subscribeCamera", "getImageRemote", "unsubscribe")
 WATCHDOG = "SSBLWatchdog"
+IDENTITY = "SSBLVirtualPepper"  # served by ``virtual_robot``: a simulated Pepper says so (and which detector fits)
 RESOLUTIONS = {0: (160, 120), 1: (320, 240), 2: (640, 480)}  # NAOqi kQQVGA, kQVGA, kVGA
 RGB, BGR = 11, 13  # NAOqi colour spaces
 
@@ -98,6 +99,7 @@ class NaoqiRobot:
         self.unresponsive = False  # a bounded call timed out: close() tries nothing more
         self.handle: str | None = None
         self.watchdog: Any = None
+        self.identity: dict[str, str] | None = None  # a virtual Pepper's ``describe()``; None for a real robot
         self.move_failed: list[dict[str, Any]] = []
         self._subscribers: list[Any] = []
         self.session = qi.Session()
@@ -138,6 +140,9 @@ class NaoqiRobot:
         names = {s["name"] for s in self._call(self.session.services(_async=True), "services")}
         if WATCHDOG in names:
             self.watchdog = self._service(WATCHDOG, ("heartbeat", "disarm"))
+        if IDENTITY in names:
+            facts = self._call(self._service(IDENTITY, ("describe",)).describe(_async=True), f"{IDENTITY}.describe")
+            self.identity = {str(k): str(v) for k, v in dict(facts).items()}
         if "ALMemory" in names:
             memory = self.session.service("ALMemory", _async=True).value(int(self.p.connect_timeout_s * 1000))
             sub = self._call(memory.subscriber("ALMotion/MoveFailed", _async=True), "ALMemory.subscriber")
@@ -213,25 +218,31 @@ class NaoqiRobot:
 
     def close(self) -> None:
         """Stop, disarm the watchdog, release the camera and disconnect; never raises (best effort: after a lost
-        connection or a call that timed out nothing more is tried, so a frozen robot costs one timeout)."""
-        steps = [lambda: self.stop()]
-        if self.watchdog is not None:
-            steps.append(lambda: self._call(self._async(self.watchdog.disarm, what="disarm"), "SSBLWatchdog.disarm"))
+        connection or a call that timed out nothing more is tried, so a frozen robot costs one timeout). The
+        watchdog is disarmed only once a stop is confirmed: otherwise it stays armed and stops the base itself
+        when the heartbeats stay away."""
+        stopped = self._attempt(self.stop)
+        if self.watchdog is not None and stopped:
+            self._attempt(lambda: self._call(self._async(self.watchdog.disarm, what="disarm"), "SSBLWatchdog.disarm"))
         if self.handle is not None:
             handle, self.handle = self.handle, None
-            steps.append(lambda: self._call(self._async(self.video.unsubscribe, handle, what="unsubscribe"),
-                                            "ALVideoDevice.unsubscribe"))
-        for step in steps:
-            if self.lost.is_set() or self.unresponsive:
-                break
-            try:
-                step()
-            except RobotNotResponding:
-                self.unresponsive = True
-            except (RuntimeError, ConnectionLost, AttributeError):
-                pass
+            self._attempt(lambda: self._call(self._async(self.video.unsubscribe, handle, what="unsubscribe"),
+                                             "ALVideoDevice.unsubscribe"))
         self._subscribers.clear()
         try:
             self.session.close()
         except RuntimeError:
             pass
+
+    def _attempt(self, step: Any) -> bool:
+        """Run one closing step unless the robot is gone or frozen; whether it returned."""
+        if self.lost.is_set() or self.unresponsive:
+            return False
+        try:
+            step()
+            return True
+        except RobotNotResponding:
+            self.unresponsive = True
+        except (RuntimeError, ConnectionLost, AttributeError):
+            pass
+        return False

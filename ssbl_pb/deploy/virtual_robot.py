@@ -1,17 +1,22 @@
 """A virtual Pepper: ALMotion and ALVideoDevice served over libqi, backed by the simulated world (``SimRobot``).
 
     python -m ssbl_pb.deploy.virtual_robot --listen tcp://127.0.0.1:9559 --seed 3 --log vp.jsonl
-    python -m ssbl_pb.deploy --robot-ip 127.0.0.1 --policy vector --detector colour --log-dir runs/deploy1
+    python -m ssbl_pb.deploy --robot-ip 127.0.0.1 --port 9559 --log-dir runs/deploy1   # the line it prints
 
 The group moves by the social force model; frames are TinyRenderer renders from CameraTop. Like a real Pepper
 it keeps executing the last ``move`` until told otherwise and clamps commands to its limits. It binds loopback
 addresses only unless ``--allow-remote``. Port 0 picks a free port; the first stdout line is
-``listening on URL``. ``--write-map DIR`` writes the room as a map with the flags deploy needs to use it.
+``listening on URL``; a later line ``deploy: python -m ssbl_pb.deploy ...`` is the command that fits it. It
+identifies itself over qi (an ``SSBLVirtualPepper`` service), so deploy's ``--detector auto`` picks the colour
+detector for its box proxies. ``--write-map DIR`` writes the room as a map with the flags deploy needs to use it.
 ``--log`` (JSONL, flushed per line) records every simulation step: time, commanded and actual velocity,
 room-frame pose, odometry pose, the members, the free slot and the clearance, so tests can see when the base
 really stopped. ``--security-distance`` imitates NAOqi's collision protection (a move toward a person closer
-than that is stopped and ``ALMotion/MoveFailed`` raised through ALMemory). SIGUSR1 freezes the camera (frames
-keep their last time stamp; again to thaw).
+than that is stopped and ``ALMotion/MoveFailed`` raised through ALMemory). Faults to test against: SIGUSR1
+freezes the camera (frames keep their last time stamp; again to thaw), SIGUSR2 freezes odometry
+(``getRobotPosition``/``getRobotVelocity`` keep answering their last values while the base moves on; again to thaw),
+and ``--hang-stops N`` leaves the first N ``stopMove`` calls unanswered for 2 s, doing nothing (a lost call).
+ALMotion serves calls concurrently, as NAOqi's does, so a hanging call does not hold up the next one.
 qi 3.1.5 facts this relies on: a service is hosted with ``Session().listenStandalone(url)`` and
 ``registerService``; every public method is exported (helpers carry ``@qi.nobind``); image bytes must be
 declared (``@qi.bind("(iiiiiiriffff)", ...)``) or they arrive as their text repr.
@@ -30,15 +35,16 @@ from typing import Any
 import cv2
 import numpy as np
 
-from ..cli import ArgumentParser, run
+from ..cli import ArgumentParser, float_in, int_at_least, run
 from ..env.layouts import GROUP_MODELS
 from ..errors import UserError
 from ..files import check_output_path
-from .naoqi import BGR, RESOLUTIONS, RGB, import_qi
+from .naoqi import BGR, IDENTITY, RESOLUTIONS, RGB, import_qi
 from .robot import Frame, SimRobot, compose, relative
 
 LOOPBACK = ("127.0.0.1", "localhost", "[::1]")
 MAX_SUBSCRIPTIONS = 6  # NAOqi's limit per subscriber name
+HANG_S = 2.0  # s a hung stopMove (``--hang-stops``) takes to return, having done nothing
 
 
 def check_listen(url: str, allow_remote: bool) -> str:
@@ -129,6 +135,8 @@ class VirtualPepper:
         self._refused = False
         self.epoch = time.time()  # the robot clock of frame stamps: wall time at start + sim time
         self.frozen = False
+        self.odometry_frozen: tuple[list[float], list[float]] | None = None  # (pose, velocity) answered while frozen
+        self.hang_stops = 0  # stopMove calls still to leave unanswered (``--hang-stops``)
         self.fps = 0
         self.subs: dict[str, tuple[int, int]] = {}  # handle -> (resolution, colour space)
         self.fps_max = fps_max
@@ -186,6 +194,13 @@ class VirtualPepper:
             if self.memory is not None:
                 self.memory.raise_event("ALMotion/MoveFailed", ["Safety", 1, [float(rel[0]), float(rel[1])]])
 
+    def toggle_odometry_freeze(self) -> None:
+        """Freeze odometry at its current reading (or thaw it): ALMotion answers the frozen values."""
+        odo = self.robot.odometry()
+        self.odometry_frozen = None if self.odometry_frozen else (odo.pose.tolist(), odo.velocity.tolist())
+        self.write({"kind": "call", "wall": time.time(), "t": self.robot.t,
+                    "call": "odometry_frozen" if self.odometry_frozen else "odometry_thawed"})
+
     def close(self) -> None:
         if self.camera is not None:
             self.camera.close()
@@ -231,20 +246,28 @@ def make_services(vp: VirtualPepper) -> tuple[Any, Any, Any]:
     qi = import_qi()
     robot = vp.robot
 
+    @qi.multiThreaded()
     class ALMotion:
         def move(self, x: float, y: float, theta: float) -> None:
             vp._refused = False
             robot.send(np.array([x, y, theta], dtype=float))
 
         def stopMove(self) -> None:
+            if vp.hang_stops > 0:  # a lost call: answered late, nothing done
+                vp.hang_stops -= 1
+                vp.write({"kind": "call", "wall": time.time(), "t": robot.t, "call": "stopMove_hung"})
+                time.sleep(HANG_S)
+                return
             robot.stop()
             vp.write({"kind": "call", "wall": time.time(), "t": robot.t, "call": "stopMove"})
 
         def getRobotPosition(self, use_sensors: bool) -> list[float]:
-            return [float(v) for v in robot.odometry().pose]
+            frozen = vp.odometry_frozen
+            return list(frozen[0]) if frozen else [float(v) for v in robot.odometry().pose]
 
         def getRobotVelocity(self) -> list[float]:
-            return [float(v) for v in robot.odometry().velocity]
+            frozen = vp.odometry_frozen
+            return list(frozen[1]) if frozen else [float(v) for v in robot.odometry().velocity]
 
         def robotIsWakeUp(self) -> bool:
             return True
@@ -304,19 +327,45 @@ def make_services(vp: VirtualPepper) -> tuple[Any, Any, Any]:
     return ALMotion(), ALVideoDevice(), vp.memory
 
 
+class Identity:
+    """``SSBLVirtualPepper``: what deploy needs to know of this robot (``describe``)."""
+
+    def __init__(self, facts: dict[str, str]) -> None:
+        self.facts = facts
+
+    def describe(self) -> dict[str, str]:
+        return dict(self.facts)
+
+
+def deploy_command(url: str, groups: str | None = None, on_map: tuple[Path, np.ndarray] | None = None) -> str:
+    """The deploy command line that fits a virtual Pepper listening on ``url``."""
+    host, _, port = url.removeprefix("tcp://").rpartition(":")
+    cmd = f"python -m ssbl_pb.deploy --robot-ip {host} --port {port}"
+    if groups is not None:
+        cmd += f" --groups {groups}"
+    if on_map is not None:
+        (mx, my, myaw) = on_map[1]
+        cmd += f" --map {on_map[0]} --start-pose {mx:.3f} {my:.3f} {math.degrees(myaw):.2f}"
+    return cmd
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = ArgumentParser(description=__doc__)
     ap.add_argument("--listen", default="tcp://127.0.0.1:9559", help="tcp://HOST:PORT (default %(default)s)")
-    ap.add_argument("--seed", type=int, default=0, help="episode seed of the simulated scene (default 0)")
+    ap.add_argument("--seed", type=int_at_least(0), default=0, help="episode seed of the simulated scene (default 0)")
     ap.add_argument("--scenario", default="default", help="default | mixed | FORMATION[-N] | ... (as evaluate)")
     ap.add_argument("--groups", choices=GROUP_MODELS, help="how the group stands: calibrated (real groups' size) "
                     "or paper (1.0 m circles); default: the one the shipped policy was trained on")
     ap.add_argument("--log", type=Path, help="JSONL log of every simulation step")
     ap.add_argument("--allow-remote", action="store_true", help="allow a non-loopback --listen address")
-    ap.add_argument("--duration", type=float, default=0.0, help="exit after this many seconds (0: run until killed)")
-    ap.add_argument("--security-distance", type=float, default=0.0,
+    ap.add_argument("--duration", type=float_in(0.0, 86400.0), default=0.0,
+                    help="exit after this many seconds (0: run until killed)")
+    ap.add_argument("--security-distance", type=float_in(0.0, 5.0), default=0.0,
                     help="m; > 0 stops moves toward a person closer than this and raises ALMotion/MoveFailed, like "
                     "NAOqi's collision protection (default 0: off)")
+    ap.add_argument("--hang-stops", type=int_at_least(0), default=0, metavar="N",
+                    help=f"leave the first N stopMove calls unanswered for {HANG_S:g} s, doing nothing (a lost "
+                    "call, to test the watchdog; default 0)")
     ap.add_argument("--write-map", type=Path, metavar="DIR", help="write the room as a map (DIR/room.yaml for "
                     "deploy's --map) and print the robot's --start-pose on it")
     args = ap.parse_args(argv)
@@ -325,29 +374,42 @@ def main(argv: list[str] | None = None) -> int:
         if path is not None:
             check_output_path(path, flag, is_dir=is_dir)
     qi = import_qi()
-    if args.groups is None:
+    groups = args.groups
+    if groups is None:
         from .group import policy_groups
 
-        args.groups = policy_groups("vector")
-    robot = SimRobot(args.scenario, args.seed, groups=args.groups)
-    on_map = write_room_map(args.write_map, robot) if args.write_map is not None else None
+        groups = policy_groups("vector")
+    robot = SimRobot(args.scenario, args.seed, groups=groups)
     session = qi.Session()
     try:
         session.listenStandalone(url)
     except RuntimeError as exc:
         robot.close()
-        raise UserError(f"--listen {url}: cannot listen there ({exc})") from None
+        reason = str(exc).split("[")[0].strip().splitlines()[-1]  # libqi appends its source path in brackets
+        raise UserError(f"--listen {url}: cannot listen there ({reason})") from None
+    try:  # listening first: a port in use must not leave a map behind
+        on_map = write_room_map(args.write_map, robot) if args.write_map is not None else None
+    except BaseException:
+        session.close()
+        robot.close()
+        raise
     vp = VirtualPepper(robot, args.log, security_distance=args.security_distance)
+    vp.hang_stops = args.hang_stops
     for name, service in zip(("ALMotion", "ALVideoDevice", "ALMemory"), make_services(vp), strict=True):
         session.registerService(name, service)
+    session.registerService(IDENTITY, Identity({"detector": "colour", "scenario": args.scenario,
+                                                "seed": str(args.seed), "groups": groups}))
     signal.signal(signal.SIGUSR1, lambda *_: setattr(vp, "frozen", not vp.frozen))
+    signal.signal(signal.SIGUSR2, lambda *_: vp.toggle_odometry_freeze())
     x, y, yaw = robot.start_pose
-    print(f"listening on {session.endpoints()[0]}", flush=True)
-    print(f"scene: seed {args.seed}, {robot.info['formation']} group of {robot.info['n_humans']} ({args.groups}), "
+    endpoint = session.endpoints()[0]
+    print(f"listening on {endpoint}", flush=True)
+    print(f"scene: seed {args.seed}, {robot.info['formation']} group of {robot.info['n_humans']} ({groups}), "
           f"robot at ({x:.2f}, {y:.2f}, {math.degrees(yaw):.0f} deg) in the room frame", flush=True)
     if on_map is not None:
         (mx, my, myaw) = on_map[1]
         print(f"map: --map {on_map[0]} --start-pose {mx:.3f} {my:.3f} {math.degrees(myaw):.2f}", flush=True)
+    print(f"deploy: {deploy_command(endpoint, args.groups, on_map)}", flush=True)
     stop = threading.Event()
     if args.duration > 0:
         threading.Timer(args.duration, stop.set).start()

@@ -43,23 +43,34 @@ def run_episode(env: gym.Env, policy: Policy, seed: int, keep_trajectory: bool =
     state, start = None, np.ones((1,), dtype=bool)
     if on_step is not None:
         on_step(env)
+    steps = shielded = 0
     while True:
         action, state = policy.predict(obs, state=state, episode_start=start, deterministic=True)
         start = np.zeros((1,), dtype=bool)
+        steps += 1
+        shielded += int(shield_changed(policy, 1)[0])
         obs, _, terminated, truncated, info = env.step(action)
         if on_step is not None:
             on_step(env)
         if terminated or truncated:
             break
-    return _result(core, seed, core.trajectory, {**reset_info, **info}, keep_trajectory)
+    return _result(core, seed, core.trajectory, {**reset_info, **info}, keep_trajectory, shielded / steps)
+
+
+def shield_changed(policy: Policy, n: int) -> np.ndarray:
+    """Per row of the policy's last action (``n`` rows), whether its safety shield changed it (all False for a
+    policy without one); ``env.shield.SafetyShield.last``."""
+    last = getattr(getattr(policy, "shield", None), "last", None)
+    return np.zeros(n, dtype=bool) if last is None else last.changed()
 
 
 def _result(core: Any, seed: int, trajectory: list[dict[str, Any]], info: dict[str, Any],
-            keep_trajectory: bool) -> EpisodeResult:
+            keep_trajectory: bool, shield_rate: float) -> EpisodeResult:
     m = episode_metrics(trajectory, info["success"], info["collision"], info["violation"], core.task, core.dt,
                         core.social.fov_half_angle_deg, core.social.human_radius + core.robot_params.radius,
                         info.get("obstacle_collision", False))
     sums = info["episode_terms"]
+    m["shield_intervention_rate"] = float(shield_rate)  # share of steps the shield changed the action in
     m["return"] = sums["reward"]
     for k in TERMS:
         m[f"term_{k}"] = sums[k]
@@ -90,9 +101,12 @@ def run_batch(env: gym.Env, policy: Policy, seeds: list[int], keep: list[bool]) 
     start, active = np.ones(len(seeds), dtype=bool), np.ones(len(seeds), dtype=bool)
     out: list[EpisodeResult | None] = [None] * len(seeds)
     t = 0.0
+    steps, shielded = np.zeros(len(seeds)), np.zeros(len(seeds))
     while active.any():
         action, state = policy.predict(obs, state=state, episode_start=start, deterministic=True)
         start[:] = False
+        steps += active
+        shielded += active & shield_changed(policy, len(seeds))
         _, terminated, truncated = sim.step(action)
         t += core.dt
         obs = sim.observations()
@@ -100,7 +114,8 @@ def run_batch(env: gym.Env, policy: Policy, seeds: list[int], keep: list[bool]) 
             trajectories[i].append(sim.snapshot(i, t))
             if terminated[i] or truncated[i]:
                 active[i] = False
-                out[i] = _result(core, seeds[i], trajectories[i], {**infos[i], **sim.outcome(i)}, keep[i])
+                out[i] = _result(core, seeds[i], trajectories[i], {**infos[i], **sim.outcome(i)}, keep[i],
+                                 shielded[i] / steps[i])
     return out  # type: ignore[return-value]
 
 

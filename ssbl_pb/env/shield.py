@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from typing import Any
 
 import numpy as np
 from numba import njit
@@ -28,6 +29,15 @@ from .task import TaskParams
 # m from the place shown in the observation within which the place's clearance holds fully, and beyond which
 # not at all (linear between): the task's slot tolerance, and twice it (ours)
 PLACE_NEAR, PLACE_FAR = 0.3, 0.6
+
+# which rule changed a command (bit flags; ``shield_row`` returns them, ``rule_names`` spells them)
+RULE_MEMBERS = 1  # closing speed on a member braked (or the command scaled for one)
+RULE_OBSTACLES = 2  # closing speed on what the range scan sees braked (or scaled)
+RULE_SLIDE = 4  # a command stopped by an obstacle turned to slide along it
+RULE_VELOCITY = 8  # the base's own velocity braked first (it already closed too fast)
+RULE_OSPACE = 16  # kept out of the o-space short of the place's ring
+RULE_PLACE = 32  # speed capped near the place (the arrival)
+RULES = ("members", "obstacles", "slide", "velocity", "ospace", "place")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -119,15 +129,18 @@ RAY_PASSES = 4  # rounds of braking sector by sector: each keeps the motion alon
 
 @njit(cache=True)
 def _scale_to_limits(obs: np.ndarray, vx: float, vy: float, clear: np.ndarray, toward: np.ndarray, reach: float,
-                     clearance_min: float, brake_accel: float, obstacle_clearance_min: float) -> tuple[float, float]:
+                     clearance_min: float, brake_accel: float, obstacle_clearance_min: float
+                     ) -> tuple[float, float, int]:
     """(vx, vy) scaled down until no ray's and no member's closing speed exceeds its limit. Braking for each in
     turn is not enough where they stand on two sides (a passage between desks, or between a member and a desk):
     removing the speed toward one side adds speed toward the other, and 2.5 % of the meeting room's episodes ended
     on an obstacle the scan saw. Every ray's limit is >= 0 (obstacles stand still), so a slower motion in the same
     direction keeps them all; a member walking at the robot may ask for more than stopping (then the robot stops).
-    Runs after ``RAY_PASSES`` rounds of braking, which leave little or nothing to scale."""
+    Runs after ``RAY_PASSES`` rounds of braking, which leave little or nothing to scale. Also returns the rule
+    (``RULE_MEMBERS`` or ``RULE_OBSTACLES``) whose limit set the scale, 0 when nothing was scaled."""
     rays = obs.shape[0] - BASE_SIZE
     scale = 1.0
+    rule = 0
     for k in range(rays):
         r = float(obs[BASE_SIZE + k])
         if r >= 0.999:
@@ -136,8 +149,8 @@ def _scale_to_limits(obs: np.ndarray, vx: float, vy: float, clear: np.ndarray, t
         d, ux, uy = circle_clearance(r * SCAN_RANGE * math.cos(a), r * SCAN_RANGE * math.sin(a), reach, 0.0)
         closing = vx * ux + vy * uy
         allow = math.sqrt(2.0 * brake_accel * max(d - obstacle_clearance_min, 0.0))
-        if closing > allow:
-            scale = min(scale, allow / closing)
+        if closing > allow and allow / closing < scale:
+            scale, rule = allow / closing, RULE_OBSTACLES
     for j in range(clear.shape[0]):
         if clear[j] == np.inf:
             continue
@@ -145,17 +158,20 @@ def _scale_to_limits(obs: np.ndarray, vx: float, vy: float, clear: np.ndarray, t
         ux, uy = toward[j, 0], toward[j, 1]
         closing, theirs = vx * ux + vy * uy, float(obs[b + 2]) * ux + float(obs[b + 3]) * uy
         allow = math.sqrt(2.0 * brake_accel * max(clear[j] - clearance_min, 0.0))
-        if closing - theirs > allow and closing > 0.0:
-            scale = min(scale, max(allow + theirs, 0.0) / closing)
-    return vx * scale, vy * scale
+        if closing - theirs > allow and closing > 0.0 and max(allow + theirs, 0.0) / closing < scale:
+            scale, rule = max(allow + theirs, 0.0) / closing, RULE_MEMBERS
+    return vx * scale, vy * scale, rule
 
 
 @njit(cache=True)
 def _shielded(obs: np.ndarray, vx: float, vy: float, clear: np.ndarray, toward: np.ndarray, reach: float,
-              clearance_min: float, brake_accel: float, obstacle_clearance_min: float) -> tuple[float, float, bool]:
+              clearance_min: float, brake_accel: float, obstacle_clearance_min: float
+              ) -> tuple[float, float, bool, int]:
     """(vx, vy) braked for the members (nearest first) and for the scan's sectors, in up to ``RAY_PASSES`` rounds,
-    then scaled to keep every member's and sector's limit; and whether anything was near enough to brake for."""
+    then scaled to keep every member's and sector's limit; whether anything was near enough to brake for; and
+    the rules (``RULE_MEMBERS``, ``RULE_OBSTACLES``) that changed it."""
     acted = False
+    rules = 0
     rays = obs.shape[0] - BASE_SIZE
     order = np.argsort(clear, kind="mergesort")
     for _ in range(RAY_PASSES):
@@ -164,8 +180,11 @@ def _shielded(obs: np.ndarray, vx: float, vy: float, clear: np.ndarray, toward: 
             if clear[j] == np.inf:
                 break
             b = 14 + MEMBER_FIELDS * j
-            vx, vy = _brake(vx, vy, toward[j, 0], toward[j, 1], float(obs[b + 2]), float(obs[b + 3]), clear[j],
+            nx, ny = _brake(vx, vy, toward[j, 0], toward[j, 1], float(obs[b + 2]), float(obs[b + 3]), clear[j],
                             clearance_min, brake_accel)
+            if nx != vx or ny != vy:
+                rules |= RULE_MEMBERS
+            vx, vy = nx, ny
             acted = True
         for k in range(rays):
             r = float(obs[BASE_SIZE + k])
@@ -173,14 +192,18 @@ def _shielded(obs: np.ndarray, vx: float, vy: float, clear: np.ndarray, toward: 
                 continue
             a = 2.0 * math.pi * k / rays
             d, ux, uy = circle_clearance(r * SCAN_RANGE * math.cos(a), r * SCAN_RANGE * math.sin(a), reach, 0.0)
-            vx, vy = _brake(vx, vy, ux, uy, 0.0, 0.0, d, obstacle_clearance_min, brake_accel)
+            nx, ny = _brake(vx, vy, ux, uy, 0.0, 0.0, d, obstacle_clearance_min, brake_accel)
+            if nx != vx or ny != vy:
+                rules |= RULE_OBSTACLES
+            vx, vy = nx, ny
             acted = True
         if (vx, vy) == before:
             break
     if acted:
-        vx, vy = _scale_to_limits(obs, vx, vy, clear, toward, reach, clearance_min, brake_accel,
-                                  obstacle_clearance_min)
-    return vx, vy, acted
+        vx, vy, scaled = _scale_to_limits(obs, vx, vy, clear, toward, reach, clearance_min, brake_accel,
+                                          obstacle_clearance_min)
+        rules |= scaled
+    return vx, vy, acted, rules
 
 
 BRAKE_FIRST = 0.01  # m/s a velocity may exceed the limits before the shield brakes it first (``_over_limits``)
@@ -190,7 +213,8 @@ BRAKE_FIRST = 0.01  # m/s a velocity may exceed the limits before the shield bra
 def _over_limits(obs: np.ndarray, vx: float, vy: float, clear: np.ndarray, toward: np.ndarray, reach: float,
                  clearance_min: float, brake_accel: float, obstacle_clearance_min: float) -> bool:
     """Whether (vx, vy) closes on a member or a sector faster than its limit (by more than ``BRAKE_FIRST``)."""
-    tx, ty = _scale_to_limits(obs, vx, vy, clear, toward, reach, clearance_min, brake_accel, obstacle_clearance_min)
+    tx, ty, _ = _scale_to_limits(obs, vx, vy, clear, toward, reach, clearance_min, brake_accel,
+                                 obstacle_clearance_min)
     return math.hypot(vx - tx, vy - ty) > BRAKE_FIRST
 
 
@@ -201,8 +225,9 @@ SLIDE_ANGLES = (math.pi / 4, -math.pi / 4, math.pi / 2, -math.pi / 2)  # tried i
 def shield_row(obs: np.ndarray, action: np.ndarray, out: np.ndarray, clearance_min: float, brake_accel: float,
                max_speed: float, half_length: float, half_width: float, human_radius: float,
                obstacle_clearance_min: float, accel_step: float, place_clearance: float,
-               place_arrival_speed: float, ospace_keep_out: float) -> None:
-    """The action (approach frame, in [-1, 1]) with its excess closing speed on each member removed, into ``out``:
+               place_arrival_speed: float, ospace_keep_out: float) -> int:
+    """The action (approach frame, in [-1, 1]) with its excess closing speed on each member removed, into ``out``;
+    returns the rules that changed it (``RULE_*`` bit flags, 0 when it passed unchanged but for the speed cap):
     members nearest first, each limiting the closing speed to ``sqrt(2 a (c - c_min))``; then the same for every
     ray of the range scan that ends within its range (observations longer than ``BASE_SIZE``), in up to
     ``RAY_PASSES`` rounds of both (each braking may give back speed toward an earlier member or sector; a few rounds
@@ -238,19 +263,21 @@ def shield_row(obs: np.ndarray, action: np.ndarray, out: np.ndarray, clearance_m
     if speed > max_speed:  # the base caps the planar speed at max_speed
         vx, vy = vx * (max_speed / speed), vy * (max_speed / speed)
         speed = max_speed
-    sx, sy, acted = _shielded(obs, vx, vy, clear, toward, reach, clearance_min, brake_accel, obstacle_clearance_min)
+    sx, sy, acted, rules = _shielded(obs, vx, vy, clear, toward, reach, clearance_min, brake_accel,
+                                     obstacle_clearance_min)
     if acted and obs.shape[0] > BASE_SIZE and speed > max_speed / 3 and math.hypot(sx, sy) < 0.1 * speed:
-        mx, my, _ = _shielded(obs[:BASE_SIZE], vx, vy, clear, toward, reach, clearance_min, brake_accel,
-                              obstacle_clearance_min)
+        mx, my, _, _ = _shielded(obs[:BASE_SIZE], vx, vy, clear, toward, reach, clearance_min, brake_accel,
+                                 obstacle_clearance_min)
         if math.hypot(mx, my) >= 0.1 * speed:  # the members allow it: the obstacles stopped it
-            best = -np.inf
+            best, slid = -np.inf, 0
             for ang in SLIDE_ANGLES:
                 c, s = math.cos(ang), math.sin(ang)
-                tx, ty, _ = _shielded(obs, c * vx - s * vy, s * vx + c * vy, clear, toward, reach, clearance_min,
-                                      brake_accel, obstacle_clearance_min)
+                tx, ty, _, turned = _shielded(obs, c * vx - s * vy, s * vx + c * vy, clear, toward, reach,
+                                              clearance_min, brake_accel, obstacle_clearance_min)
                 gain = tx * vx + ty * vy
                 if math.hypot(tx, ty) >= 0.25 * speed and gain > best:
-                    best, sx, sy = gain, tx, ty
+                    best, sx, sy, slid = gain, tx, ty, RULE_SLIDE | turned
+            rules |= slid
     if acted:
         # the base reaches a command at its acceleration limit: while its velocity already closes faster than it
         # can brake for, a turned command spends that limit sideways and the robot runs on into what it was
@@ -265,22 +292,28 @@ def shield_row(obs: np.ndarray, action: np.ndarray, out: np.ndarray, clearance_m
                 dx, dy = dx * accel_step / change, dy * accel_step / change
             if _over_limits(obs, cx + dx, cy + dy, clear, toward, reach, clearance_min, brake_accel,
                             obstacle_clearance_min):
-                sx, sy, _ = _shielded(obs, cx, cy, clear, toward, reach, clearance_min, brake_accel,
-                                      obstacle_clearance_min)
+                sx, sy, _, braked = _shielded(obs, cx, cy, clear, toward, reach, clearance_min, brake_accel,
+                                              obstacle_clearance_min)
+                rules |= RULE_VELOCITY | braked
         out[0] = min(max(sx / max_speed, -1.0), 1.0)
         out[1] = min(max(sy / max_speed, -1.0), 1.0)
     if ospace_keep_out > 0.0:
         cx, cy = float(obs[2]) * POS_SCALE, float(obs[3]) * POS_SCALE
         to_centre = math.hypot(cx, cy)
         if to_centre > 1e-6:
-            bx, by = _brake(float(out[0]) * max_speed, float(out[1]) * max_speed, cx / to_centre, cy / to_centre,
-                            0.0, 0.0, to_centre - (float(obs[4]) * POS_SCALE - OSPACE_MARGIN), 0.0, brake_accel)
+            ox, oy = float(out[0]) * max_speed, float(out[1]) * max_speed
+            bx, by = _brake(ox, oy, cx / to_centre, cy / to_centre, 0.0, 0.0,
+                            to_centre - (float(obs[4]) * POS_SCALE - OSPACE_MARGIN), 0.0, brake_accel)
+            if bx != ox or by != oy:
+                rules |= RULE_OSPACE
             out[0], out[1] = bx / max_speed, by / max_speed
     if place_arrival_speed > 0.0 and clear.min() >= clearance_min - CAP_SLACK:
         cap = place_speed_cap(to_place, place_arrival_speed, brake_accel) / max_speed
         norm = math.hypot(float(out[0]), float(out[1]))
         if norm > cap:
             out[0], out[1] = out[0] * (cap / norm), out[1] * (cap / norm)
+            rules |= RULE_PLACE
+    return rules
 
 
 # m the robot's centre may come inside the o-space radius (where the members and their places stand): the slot
@@ -300,27 +333,38 @@ def place_speed_cap(to_place: float, arrival_speed: float, brake_accel: float) -
 
 
 @njit(cache=True)
-def _shield_rows(obs: np.ndarray, actions: np.ndarray, out: np.ndarray, clearance_min: float, brake_accel: float,
-                 max_speed: float, half_length: float, half_width: float, human_radius: float,
+def _shield_rows(obs: np.ndarray, actions: np.ndarray, out: np.ndarray, rules: np.ndarray, clearance_min: float,
+                 brake_accel: float, max_speed: float, half_length: float, half_width: float, human_radius: float,
                  obstacle_clearance_min: float, accel_step: float, place_clearance: float,
                  place_arrival_speed: float, ospace_keep_out: float) -> None:
     for i in range(obs.shape[0]):
-        shield_row(obs[i], actions[i], out[i], clearance_min, brake_accel, max_speed, half_length, half_width,
-                   human_radius, obstacle_clearance_min, accel_step, place_clearance, place_arrival_speed,
-                   ospace_keep_out)
+        rules[i] = shield_row(obs[i], actions[i], out[i], clearance_min, brake_accel, max_speed, half_length,
+                              half_width, human_radius, obstacle_clearance_min, accel_step, place_clearance,
+                              place_arrival_speed, ospace_keep_out)
 
 
 def shield_actions(obs: np.ndarray, actions: np.ndarray, p: ShieldParams) -> np.ndarray:
     """``shield_row`` for N observations (N, OBS_SIZE) and actions (N, A) at once."""
+    return shield_actions_explained(obs, actions, p)[0]
+
+
+def shield_actions_explained(obs: np.ndarray, actions: np.ndarray, p: ShieldParams) -> tuple[np.ndarray, np.ndarray]:
+    """``shield_actions`` and, per row, the rules that changed the action (``RULE_*`` flags, int (N,))."""
     a = np.ascontiguousarray(actions, dtype=np.float32)
     out = np.empty_like(a)
-    _shield_rows(np.ascontiguousarray(obs, dtype=np.float32), a, out, *_limits(p))
-    return out
+    rules = np.zeros(len(a), dtype=np.int64)
+    _shield_rows(np.ascontiguousarray(obs, dtype=np.float32), a, out, rules, *_limits(p))
+    return out, rules
 
 
 def shield_action(obs: np.ndarray, action: np.ndarray, p: ShieldParams) -> np.ndarray:
     """``shield_row`` for one observation and action."""
     return shield_actions(np.asarray(obs)[None], np.asarray(action).reshape(1, -1), p)[0]
+
+
+def rule_names(rules: int) -> list[str]:
+    """The names (``RULES``) of the rules set in ``rules`` (``RULE_*`` flags)."""
+    return [name for k, name in enumerate(RULES) if int(rules) & (1 << k)]
 
 
 def _limits(p: ShieldParams) -> tuple[float, ...]:
@@ -329,19 +373,43 @@ def _limits(p: ShieldParams) -> tuple[float, ...]:
             float(p.ospace_keep_out))
 
 
+@dataclasses.dataclass(frozen=True)
+class ShieldRecord:
+    """What the shield did to its last input: the actions before and after it (one row, or a batch's rows) and
+    the rules (``RULE_*`` flags, one per row; 0: passed unchanged)."""
+
+    before: np.ndarray
+    after: np.ndarray
+    rules: np.ndarray
+
+    def changed(self) -> np.ndarray:
+        """Per row, whether a rule changed the action (bool (N,))."""
+        return self.rules != 0
+
+    def row(self, i: int = 0) -> dict[str, Any] | None:
+        """Row ``i`` for a log: before, after and the rules' names; None where the shield left it alone."""
+        if not self.rules[i]:
+            return None
+        before, after = self.before.reshape(len(self.rules), -1), self.after.reshape(len(self.rules), -1)
+        return {"before": before[i].tolist(), "after": after[i].tolist(), "rules": rule_names(self.rules[i])}
+
+
 class SafetyShield:
     """``shield_action`` with fixed parameters (Pepper's defaults unless given), as ``TrainedPolicy`` applies it
     after its smoothing filter: one observation (OBS_SIZE,) with one action, or a batch (N, OBS_SIZE) with
-    (N, A) actions, every row shielded."""
+    (N, A) actions, every row shielded. ``last`` records what it did to the last call (``ShieldRecord``), for
+    the evaluation's intervention rate and deploy's log."""
 
     def __init__(self, params: ShieldParams | None = None) -> None:
         self.params = params or ShieldParams()
+        self.last: ShieldRecord | None = None
 
     def __call__(self, obs: np.ndarray, action: np.ndarray) -> np.ndarray:
         obs, action = np.asarray(obs), np.asarray(action)
-        if obs.ndim == 1:
-            return shield_action(obs, action.reshape(-1), self.params).reshape(action.shape)
         rows = obs.reshape(-1, obs.shape[-1])
         if action.size % len(rows):
             raise ValueError(f"shield: {len(rows)} observations for actions of shape {action.shape}")
-        return shield_actions(rows, action.reshape(len(rows), -1), self.params).reshape(action.shape)
+        out, rules = shield_actions_explained(rows, action.reshape(len(rows), -1), self.params)
+        out = out.reshape(action.shape)
+        self.last = ShieldRecord(action.astype(np.float32, copy=True), out, rules)
+        return out

@@ -7,7 +7,7 @@ import gymnasium as gym
 import numpy as np
 
 from ..errors import UserError
-from .shield import ShieldParams, shield_action
+from .shield import SafetyShield, ShieldParams
 
 OBS_MODES = ("vector", "camera", "camera_speed")
 
@@ -68,14 +68,16 @@ class ActionSmoothing(gym.ActionWrapper):
 
 
 class ShieldWrapper(gym.Wrapper):
-    """Applies the safety shield (``env.shield``) to every action, from the latest Vector observation.
+    """Applies the safety shield (``env.shield``) to every action, from the latest Vector observation; each
+    step's ``info["shield"]`` says what it changed (``ShieldRecord.row``: before, after, rules), None if nothing.
 
     Wraps the Vector-mode env directly (the agent's smoothing goes outside it, so the shield acts last)."""
 
     def __init__(self, env: gym.Env, params: ShieldParams | None = None) -> None:
         super().__init__(env)
         core = env.unwrapped
-        self.params = params or ShieldParams.from_env(core.robot_params, core.social, core.task)
+        self.shield = SafetyShield(params or ShieldParams.from_env(core.robot_params, core.social, core.task))
+        self.params = self.shield.params
         self._obs: np.ndarray | None = None
 
     def reset(self, **kwargs):  # type: ignore[override]
@@ -86,9 +88,9 @@ class ShieldWrapper(gym.Wrapper):
     def step(self, action: np.ndarray):  # type: ignore[override]
         if self._obs is None:
             raise RuntimeError("ShieldWrapper.step called before reset")
-        obs, r, terminated, truncated, info = self.env.step(shield_action(self._obs, action, self.params))
+        obs, r, terminated, truncated, info = self.env.step(self.shield(self._obs, action))
         self._obs = obs
-        return obs, r, terminated, truncated, info
+        return obs, r, terminated, truncated, {**info, "shield": self.shield.last.row()}
 
 
 class ExponentialFilter:
