@@ -167,6 +167,21 @@ CASES = [
     C("bench_deploy.py", "--runs", "-1", "--out", "{out}", expect="argument --runs"),
     C("bench_deploy.py", "--policy", "nosuch", "--out", "{out}", expect="--policy 'nosuch'"),
     C("bench_deploy.py", "--groups", "round", "--out", "{out}", expect="argument --groups"),
+    # issue 39: deploy, the virtual Pepper, the watchdog, the deploy benchmark
+    C("-m ssbl_pb.deploy", "--robot-ip", "127.0.0.1", "--map", "{file}", "--start-pose", "nan", "20", "0",
+      "--log-dir", "{out}", expect="--start-pose nan 20 0: expected three finite numbers"),
+    C("-m ssbl_pb.deploy", "--robot-ip", "127.0.0.1", "--rate", "20", "--log-dir", "{out}",
+      expect="--rate 20: the policy 'vector' was trained at 10 Hz"),
+    C("-m ssbl_pb.deploy.virtual_robot", "--seed", "-1", "--log", "{out}", expect="argument --seed"),
+    C("-m ssbl_pb.deploy.virtual_robot", "--security-distance", "-1", "--log", "{out}",
+      expect="argument --security-distance"),
+    C("-m ssbl_pb.deploy.virtual_robot", "--duration", "-5", "--log", "{out}", expect="argument --duration"),
+    C("-m ssbl_pb.deploy.virtual_robot", "--hang-stops", "-1", "--log", "{out}", expect="argument --hang-stops"),
+    C("-m ssbl_pb.deploy.watchdog", "--limit", "soon", expect="argument --limit"),
+    C("bench_deploy.py", "--scenario", "bogus", "--out", "{out}", expect="scenario 'bogus'"),
+    C("bench_deploy.py", "--soak", "nan", "--out", "{out}", expect="argument --soak"),
+    C("bench_deploy.py", "--runs", "0", "--faults", "none", "--soak", "0", "--out", "{tmp}",
+      expect="holds files this tool did not write"),
     C("table1.py", "--budget", "huge", "--out", "{out}", expect="--budget 'huge'"),
     C("table1.py", "--budget", "smoke", "--seeds", "0", "--out", "{out}", expect="--seeds 0"),
     C("table1.py", "--budget", "smoke", "--camera-hfov", "0", "--out", "{out}", expect="--camera-hfov 0: expected"),
@@ -215,6 +230,12 @@ CASES = [
       expect="all its 136 cells are occupied"),
     C("import_map.py", "tests/room_specs/solid.yaml", "--region", "0.1", "0.1", "1.9", "0.9", "--out", "{out}.yaml",
       expect="holds no free cell (0 occupied, 136 unknown)"),
+    # issue 39: training, evaluation, autoencoder
+    C("train_pb.py", "--out", "/proc/x", expect="--out /proc/x: "),
+    C("train_pb.py", "--out", "{tmp}", "--overwrite", expect="holds files but no training run"),
+    C("evaluate.py", "--policy", "sffm", "--episodes", "2", "--out", "/proc/x", expect="--out /proc/x: "),
+    C("train_ae.py", "--frames", "{file}", "--arch", "saev", "--resume", "{file}", "--out", "{out}",
+      expect="a_file.txt: unreadable"),
 ]
 
 

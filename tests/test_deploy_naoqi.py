@@ -49,8 +49,8 @@ def test_robot_interface_over_qi(tmp_path):
     assert states[-1]["cmd"] == [0.0, 0.0, 0.0] and states[-1]["vel"] == pytest.approx([0, 0, 0], abs=1e-9)
 
 
-EXPECTED = {"robot_killed": 7, "camera_frozen": 5, "robot_frozen": 8, "sigint": 130, "sigterm": 143,
-            "policy_exception": 1, "deploy_killed": -9}
+EXPECTED = {"robot_killed": 7, "camera_frozen": 5, "odometry_frozen": 6, "robot_frozen": 8, "sigint": 130,
+            "sigterm": 143, "policy_exception": 1, "deploy_killed": -9, "watchdog_stop_hangs": -9}
 
 
 @pytest.mark.slow
@@ -58,7 +58,8 @@ EXPECTED = {"robot_killed": 7, "camera_frozen": 5, "robot_frozen": 8, "sigint": 
 def test_each_fault_stops_the_base_and_names_itself(fault, tmp_path):
     # a loaded machine may deliver a frame a second or more late: the staleness limit is raised, and raised
     # further where staleness is not what the fault is about (a late frame once ended policy_exception first)
-    res = run_fault(fault, tmp_path, stale=2.0 if fault in ("camera_frozen", "robot_frozen") else 6.0)
+    res = run_fault(fault, tmp_path, stale=2.0 if fault in ("camera_frozen", "robot_frozen", "odometry_frozen")
+                    else 6.0)
     assert res["exit_code"] == EXPECTED[fault], res
     assert not res.get("hung"), res
     summary = tmp_path / "deploy" / "summary.json"
@@ -71,11 +72,18 @@ def test_each_fault_stops_the_base_and_names_itself(fault, tmp_path):
         assert res["stop_commanded_s"] is not None and res["standstill_s"] is not None, res
     if fault == "camera_frozen":
         assert res["stop_commanded_s"] > 0.9  # by the staleness limit, not before
-    if fault == "deploy_killed":
+    if fault in ("deploy_killed", "watchdog_stop_hangs"):
         assert res["stop_commanded_s"] > 0.4  # by the watchdog's limit, not before
-    if fault in ("robot_killed", "camera_frozen", "robot_frozen", "sigint", "sigterm"):
+    if fault == "watchdog_stop_hangs":  # the first stopMove went unanswered: the watchdog lived on and sent again
+        assert any("sent again" in line for line in res["watchdog"]), res
+        assert any("confirmed" in line for line in res["watchdog"]), res
+        assert res["stop_commanded_s"] < 0.5 + 2.0  # well before the hung call's own 2 s
+        assert "stopMove_hung" in [c["call"] for c in load_log(tmp_path / "virtual_pepper.jsonl")[2]]
+    if fault == "odometry_frozen":
+        assert res["stop_commanded_s"] > 2.0  # by the staleness limit (raised to 2 s here), not before
+    if fault in ("robot_killed", "camera_frozen", "odometry_frozen", "robot_frozen", "sigint", "sigterm"):
         outcome = {"robot_killed": "connection_lost", "camera_frozen": "stale_frame",
-                   "robot_frozen": "robot_not_responding"}.get(fault, fault)
+                   "odometry_frozen": "stale_odometry", "robot_frozen": "robot_not_responding"}.get(fault, fault)
         assert json.loads(summary.read_text())["outcome"] == outcome
 
 
@@ -163,3 +171,26 @@ def test_the_benchmark_report_keeps_a_run_that_ended_on_a_fault_before_its_first
     text = markdown({"approaches": runs, "scenario": "default", "policy": "vector"})
     assert "**1/2**" in text and "smallest true clearance 0.62 m" in text
     assert "| 2 | robot_not_responding | no |" in text
+
+
+@pytest.mark.slow
+def test_the_command_the_virtual_pepper_prints_joins_its_group(tmp_path):
+    """Issue 39: the README's two commands, nothing more: the virtual Pepper prints the deploy command that fits
+    it, and deploy with its defaults (``--detector auto``: the colour detector, since the robot says it is the
+    virtual Pepper) joins the group by the simulator's ground truth."""
+    import shlex
+
+    from ssbl_pb.deploy.bench import truth_score
+
+    log = tmp_path / "vp.jsonl"
+    with virtual_pepper(log, seed=0) as (vp, url):
+        lines = [vp.stdout.readline().strip() for _ in range(2)]
+        command = next(line.removeprefix("deploy: ") for line in lines if line.startswith("deploy: "))
+        assert command == f"python -m ssbl_pb.deploy --robot-ip 127.0.0.1 --port {url.rsplit(':', 1)[1]}"
+        argv = shlex.split(command)[1:]
+        res = subprocess.run([sys.executable, *argv], capture_output=True, text=True, timeout=150, cwd=tmp_path)
+    assert res.returncode == 0, res.stderr
+    (run,) = (tmp_path / "runs").iterdir()  # the default --log-dir, runs/deploy-DATE-TIME
+    assert json.loads((run / "run.json").read_text())["detector"] == "colour"
+    score = truth_score(log, run)
+    assert score["true_success"], score

@@ -24,7 +24,9 @@ from ..env.task import TaskParams
 from .log import LOG, SUMMARY
 from .virtual_robot import load_log
 
-FAULTS = ("robot_killed", "camera_frozen", "robot_frozen", "sigint", "sigterm", "policy_exception", "deploy_killed")
+FAULTS = ("robot_killed", "camera_frozen", "odometry_frozen", "robot_frozen", "sigint", "sigterm", "policy_exception",
+          "deploy_killed", "watchdog_stop_hangs")
+WATCHED = ("deploy_killed", "watchdog_stop_hangs")  # deploy killed: the watchdog beside the robot stops the base
 
 
 def _module(name: str, *args: str) -> list[str]:
@@ -65,8 +67,9 @@ def virtual_pepper(log: Path, seed: int = 0, scenario: str = "default", *extra: 
 
 
 def start_deploy(url: str, folder: Path, policy: str = "vector", *extra: str) -> subprocess.Popen:
-    return subprocess.Popen(_module("ssbl_pb.deploy", "--url", url, "--policy", policy, "--detector", "colour",
-                                    "--log-dir", str(folder), "--quiet", *extra),
+    """Deploy as a user starts it against the virtual Pepper (its detector chosen by ``--detector auto``)."""
+    return subprocess.Popen(_module("ssbl_pb.deploy", "--url", url, "--policy", policy, "--log-dir", str(folder),
+                                    "--quiet", *extra),
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
@@ -148,18 +151,21 @@ def run_fault(fault: str, folder: Path, seed: int = 11, policy: str = "straight"
     """Inject ``fault`` (one of ``FAULTS``) once the base moves; exit code, exit and stop times.
 
     ``policy_exception`` runs the loop in this process (a policy that raises) over qi; ``deploy_killed`` runs
-    the watchdog beside the virtual Pepper and kills deploy with SIGKILL. ``stale``: deploy's staleness limit
+    the watchdog beside the virtual Pepper and kills deploy with SIGKILL; ``watchdog_stop_hangs`` does the same
+    with a virtual Pepper that leaves the first stopMove unanswered (the watchdog must send it again);
+    ``odometry_frozen`` freezes the virtual Pepper's odometry (SIGUSR2). ``stale``: deploy's staleness limit
     (tests on a loaded machine raise it, so that late frames do not end a run before its fault)."""
     if fault not in FAULTS:
         raise ValueError(f"fault {fault!r}: expected one of {FAULTS}")
     folder.mkdir(parents=True, exist_ok=True)
     vp_log = folder / "virtual_pepper.jsonl"
     out: dict[str, Any] = {"fault": fault}
-    with virtual_pepper(vp_log, seed) as (vp, url):
+    extra = ("--hang-stops", "1") if fault == "watchdog_stop_hangs" else ()
+    with virtual_pepper(vp_log, seed, "default", *extra) as (vp, url):
         if fault == "policy_exception":
             return {**out, **_policy_exception(url, vp_log, stale)}
         dog = None
-        if fault == "deploy_killed":
+        if fault in WATCHED:
             dog = subprocess.Popen(_module("ssbl_pb.deploy.watchdog", "--robot", url), stdout=subprocess.PIPE,
                                    stderr=subprocess.DEVNULL, text=True)
             _first_line(dog, 30.0)
@@ -168,8 +174,9 @@ def run_fault(fault: str, folder: Path, seed: int = 11, policy: str = "straight"
             wait_moving(vp_log)
             t_event = time.time()
             target = {"robot_killed": (vp, signal.SIGKILL), "camera_frozen": (vp, signal.SIGUSR1),
-                      "robot_frozen": (vp, signal.SIGSTOP), "sigint": (proc, signal.SIGINT),
-                      "sigterm": (proc, signal.SIGTERM), "deploy_killed": (proc, signal.SIGKILL)}[fault]
+                      "odometry_frozen": (vp, signal.SIGUSR2), "robot_frozen": (vp, signal.SIGSTOP),
+                      "sigint": (proc, signal.SIGINT), "sigterm": (proc, signal.SIGTERM),
+                      "deploy_killed": (proc, signal.SIGKILL), "watchdog_stop_hangs": (proc, signal.SIGKILL)}[fault]
             target[0].send_signal(target[1])
             try:
                 _, err = proc.communicate(timeout=30)
@@ -189,7 +196,8 @@ def run_fault(fault: str, folder: Path, seed: int = 11, policy: str = "straight"
         finally:
             if dog is not None:
                 dog.terminate()
-                dog.wait(10)
+                said, _ = dog.communicate(timeout=10)
+                out["watchdog"] = said.strip().splitlines()
     if fault != "robot_killed":
         out.update(stop_times(vp_log, t_event))
     return out
@@ -287,20 +295,24 @@ def markdown(res: dict[str, Any]) -> str:
             return vals[len(vals) // 2]
 
         p99 = max(r["tick_ms_p99"] for r in runs if r.get("tick_ms_p99") is not None)
+        ticks = sum(r.get("policy_ticks") or 0 for r in runs)
+        shielded = sum(r.get("shield_interventions") or 0 for r in runs)
         out += [f"**Approaches** ({len(runs)} seeded runs, seeds {runs[0]['seed']}-{runs[-1]['seed']}, scenario "
                 f"`{res['scenario']}`, {res.get('groups') or 'calibrated'} groups, policy `{res['policy']}`): "
                 f"success by the simulator's own rule and ground truth in **{ok}/{len(runs)}** (deploy claimed "
                 f"{claimed}); intimate-zone entries: **{intimate}**; "
                 f"smallest true clearance {min(cleared, default=float('nan')):.2f} m.",
                 f"Control tick (start to command sent): median of run medians {med('tick_ms_median'):.1f} ms, worst "
-                f"run p99 {p99:.1f} ms; estimate age median {med('estimate_age_ms_median'):.0f} ms.", "",
+                f"run p99 {p99:.1f} ms; estimate age median {med('estimate_age_ms_median'):.0f} ms. The policy's "
+                f"shield changed its command in {100 * shielded / max(ticks, 1):.1f} % of {ticks} policy ticks.", "",
                 "| seed | outcome | true success | slot (m) | heading (deg) | min clearance (m) | tick median / p99 "
-                "(ms) | estimate age (ms) |", "|---|---|---|---|---|---|---|---|"]
+                "(ms) | estimate age (ms) | shield (%) |", "|---|---|---|---|---|---|---|---|---|"]
         for r in runs:
             out.append(f"| {r['seed']} | {r.get('outcome')} | {'yes' if r.get('true_success') else 'no'} | "
                        f"{r.get('true_slot_m', float('nan')):.2f} | {r.get('true_heading_deg', float('nan')):.0f} | "
                        f"{r.get('true_min_clearance_m', float('nan')):.2f} | {r.get('tick_ms_median') or 0:.1f} / "
-                       f"{r.get('tick_ms_p99') or 0:.1f} | {r.get('estimate_age_ms_median') or 0:.0f} |")
+                       f"{r.get('tick_ms_p99') or 0:.1f} | {r.get('estimate_age_ms_median') or 0:.0f} | "
+                       f"{100 * (r.get('shield_intervention_rate') or 0):.0f} |")
         out.append("")
     faults = res.get("faults", [])
     if faults:

@@ -1,0 +1,77 @@
+"""Deploy's command-line tools as a user meets them (issue 39): the deploy benchmark removes only what it wrote,
+the virtual Pepper checks its port before it writes anything, the watchdog's help tells its real exit codes."""
+
+from __future__ import annotations
+
+import socket
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _tool(*argv: str, timeout: float = 120) -> subprocess.CompletedProcess:
+    cmd = [sys.executable, *argv] if argv[0] == "-m" else [sys.executable, str(ROOT / "tools" / argv[0]), *argv[1:]]
+    return subprocess.run(cmd if argv[0] != "-m" else [sys.executable, *argv], capture_output=True, text=True,
+                          timeout=timeout, cwd=ROOT)
+
+
+def test_bench_deploy_never_deletes_a_folder_it_did_not_write(tmp_path):
+    mine = tmp_path / "results" / "bench"
+    mine.mkdir(parents=True)
+    (mine / "notes.txt").write_text("the user's\n")
+    res = _tool("bench_deploy.py", "--runs", "0", "--faults", "none", "--soak", "0", "--out", str(mine))
+    assert res.returncode == 2 and "did not write" in res.stderr, res.stderr
+    assert (mine / "notes.txt").read_text() == "the user's\n"
+
+
+def test_bench_deploy_rerun_replaces_only_its_own_runs(tmp_path):
+    out = tmp_path / "bench"
+    res = _tool("bench_deploy.py", "--runs", "0", "--faults", "none", "--soak", "0", "--out", str(out))
+    assert res.returncode == 0, res.stderr
+    assert (out / ".bench_deploy").is_file() and out.with_suffix(".json").is_file()
+    (out / "run00").mkdir()  # as a run would leave it
+    (out / "run00" / "log.jsonl").write_text("{}\n")
+    (out / "mine.txt").write_text("kept\n")  # the user's, added later
+    res = _tool("bench_deploy.py", "--runs", "0", "--faults", "none", "--soak", "0", "--out", str(out))
+    assert res.returncode == 0, res.stderr
+    assert not (out / "run00").exists() and (out / "mine.txt").read_text() == "kept\n"
+
+
+def test_virtual_pepper_on_a_port_in_use_writes_no_map_and_says_so_in_one_line(tmp_path):
+    pytest.importorskip("qi")
+    server = socket.socket()
+    server.bind(("127.0.0.1", 0))
+    server.listen(1)
+    port = server.getsockname()[1]
+    try:
+        res = _tool("-m", "ssbl_pb.deploy.virtual_robot", "--listen", f"tcp://127.0.0.1:{port}", "--write-map",
+                    str(tmp_path / "map"))
+    finally:
+        server.close()
+    lines = [ln for ln in res.stderr.splitlines() if ln.strip()]
+    assert res.returncode == 2 and len(lines) == 1, res.stderr
+    assert "cannot listen there" in lines[0] and "Address already in use" in lines[0]
+    assert ".conan" not in lines[0] and ".hpp" not in lines[0]  # no library source path
+    assert not (tmp_path / "map").exists()
+
+
+def test_watchdog_help_states_its_exit_codes():
+    res = _tool("-m", "ssbl_pb.deploy.watchdog", "--help")
+    assert res.returncode == 0
+    text = " ".join(res.stdout.split())
+    assert "130 on Ctrl-C, 143 on SIGTERM" in text and "Exit: 0 on" not in text
+
+
+def test_watchdog_alone_on_a_robot_keeps_the_contract(tmp_path):
+    """Copied onto the robot without the package: a bad flag is one ``error:`` line, exit 2."""
+    alone = tmp_path / "watchdog.py"
+    alone.write_text((ROOT / "ssbl_pb" / "deploy" / "watchdog.py").read_text())
+    # -S: no site-packages, so the package (installed editable) cannot be imported, as on the robot
+    res = subprocess.run([sys.executable, "-S", str(alone), "--limit", "soon"], capture_output=True, text=True,
+                         cwd=tmp_path, timeout=60)
+    lines = [ln for ln in res.stderr.splitlines() if ln.strip()]
+    assert res.returncode == 2 and len(lines) == 1 and lines[0].startswith("error: argument --limit"), res.stderr
