@@ -413,3 +413,65 @@ def test_kept_out_of_the_ospace_the_shipped_policy_joins_the_pairs_it_lost_insid
             if keep:
                 inner = min(np.hypot(*(s["robot"][:2] - s["centre"])) - s["radius"] for s in r.trajectory)
                 assert inner >= -0.35
+
+
+# -- issue 39: what the shield changed, and by which rule ----------------------------------------------------
+def test_the_shield_names_the_rule_that_changed_each_action():
+    from ssbl_pb.env.observation import BASE_SIZE, SCAN_RANGE
+    from ssbl_pb.env.shield import RULE_MEMBERS, RULE_OBSTACLES, RULE_PLACE, RULE_SLIDE, shield_actions_explained
+
+    member = obs_with(np.array([[REACH + 0.28 + 0.6, 0.0]]))  # braked to 0.2 m/s (hand case above)
+    speck = obs_with(np.zeros((0, 2)))
+    speck[BASE_SIZE:] = 1.0
+    speck[BASE_SIZE] = (REACH + P.obstacle_clearance_min) / SCAN_RANGE  # slides along it
+    wall = obs_with(np.zeros((0, 2)))
+    wall[BASE_SIZE:] = 1.0
+    wall[BASE_SIZE] = (REACH + P.obstacle_clearance_min + 0.3) / SCAN_RANGE  # braked, not stopped
+    place = obs_with(np.zeros((0, 2)))
+    place[0] = 0.5 / POS_SCALE  # the place 0.5 m ahead: the arrival cap binds
+    capped = dataclasses.replace(P, place_arrival_speed=0.05)
+    obs = np.stack([member, member, speck, wall])
+    act = np.array([[1.0, 0.0], [0.0, 1.0], [1.0, 0.0], [1.0, 0.0]], dtype=np.float32)
+    out, rules = shield_actions_explained(obs, act, P)
+    assert rules.tolist() == [RULE_MEMBERS, 0, RULE_SLIDE | RULE_OBSTACLES, RULE_OBSTACLES]
+    assert out[0, 0] * 0.35 == pytest.approx(math.sqrt(2 * 0.2 * 0.1)) and np.allclose(out[1], act[1])
+    out, rules = shield_actions_explained(place[None], np.array([[1.0, 0.0]], dtype=np.float32), capped)
+    assert rules.tolist() == [RULE_PLACE] and out[0, 0] < 1.0
+    shield = SafetyShield(P)  # the record a policy's shield keeps of its last call
+    shield(member, np.array([1.0, 0.0], dtype=np.float32))
+    row = shield.last.row()
+    assert row["rules"] == ["members"] and row["before"] == [1.0, 0.0] and row["after"][0] < 1.0
+    shield(member, np.array([0.0, 1.0], dtype=np.float32))
+    assert shield.last.row() is None  # unchanged: nothing to record
+
+
+def test_the_shield_wrapper_says_what_it_changed_in_info():
+    from ssbl_pb.env.wrappers import ShieldWrapper
+
+    env = ShieldWrapper(ApproachGroupEnv())
+    obs, _ = env.reset(seed=3)
+    seen = []
+    for _ in range(300):  # full speed toward the place, into the group
+        toward = obs[:2] / max(float(np.hypot(*obs[:2])), 1e-6)
+        obs, _, terminated, truncated, info = env.step(toward)
+        seen.append(info["shield"])
+        if terminated or truncated:
+            break
+    acted = [s for s in seen if s is not None]
+    assert acted and len(acted) < len(seen) and all("members" in s["rules"] or "obstacles" in s["rules"]
+                                                    for s in acted)
+
+
+def test_evaluation_reports_the_shield_intervention_rate_the_same_played_alone_or_in_a_batch():
+    from ssbl_pb.analysis.evaluation import Setup
+    from ssbl_pb.env.rollout import run_episode, run_episodes
+
+    seeds = list(range(700, 706))
+    env, policy = Setup("vector", scenario="mixed", shield=True)()
+    single = [run_episode(env, policy, s, keep_trajectory=False) for s in seeds]  # one env, step by step
+    batch = run_episodes(Setup("vector", scenario="mixed", shield=True), seeds, workers=1, chunk=len(seeds))
+    rates = [r.metrics["shield_intervention_rate"] for r in single]
+    assert rates == [r.metrics["shield_intervention_rate"] for r in batch]
+    assert all(0.0 <= x < 1.0 for x in rates) and max(rates) > 0.0
+    off = run_episodes(Setup("vector", scenario="mixed", shield=False), seeds[:2], workers=1)
+    assert [r.metrics["shield_intervention_rate"] for r in off] == [0.0, 0.0]
