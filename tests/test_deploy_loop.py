@@ -259,3 +259,12 @@ def test_auto_detector_follows_what_the_robot_says_it_is():
     assert detector_for("auto", SimpleNamespace(identity={"detector": "colour"})) == "colour"  # the virtual Pepper
     assert detector_for("auto", SimpleNamespace(identity=None)) == "hog"  # a real Pepper
     assert detector_for("hog", SimpleNamespace(identity={"detector": "colour"})) == "hog"  # asked for: kept
+
+
+def test_deploy_params_name_the_field_that_is_wrong():
+    from ssbl_pb.params import ConfigError
+
+    with pytest.raises(ConfigError, match="status_s"):
+        DeployParams(status_s=-1.0)
+    with pytest.raises(ConfigError, match="settle_s"):
+        DeployParams(settle_s=-1.0)
