@@ -10,9 +10,10 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import re
 import shutil
 import tempfile
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -44,6 +45,25 @@ def atomic_write(path: str | Path, writer: Callable[[Path], None]) -> Path:
     return path
 
 
+def atomic_write_all(writers: dict[Path, Callable[[Path], None]]) -> None:
+    """``atomic_write`` for files that belong together: every temporary file is written first, then all are
+    renamed in one go (a kill between the renames is a few microseconds wide instead of a whole write)."""
+    temps: dict[Path, Path] = {}
+    try:
+        for path, writer in writers.items():
+            path.parent.mkdir(parents=True, exist_ok=True)
+            fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix, dir=path.parent)
+            os.close(fd)
+            temps[path] = Path(tmp)
+            writer(temps[path])
+            os.chmod(temps[path], 0o666 & ~_umask())
+        for path, tmp in temps.items():
+            os.replace(tmp, path)
+    finally:
+        for tmp in temps.values():
+            tmp.unlink(missing_ok=True)
+
+
 def write_text(path: str | Path, text: str) -> Path:
     """Write ``text`` atomically."""
     return atomic_write(path, lambda p: p.write_text(text))
@@ -66,8 +86,51 @@ def make_stage_dir(parent: Path, prefix: str) -> Path:
     return stage
 
 
+def replace_dir(stage: Path, target: Path) -> None:
+    """Move the complete folder ``stage`` to ``target`` (same parent), replacing what was there: the old folder is
+    renamed aside first and removed last. A kill in between leaves ``.NAME.old-*`` beside no ``target``, which
+    ``remove_temporaries`` puts back."""
+    old = None
+    if target.exists():
+        old = Path(tempfile.mkdtemp(dir=target.parent, prefix=f".{target.name}.old-"))
+        os.replace(target, old)  # over the empty folder mkdtemp made
+    os.replace(stage, target)
+    if old is not None:
+        shutil.rmtree(old, ignore_errors=True)
+
+
+_TEMP = re.compile(r"^\.(?P<stem>.+)\.[a-z0-9_]{8}(?P<suffix>\.[^.]+)?$")  # atomic_write's mkstemp names
+
+
+def remove_temporaries(folder: Path, owned: Callable[[str], bool], folders: Iterable[str] = ()) -> list[Path]:
+    """Remove what a killed writer left in ``folder``: ``atomic_write``'s temporary files of the names ``owned``
+    accepts, and the stages of ``replace_dir`` for each name in ``folders`` (``.NAME.new-*``; ``.NAME.old-*`` is
+    put back as NAME when NAME is missing, else removed). Returns what was removed."""
+    removed: list[Path] = []
+    if not folder.is_dir():
+        return removed
+    for name in folders:
+        for old in sorted(folder.glob(f".{name}.old-*")):
+            if old.is_dir() and not (folder / name).exists():
+                os.replace(old, folder / name)  # killed between replace_dir's two renames: the old one is whole
+            else:
+                shutil.rmtree(old, ignore_errors=True)
+                removed.append(old)
+        for new in folder.glob(f".{name}.new-*"):
+            shutil.rmtree(new, ignore_errors=True)
+            removed.append(new)
+    for p in folder.iterdir():
+        m = _TEMP.match(p.name)
+        if m and p.is_file() and owned(m["stem"] + (m["suffix"] or "")):
+            p.unlink(missing_ok=True)
+            removed.append(p)
+    return removed
+
+
 def check_output_path(path: str | Path, flag: str = "--out", is_dir: bool = True) -> Path:
-    """Check, without creating anything, that ``path`` can be created or written (a folder if ``is_dir``)."""
+    """Check that ``path`` can be created or written (a folder if ``is_dir``), leaving nothing behind: a
+    temporary folder is made and removed where it would go (``os.access`` says yes to root everywhere, even in
+    ``/proc``)."""
     path = Path(path)
     if path.exists():
         if is_dir and not path.is_dir():
@@ -83,6 +146,10 @@ def check_output_path(path: str | Path, flag: str = "--out", is_dir: bool = True
             raise UserError(f"{flag} {path}: {target} is a file, not a directory")
     if not os.access(target, os.W_OK | os.X_OK):
         raise UserError(f"{flag} {path}: {target} is not writable")
+    try:
+        os.rmdir(tempfile.mkdtemp(dir=target, prefix=".ssbl-check-"))
+    except OSError as exc:
+        raise UserError(f"{flag} {path}: cannot create anything in {target} ({exc.strerror})") from exc
     return path
 
 
@@ -95,7 +162,12 @@ def output_dir(path: str | Path, flag: str = "--out") -> Iterator[Path]:
     while not p.exists():
         created.append(p)
         p = p.parent
-    path.mkdir(parents=True, exist_ok=True)
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        for d in created:
+            shutil.rmtree(d, ignore_errors=True)
+        raise UserError(f"{flag} {path}: cannot create it ({exc.strerror})") from exc
     try:
         yield path
     except BaseException:

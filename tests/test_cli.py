@@ -157,3 +157,66 @@ def test_tools_do_not_edit_sys_path():
     tools = Path(__file__).resolve().parents[1] / "tools"
     offenders = [p.name for p in tools.glob("*.py") if "sys.path" in p.read_text()]
     assert offenders == []
+
+
+def test_a_tool_started_with_sigint_ignored_still_stops_on_ctrl_c(tmp_path):
+    """A shell starts background jobs with SIGINT ignored; ``run`` restores Ctrl-C (exit 130), in-process and in
+    a real background start."""
+    old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        assert _exit_code(lambda argv: 0 if signal.getsignal(signal.SIGINT) is signal.default_int_handler else 1) == 0
+    finally:
+        signal.signal(signal.SIGINT, old)
+    script = tmp_path / "tool.py"
+    script.write_text(textwrap.dedent("""
+        import time
+        from ssbl_pb.cli import run
+        def main(argv):
+            print("ready", flush=True)
+            time.sleep(5)
+            return 0
+        run(main)
+    """))
+    proc = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
+    assert proc.stdout.readline().strip() == "ready"
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=30)
+    assert proc.returncode == 130 and err.strip() == "interrupted (Ctrl-C)"
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="/proc")
+def test_an_output_path_that_cannot_be_created_is_bad_input_even_for_root(tmp_path):
+    with pytest.raises(UserError, match=r"--out /proc/x: "):  # os.access says yes to root there
+        check_output_path("/proc/x")
+    with pytest.raises(UserError, match=r"--log-dir /proc/x/y: "):
+        with output_dir("/proc/x/y", "--log-dir"):
+            pass
+    assert check_output_path(tmp_path / "new") and [p.name for p in tmp_path.iterdir()] == []  # the probe is gone
+
+
+def test_files_that_belong_together_are_renamed_together(tmp_path):
+    from ssbl_pb.files import atomic_write_all, remove_temporaries, replace_dir
+
+    a, b = tmp_path / "model.zip", tmp_path / "norm.pkl"
+    atomic_write_all({a: lambda p: p.write_text("a1"), b: lambda p: p.write_text("b1")})
+
+    def broken(p):
+        raise OSError("disk full")
+
+    with pytest.raises(OSError):  # the second file fails: neither is replaced, no temporary is left
+        atomic_write_all({a: lambda p: p.write_text("a2"), b: broken})
+    assert (a.read_text(), b.read_text()) == ("a1", "b1") and sorted(p.name for p in tmp_path.iterdir()) == [
+        "model.zip", "norm.pkl"]
+    stage, target = tmp_path / "stage", tmp_path / "best"
+    for text in ("old", "new"):
+        stage.mkdir()
+        (stage / "x.txt").write_text(text)
+        replace_dir(stage, target)
+    assert (target / "x.txt").read_text() == "new" and not stage.exists()
+    (tmp_path / ".model.ab12cd34.zip").write_text("half")  # a killed writer's temporaries, and one of another's
+    (tmp_path / ".notes.ab12cd34.txt").write_text("not ours")
+    (tmp_path / ".best.new-q1").mkdir()
+    removed = remove_temporaries(tmp_path, lambda name: name == "model.zip", folders=("best",))
+    assert sorted(p.name for p in removed) == [".best.new-q1", ".model.ab12cd34.zip"]
+    assert (tmp_path / ".notes.ab12cd34.txt").exists()
