@@ -239,7 +239,7 @@ def test_ctrl_c_saves_a_checkpoint_and_says_how_to_resume(tmp_path):
     assert not (out / "summary.json").exists()
 
 
-def test_resume_of_a_finished_run_changes_nothing_and_overwrite_starts_empty(tmp_path):
+def test_resume_of_a_finished_run_changes_nothing_and_overwrite_replaces_only_the_run(tmp_path):
     out = tmp_path / "run"
     res = subprocess.run([*TRAIN, "--total-steps", "512", "--out", str(out), *SMALL], capture_output=True,
                          text=True, timeout=240)
@@ -249,11 +249,11 @@ def test_resume_of_a_finished_run_changes_nothing_and_overwrite_starts_empty(tmp
     assert res.returncode == 2 and "already finished" in res.stderr
     assert {p: p.read_bytes() for p in out.rglob("*") if p.is_file()} == files
     (out / "best" / "eval.json").write_text(json.dumps({"score": 99.0, "success_rate": 1.0}))  # a stale best
-    (out / "stale.txt").write_text("from the old run")
+    (out / "notes.txt").write_text("not written by the run")
     res = subprocess.run([*TRAIN, "--total-steps", "512", "--out", str(out), "--overwrite", *SMALL],
                          capture_output=True, text=True, timeout=240)
     assert res.returncode == 0, res.stderr[-2000:]
-    assert not (out / "stale.txt").exists()
+    assert (out / "notes.txt").read_text() == "not written by the run"  # --overwrite removes only the run's files
     best = json.loads((out / "best" / "eval.json").read_text())
     assert best["score"] < 99.0  # a new best was saved, not compared against the old run's
     summary = json.loads((out / "summary.json").read_text())

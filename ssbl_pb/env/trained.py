@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import pickle
 import zipfile
 from pathlib import Path
@@ -17,6 +18,7 @@ from .observation import BASE_SIZE, OBS_SIZE
 from .policies import Policy
 
 MODEL_FILES = ("model.zip", "best/model.zip")  # a run directory: its final model, else its best one
+STEP_STAMP = "ssbl_step"  # the model's step, recorded in the normalisation saved with it (training.callbacks)
 
 
 class ModelError(UserError):
@@ -42,9 +44,78 @@ def resolve_model(spec: str) -> tuple[Path, Path | None, dict[str, Any]]:
             raise ModelError(f"{model}: model file not found")
     folder = model.parent
     norm = folder / "vecnormalize.pkl"
-    cfg_file = folder / "config.yaml"
-    config = yaml.safe_load(cfg_file.read_text()) if cfg_file.is_file() else {}
-    return model, (norm if norm.is_file() else None), (config or {})
+    config = read_run_config(folder / "config.yaml")
+    check_model_set(model, norm if norm.is_file() else None)
+    return model, (norm if norm.is_file() else None), config
+
+
+def read_run_config(path: Path) -> dict[str, Any]:
+    """A model's ``config.yaml`` as a mapping (``{}`` when there is none); a corrupt one is a ``ModelError``."""
+    if not path.is_file():
+        return {}
+    try:
+        config = yaml.safe_load(path.read_text())
+    except (yaml.YAMLError, UnicodeDecodeError) as exc:
+        raise ModelError(f"{path}: not readable YAML ({' '.join(str(exc).split())})") from exc
+    if config is not None and not isinstance(config, dict):
+        raise ModelError(f"{path}: expected a mapping of training settings (tools/train_pb.py writes one), got a "
+                         f"{type(config).__name__}")
+    return config or {}
+
+
+def _model_step(model: Path) -> int | None:
+    """The step SB3 recorded in a model archive (``num_timesteps`` in its ``data``), None when unreadable."""
+    try:
+        with zipfile.ZipFile(model) as z:
+            step = json.loads(z.read("data"))["num_timesteps"]
+    except (OSError, KeyError, ValueError, TypeError, zipfile.BadZipFile):
+        return None
+    return step if isinstance(step, int) else None
+
+
+def _norm_step(norm: Path) -> int | None:
+    """The step the normalisation was saved at (``STEP_STAMP``; None for files saved before it was recorded)."""
+    try:
+        with open(norm, "rb") as fh:
+            step = vars(pickle.load(fh)).get(STEP_STAMP)  # vars: a VecNormalize without its venv recurses in getattr
+    except (OSError, EOFError, ValueError, TypeError, AttributeError, ImportError, pickle.UnpicklingError):
+        return None  # an unreadable file is reported when it is loaded
+    return step if isinstance(step, int) else None
+
+
+def check_model_set(model: Path, norm: Path | None) -> None:
+    """Refuse a model whose saved parts come from different moments (a training run killed while saving them):
+    the normalisation (``STEP_STAMP``) and ``eval.json`` beside the model must record the model's step, and a
+    model saved by training (a run directory, or its ``best/``) must have its normalisation beside it."""
+    folder = model.parent
+    by_training = (folder / "baselines.json").is_file() or (
+        folder.name == "best" and (folder.parent / "config.yaml").is_file())
+    if norm is None and by_training:
+        raise ModelError(f"{folder}: {model.name} has no vecnormalize.pkl beside it (a save was interrupted); "
+                         f"{_remedy(folder)}")
+    step = _model_step(model)
+    if step is None:
+        return
+    parts = {}
+    if norm is not None and (n := _norm_step(norm)) is not None:
+        parts[norm.name] = n
+    ev = folder / "eval.json"
+    if ev.is_file():
+        try:
+            parts[ev.name] = json.loads(ev.read_text()).get("step")
+        except (OSError, ValueError, AttributeError):
+            parts[ev.name] = None
+    wrong = {k: v for k, v in parts.items() if v != step}
+    if wrong:
+        other = ", ".join(f"{k} from step {v}" if v is not None else f"{k} unreadable" for k, v in wrong.items())
+        raise ModelError(f"{folder}: its parts disagree ({model.name} from step {step}, {other}): a save was "
+                         f"interrupted; {_remedy(folder)}")
+
+
+def _remedy(folder: Path) -> str:
+    if folder.name == "best":
+        return f"use the run's final model ({folder.parent}) or another checkpoint"
+    return f"finish the run with python tools/train_pb.py --resume {folder}"
 
 
 OBSERVATION_KEYS = ("waypoints", "waypoints_near_group")  # env arguments that change what a policy observes

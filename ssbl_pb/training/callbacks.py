@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+import shutil
 import time
 from collections import deque
 from pathlib import Path
@@ -14,8 +15,8 @@ import numpy as np
 from stable_baselines3.common.callbacks import BaseCallback
 
 from ..env.rollout import run_episode
-from ..env.trained import TrainedPolicy
-from ..files import atomic_write, write_text
+from ..env.trained import STEP_STAMP, TrainedPolicy
+from ..files import atomic_write_all, make_stage_dir, replace_dir, write_text
 
 
 class ProgressCallback(BaseCallback):
@@ -148,12 +149,20 @@ class EvalCheckpointCallback(BaseCallback):
         return True
 
     def save(self, folder: Path, ev: dict[str, float]) -> None:
-        """The best model so far; every file atomic, ``eval.json`` (the score the next best must beat) last."""
-        save_model(self.model, self.training_env, folder)
-        cfg = self.run_dir / "config.yaml"
-        if cfg.exists():
-            write_text(folder / "config.yaml", cfg.read_text())
-        write_text(folder / "eval.json", json.dumps(ev, indent=2))
+        """The best model so far, as one unit: model, normalisation, config and ``eval.json`` (the score the next
+        best must beat) are written into a temporary folder that then replaces ``folder`` (``files.replace_dir``),
+        so a kill leaves the old set or the new one, never parts of both."""
+        stage = make_stage_dir(folder.parent, f".{folder.name}.new-")
+        try:
+            save_model(self.model, self.training_env, stage)
+            cfg = self.run_dir / "config.yaml"
+            if cfg.exists():
+                write_text(stage / "config.yaml", cfg.read_text())
+            write_text(stage / "eval.json", json.dumps(ev, indent=2))
+            replace_dir(stage, folder)
+        finally:
+            if stage.exists():
+                shutil.rmtree(stage, ignore_errors=True)
 
     def checkpoint(self) -> None:
         save_checkpoint(self.model, self.training_env, self.run_dir)
@@ -161,10 +170,11 @@ class EvalCheckpointCallback(BaseCallback):
 
 def save_model(model: Any, vec_normalize: Any, folder: Path, stem: str = "model",
                norm_name: str = "vecnormalize.pkl") -> None:
-    """``folder/{stem}.zip`` and its normalisation, each written atomically (a kill never leaves half a file)."""
-    folder.mkdir(parents=True, exist_ok=True)
-    atomic_write(folder / f"{stem}.zip", lambda p: model.save(p))
-    atomic_write(folder / norm_name, lambda p: vec_normalize.save(str(p)))
+    """``folder/{stem}.zip`` and its normalisation, written together (``files.atomic_write_all``); the
+    normalisation carries the model's step (``STEP_STAMP``), so a pair from two saves is refused when loaded."""
+    setattr(vec_normalize, STEP_STAMP, int(model.num_timesteps))
+    atomic_write_all({folder / f"{stem}.zip": lambda p: model.save(p),
+                      folder / norm_name: lambda p: vec_normalize.save(str(p))})
 
 
 def save_checkpoint(model: Any, vec_normalize: Any, run_dir: Path) -> int:

@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import csv
-import os
 from pathlib import Path
 
 import numpy as np
+
+from ..files import atomic_write
 
 
 def ema(values: np.ndarray, alpha: float = 0.02) -> np.ndarray:
@@ -56,9 +57,7 @@ def plot_learning_curve(run_dir: Path, baselines: dict[str, float]) -> Path:
     ax2.set_xlabel("environment steps")
     ax2.legend(fontsize=8, loc="lower right")
     fig.tight_layout()
-    out = run_dir / "learning_curve.png"
-    tmp = run_dir / ".learning_curve.tmp.png"
-    fig.savefig(tmp, dpi=110)
-    plt.close(fig)
-    os.replace(tmp, out)
-    return out
+    try:
+        return atomic_write(run_dir / "learning_curve.png", lambda p: fig.savefig(p, dpi=110))
+    finally:
+        plt.close(fig)

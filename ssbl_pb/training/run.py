@@ -12,6 +12,7 @@ import pickle
 import shutil
 import sys
 import time
+import zipfile
 from pathlib import Path
 from typing import Any
 
@@ -19,13 +20,50 @@ import numpy as np
 
 from ..env.approach import make_env
 from ..errors import UserError
-from ..files import atomic_write, check_output_path, output_dir, write_text
+from ..files import check_output_path, output_dir, remove_temporaries, write_text
 from ..params import ConfigError
 from .config import TrainConfig, load_config, save_config
+
+# what a run directory holds: all that tools/train_pb.py writes there, and all --overwrite may remove
+RUN_ENTRIES = ("config.yaml", "baselines.json", "model.zip", "vecnormalize.pkl", "best", "checkpoints",
+               "learning_curve.csv", "learning_curve.png", "eval.csv", "tb", "summary.json")
+# what reading a saved model or normalisation raises when the file is corrupt or not one (not our bugs)
+LOAD_ERRORS = (OSError, EOFError, ValueError, KeyError, RuntimeError, ImportError, AttributeError,
+               pickle.UnpicklingError, zipfile.BadZipFile)
 
 
 class RunError(UserError):
     """A run directory cannot be used (no checkpoint, corrupt files); the message names the path."""
+
+
+def is_run_dir(path: Path) -> bool:
+    """``path`` holds a run of this tool: its ``config.yaml`` is a mapping of training settings."""
+    import yaml
+
+    try:
+        cfg = yaml.safe_load((path / "config.yaml").read_text())
+    except (OSError, ValueError, yaml.YAMLError):
+        return False
+    return isinstance(cfg, dict) and {"obs_mode", "ppo"} <= set(cfg)
+
+
+def remove_run(run_dir: Path) -> None:
+    """Remove what a run wrote into ``run_dir`` (``RUN_ENTRIES`` and temporaries), and nothing else."""
+    for name in RUN_ENTRIES:
+        p = run_dir / name
+        if p.is_dir() and not p.is_symlink():
+            shutil.rmtree(p)
+        elif p.exists() or p.is_symlink():
+            p.unlink()
+    clean_temporaries(run_dir)
+
+
+def clean_temporaries(run_dir: Path) -> None:
+    """Remove what a killed run left half-written: temporary files of its own names and ``best/``'s stages
+    (a ``best/`` caught between its two renames is put back)."""
+    remove_temporaries(run_dir, lambda name: name in RUN_ENTRIES, folders=("best",))
+    remove_temporaries(run_dir / "best", lambda name: name in RUN_ENTRIES + ("eval.json",))
+    remove_temporaries(run_dir / "checkpoints", lambda name: name == "latest.json" or name.startswith("ckpt_"))
 
 
 def _env_kwargs(cfg: TrainConfig) -> dict[str, Any]:
@@ -176,7 +214,7 @@ def _learn(cfg: TrainConfig, run_dir: Path, model: Any, venv: Any, resumed_from:
     """Train to ``cfg.total_steps``. Ctrl-C / SIGTERM stop at the next env step: a checkpoint is saved, the
     ``--resume`` command printed, and the signal re-raised (exit 130 / 143 through ``cli.run``)."""
     from ..cli import DeferredSignals
-    from .callbacks import StopOnSignal, save_checkpoint
+    from .callbacks import StopOnSignal, save_checkpoint, save_model
     from .curves import plot_learning_curve
 
     start_steps, t0 = model.num_timesteps, time.perf_counter()
@@ -194,8 +232,7 @@ def _learn(cfg: TrainConfig, run_dir: Path, model: Any, venv: Any, resumed_from:
                   file=sys.stderr)
             signals.raise_if_signalled()
         wall = time.perf_counter() - t0
-        atomic_write(run_dir / "model.zip", lambda p: model.save(p))
-        atomic_write(run_dir / "vecnormalize.pkl", lambda p: norm.save(str(p)))
+        save_model(model, norm, run_dir)  # model.zip and vecnormalize.pkl, stamped with the step
         baselines = json.loads((run_dir / "baselines.json").read_text())
         plot_learning_curve(run_dir, baselines)
         best = run_dir / "best" / "eval.json"
@@ -215,6 +252,9 @@ def check_new_run(cfg: TrainConfig, run_dir: Path, overwrite: bool = False, init
     if (run_dir / "config.yaml").exists() and not overwrite:
         raise RunError(f"{run_dir}: already holds a run; continue it with --resume {run_dir}, start it again with "
                        f"--overwrite, or choose another --out")
+    if overwrite and run_dir.is_dir() and any(run_dir.iterdir()) and not is_run_dir(run_dir):
+        raise RunError(f"--out {run_dir}: holds files but no training run (no config.yaml of tools/train_pb.py); "
+                       f"--overwrite replaces only a run directory: choose a new or empty folder")
     make_env(**_env_kwargs(cfg)).close()
     if init_from is not None:
         check_init_source(cfg, init_from)
@@ -242,29 +282,40 @@ def check_init_source(cfg: TrainConfig, source: Path) -> None:
 def train(cfg: TrainConfig, run_dir: Path, overwrite: bool = False, init_from: Path | None = None
           ) -> dict[str, Any]:
     """Start a new run in ``run_dir`` (refuses a directory that already holds a run unless ``overwrite``, which
-    empties it first).
+    first removes that run's files, ``RUN_ENTRIES``, and nothing else; a folder holding other files but no run is
+    refused).
 
     ``init_from`` (a run directory) starts from that run's final weights and normalisation instead of from
     scratch (fine-tuning, e.g. with other reward weights or scenarios); the step counter starts at 0.
-    The run is resumable from its first second: the initial state is checkpointed before training starts, and
-    if anything fails before that checkpoint exists, the run directory is removed again."""
+    The run is resumable from its first second: the model is built before anything is written, and its initial
+    state (checkpoint 0) is the first file, before ``config.yaml``, which makes the folder a run; if anything
+    fails while setting up, the run directory is removed again."""
     import torch
 
     from .callbacks import save_checkpoint
 
     check_new_run(cfg, run_dir, overwrite, init_from)
-    if overwrite and run_dir.is_dir():
-        shutil.rmtree(run_dir)
     torch.set_num_threads(cfg.torch_threads)
-    with output_dir(run_dir, "--out"):
-        save_config(cfg, run_dir / "config.yaml")
-        write_text(run_dir / "baselines.json", json.dumps(baseline_returns(cfg), indent=2))
-        venv = make_vec_env(cfg, cfg.seed)
+    venv = make_vec_env(cfg, cfg.seed)
+    try:
         model = build_model(cfg, venv, run_dir / "tb")
         if init_from is not None:
             venv = _init_from(model, venv, init_from)
-        save_checkpoint(model, venv, run_dir)
+        if overwrite and run_dir.is_dir():
+            remove_run(run_dir)
+        with output_dir(run_dir, "--out"):
+            save_checkpoint(model, venv, run_dir)
+            save_config(cfg, run_dir / "config.yaml")
+            write_baselines(cfg, run_dir)
+    except BaseException:
+        venv.close()
+        raise
     return _learn(cfg, run_dir, model, venv, None)
+
+
+def write_baselines(cfg: TrainConfig, run_dir: Path) -> None:
+    """``baselines.json``: the random and SFFM returns the learning curve is drawn against."""
+    write_text(run_dir / "baselines.json", json.dumps(baseline_returns(cfg), indent=2))
 
 
 def _init_from(model: Any, venv: Any, source: Path) -> Any:
@@ -274,20 +325,22 @@ def _init_from(model: Any, venv: Any, source: Path) -> Any:
     src_model, src_norm, _ = resolve_model(str(source))
     if src_norm is None:
         raise RunError(f"{source}: no vecnormalize.pkl to start from")
-    try:
-        params = _algo(load_config(source / "config.yaml")).load(str(src_model), device="cpu").get_parameters()
+    algo = _algo(load_config(source / "config.yaml"))
+    try:  # only reading the files: a failure after them is a bug and keeps its traceback
+        params = algo.load(str(src_model), device="cpu").get_parameters()
         with open(src_norm, "rb") as fh:
             new = pickle.load(fh)
-        inputs = (new.observation_space.shape, venv.venv.observation_space.shape)
-        policy = _match_action_head(params["policy"], model.policy.state_dict(), *widened(*inputs))
-        model.set_parameters({"policy": policy}, exact_match=False)
-        if widened(*inputs) != (0, 0):
-            _widen_normalisation(new, venv.venv)
-        new.set_venv(venv.venv)
-    except RunError:
-        raise
-    except Exception as exc:
-        raise RunError(f"{source}: cannot start from this run ({type(exc).__name__}: {exc})") from exc
+    except LOAD_ERRORS as exc:
+        raise RunError(f"--init-from {source}: cannot read its model ({type(exc).__name__}: {exc})") from exc
+    inputs = (new.observation_space.shape, venv.venv.observation_space.shape)
+    policy = _match_action_head(params["policy"], model.policy.state_dict(), *widened(*inputs))
+    model.set_parameters({"policy": policy}, exact_match=False)
+    if widened(*inputs) != (0, 0):
+        _widen_normalisation(new, venv.venv)
+    if new.observation_space != venv.venv.observation_space:
+        raise RunError(f"--init-from {source}: its observations are {new.observation_space}, this config's are "
+                       f"{venv.venv.observation_space}")
+    new.set_venv(venv.venv)
     new.training, new.norm_reward = True, venv.norm_reward
     model.set_env(new)
     return new
@@ -353,11 +406,15 @@ def latest_checkpoint(run_dir: Path) -> tuple[Path, Path, int]:
                        f"--overwrite --out {run_dir}")
     try:
         info = json.loads(latest.read_text())
-        model = run_dir / "checkpoints" / info["model"]
-        norm = model.with_name(model.stem + "_vecnormalize.pkl")
-        step = int(info["step"])
-    except (ValueError, KeyError) as exc:
+    except (OSError, ValueError) as exc:
         raise RunError(f"{latest}: unreadable checkpoint index ({exc})") from exc
+    name, step = (info.get("model"), info.get("step")) if isinstance(info, dict) else (None, None)
+    if not (isinstance(name, str) and name.endswith(".zip") and Path(name).name == name
+            and isinstance(step, int) and not isinstance(step, bool) and step >= 0):
+        raise RunError(f"{latest}: unreadable checkpoint index: expected {{\"step\": N, \"model\": "
+                       f"\"ckpt_N.zip\"}}, got {json.dumps(info)[:80]}")
+    model = run_dir / "checkpoints" / name
+    norm = model.with_name(model.stem + "_vecnormalize.pkl")
     for f in (model, norm):
         if not f.is_file():
             raise RunError(f"{run_dir}: checkpoint file missing: {f}")
@@ -369,26 +426,46 @@ def resume(run_dir: Path, total_steps: int | None = None) -> dict[str, Any]:
     import torch
     from stable_baselines3.common.vec_env import VecNormalize
 
+    from ..env.trained import STEP_STAMP
+
     if not (run_dir / "config.yaml").is_file():
         raise RunError(f"{run_dir}: not a run directory (no config.yaml)")
     cfg = load_config(run_dir / "config.yaml", {"total_steps": total_steps} if total_steps else None)
     model_path, norm_path, step = latest_checkpoint(run_dir)
-    if step >= cfg.total_steps and (run_dir / "summary.json").is_file():
+    if step >= cfg.total_steps and _finished_at(run_dir) == step:
         raise RunError(f"{run_dir}: already finished ({step} of {cfg.total_steps} steps); nothing changed. To train "
                        f"it longer: --resume {run_dir} --total-steps N with N > {step}")
     torch.set_num_threads(cfg.torch_threads)
-    _truncate_log(run_dir / "learning_curve.csv", step)
-    _truncate_log(run_dir / "eval.csv", step)
     venv = make_vec_env(cfg, cfg.seed + step)
     try:
-        venv = VecNormalize.load(str(norm_path), venv.venv)
-        model = _algo(cfg).load(str(model_path), env=venv, device=cfg.device, tensorboard_log=str(run_dir / "tb"))
-    except Exception as exc:
+        try:
+            venv = VecNormalize.load(str(norm_path), venv.venv)
+            model = _algo(cfg).load(str(model_path), env=venv, device=cfg.device,
+                                    tensorboard_log=str(run_dir / "tb"))
+        except LOAD_ERRORS as exc:
+            raise RunError(f"{model_path}: cannot load the checkpoint ({type(exc).__name__}: {exc})") from exc
+        stamp = vars(venv).get(STEP_STAMP, step)  # checkpoints saved before the stamp have none
+        if model.num_timesteps != step or stamp != step:
+            raise RunError(f"{model_path}: holds {model.num_timesteps} steps, its normalisation {stamp}, its index "
+                           f"says {step}")
+        clean_temporaries(run_dir)
+        _truncate_log(run_dir / "learning_curve.csv", step)
+        _truncate_log(run_dir / "eval.csv", step)
+        if not (run_dir / "baselines.json").is_file():  # killed while setting up
+            write_baselines(cfg, run_dir)
+    except BaseException:
         venv.close()
-        raise RunError(f"{model_path}: cannot load the checkpoint ({type(exc).__name__}: {exc})") from exc
-    if model.num_timesteps != step:
-        raise RunError(f"{model_path}: holds {model.num_timesteps} steps, its index says {step}")
+        raise
     return _learn(cfg, run_dir, model, venv, step)
+
+
+def _finished_at(run_dir: Path) -> int | None:
+    """The step ``summary.json`` records the run finished at (None: not finished, or unreadable)."""
+    try:
+        steps = json.loads((run_dir / "summary.json").read_text())["steps"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    return steps if isinstance(steps, int) else None
 
 
 def _truncate_log(path: Path, step: int) -> None:
