@@ -201,7 +201,7 @@ def test_checkpoint_round_trip_and_checks(tmp_path: Path) -> None:
 def test_train_ae_tool_writes_checkpoint_and_figures(tmp_path: Path) -> None:
     from tests.test_contracts import run_tool
 
-    data = moving_square(4, 12, size=64)
+    data = moving_square(10, 12, size=64)
     save_frames(tmp_path / "f.npz", data)
     args = ["--frames", str(tmp_path / "f.npz"), "--arch", "saev", "--steps", "3", "--batch", "4", "--threads", "1",
             "--snapshot-every", "2"]
@@ -229,7 +229,7 @@ def test_interrupted_train_ae_keeps_its_snapshots(tmp_path: Path) -> None:
 
     from tests.test_contracts import ROOT
 
-    save_frames(tmp_path / "f.npz", moving_square(4, 12, size=64))
+    save_frames(tmp_path / "f.npz", moving_square(10, 12, size=64))
     out = tmp_path / "runs" / "ae"
     proc = subprocess.Popen([sys.executable, str(ROOT / "tools" / "train_ae.py"), "--frames", str(tmp_path / "f.npz"),
                              "--arch", "saev", "--steps", "100000", "--batch", "2", "--snapshot-every", "250",
@@ -242,5 +242,73 @@ def test_interrupted_train_ae_keeps_its_snapshots(tmp_path: Path) -> None:
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == 143, err
     assert "snapshots kept" in err and not (out / "encoder.pt").exists()
+    assert f"continue with: python tools/train_ae.py --frames {tmp_path / 'f.npz'} --arch saev" in err
+    assert f"--resume {out / 'snapshots'}/encoder_step" in err
     assert load_autoencoder(first, "saev", "cpu", 64).feature_dim == 48
     assert not [p for p in (out / "snapshots").iterdir() if p.name.startswith(".")]  # no temporary file left
+
+
+def _tool(argv: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, list[str]]:
+    """``tools/train_ae.py`` in this process under ``cli.run``: (exit code, non-empty stderr lines)."""
+    from tests.test_training_safety import exit_code
+
+    return exit_code("train_ae.py", argv, capsys)
+
+
+def test_too_few_episodes_to_hold_one_out_is_an_error_naming_how_many(tmp_path: Path, capsys) -> None:
+    with pytest.raises(UserError, match=r"hold 4 episode\(s\) .* none is held out .* collect at least 10 episodes"):
+        split_centres(np.repeat(np.arange(4), 5), 10)
+    with pytest.warns(UserWarning, match="validating on the training episodes"):  # library callers: a warning
+        train, val = split_centres(np.repeat(np.arange(4), 5), 10, strict=False)
+    assert np.array_equal(train, val)
+    save_frames(tmp_path / "f.npz", moving_square(4, 5, size=64))
+    code, err = _tool(["--frames", str(tmp_path / "f.npz"), "--arch", "saev", "--out", str(tmp_path / "ae")], capsys)
+    assert code == 2 and len(err) == 1 and "f.npz: the frames hold 4 episode(s)" in err[0], err
+    assert not (tmp_path / "ae").exists()
+
+
+def test_a_truncated_frames_file_is_one_line(tmp_path: Path, capsys) -> None:
+    whole = save_frames(tmp_path / "f.npz", moving_square(10, 5, size=64)).read_bytes()
+    for name, data in (("cut.npz", whole[: len(whole) // 2]), ("tail.npz", whole[:-40])):
+        (tmp_path / name).write_bytes(data)
+        code, err = _tool(["--frames", str(tmp_path / name), "--arch", "saev", "--out", str(tmp_path / "ae")],
+                          capsys)
+        assert code == 2 and len(err) == 1 and f"--frames {tmp_path / name}: not a readable .npz" in err[0], err
+    assert not (tmp_path / "ae").exists()
+
+
+def test_resume_errors_name_the_flag_and_come_before_any_work(tmp_path: Path, capsys) -> None:
+    import dataclasses
+
+    save_frames(tmp_path / "f.npz", moving_square(10, 5, size=64))
+    params = AETrainParams(steps=20, batch=4, eval_every=2)
+    state = {"step": 2, "params": {k: getattr(params, k) for k in ("batch", "lr", "eval_every", "val_every_episode",
+                                                                  "seed")},
+             "frames": 50, "weights": dataclasses.asdict(LossWeights())}
+    snap = save_checkpoint(tmp_path / "snap.pt", A.build("saev", "cpu"), {"step": 2, "resume": state})
+    (tmp_path / "cut.pt").write_bytes(snap.read_bytes()[:200])
+    args = ["--frames", str(tmp_path / "f.npz"), "--arch", "saev", "--steps", "20", "--batch", "4",
+            "--out", str(tmp_path / "ae")]
+    for resume, expect in ((snap, "lr is 0.001, this run's is 0.01"), (tmp_path / "cut.pt", "unreadable")):
+        code, err = _tool([*args, "--lr", "0.01", "--resume", str(resume)], capsys)
+        assert code == 2 and len(err) == 1 and err[0].startswith(f"error: --resume {resume}: {expect}"), err
+    assert not (tmp_path / "ae").exists()
+
+
+def test_ctrl_c_keeps_the_snapshots_and_prints_the_resume_command(tmp_path: Path, capsys, monkeypatch) -> None:
+    import ssbl_pb.perception.ae_train as T
+
+    def interrupted(data, arch, size, params, progress=None, on_eval=None, resume=None):
+        on_eval(params.eval_every, A.build(arch, size).eval(), {})
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(T, "train_autoencoder", interrupted)
+    save_frames(tmp_path / "f.npz", moving_square(10, 5, size=64))
+    out = tmp_path / "ae"
+    code, err = _tool(["--frames", str(tmp_path / "f.npz"), "--arch", "saev", "--steps", "20", "--snapshot-every",
+                       "2", "--out", str(out)], capsys)
+    assert code == 130, err
+    snap = out / "snapshots" / "encoder_step2.pt"
+    assert snap.is_file() and not (out / "encoder.pt").exists()
+    assert (f"continue with: python tools/train_ae.py --frames {tmp_path / 'f.npz'} --arch saev --steps 20 "
+            f"--snapshot-every 2 --out {out} --resume {snap}") in err[0], err

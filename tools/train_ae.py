@@ -19,9 +19,11 @@ from __future__ import annotations
 
 import shutil
 import sys
+import zipfile
+import zlib
 from pathlib import Path
 
-from ssbl_pb.cli import ArgumentParser, run
+from ssbl_pb.cli import ArgumentParser, command_line, run
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -53,11 +55,11 @@ def main(argv: list[str] | None = None) -> int:
 
     from ssbl_pb.errors import UserError
     from ssbl_pb.perception.ae_losses import LossWeights
-    from ssbl_pb.perception.ae_train import AETrainParams
+    from ssbl_pb.perception.ae_train import AETrainParams, resume_state, split_centres
     from ssbl_pb.perception.autoencoders import build, get_size
-    from ssbl_pb.perception.frames import load_frames
+    from ssbl_pb.perception.frames import FramesError, load_frames
 
-    build(args.arch, args.size)  # unknown arch / size: exit 2 before reading anything
+    model_size = build(args.arch, args.size).size.name  # unknown arch / size: exit 2 before reading anything
     params = AETrainParams(steps=args.steps, batch=args.batch, lr=args.lr, seed=args.seed,
                            eval_every=max(1, min(250, args.steps // 10)),
                            weights=LossWeights() if args.smoothness_weight is None
@@ -65,12 +67,22 @@ def main(argv: list[str] | None = None) -> int:
     if args.snapshot_every < 0 or args.snapshot_every % params.eval_every:
         raise UserError(f"--snapshot-every {args.snapshot_every}: expected 0 or a multiple of the evaluation "
                         f"interval {params.eval_every}")
-    if args.resume:  # a missing or foreign snapshot fails before any folder is made
+    if args.resume:  # a missing or foreign snapshot fails before the frames are read
         from ssbl_pb.perception.ae_train import checkpoint_info
 
-        if "resume" not in checkpoint_info(args.resume)["extra"]:
+        if "resume" not in checkpoint_info(args.resume, "--resume")["extra"]:
             raise UserError(f"--resume {args.resume}: holds no training state (a snapshot of --snapshot-every does)")
-    data = load_frames(args.frames, get_size(args.size).input_size)
+    try:
+        data = load_frames(args.frames, get_size(args.size).input_size)
+    except (zipfile.BadZipFile, EOFError, zlib.error) as exc:  # a truncated or damaged archive
+        raise FramesError(f"--frames {args.frames}: not a readable .npz ({exc})") from exc
+    try:  # enough episodes to hold some out for validation
+        split_centres(data["episode"], params.val_every_episode)
+    except UserError as exc:
+        raise FramesError(f"--frames {args.frames}: {exc}") from exc
+    resumed_at = 0
+    if args.resume:  # the snapshot continues this run (settings, frames): checked before any output
+        resumed_at = int(resume_state(args.resume, args.arch, model_size, params, len(data["frames"]))["step"])
 
     import torch
 
@@ -90,9 +102,7 @@ def main(argv: list[str] | None = None) -> int:
                     snapshots.append(save_checkpoint(out / "snapshots" / f"encoder_step{step}.pt", model,
                                                      {"step": step, "resume": state}))
 
-            bar = make_bar(params.steps, f"train {args.arch}", "step")
-            if args.resume:
-                bar.update(int(checkpoint_info(args.resume)["extra"].get("step", 0)))
+            bar = make_bar(params.steps, f"train {args.arch}", "step", initial=resumed_at)
             try:
                 model, history = train_autoencoder(data, args.arch, args.size, params, bar, on_eval=snapshot,
                                                    resume=args.resume)
@@ -103,8 +113,8 @@ def main(argv: list[str] | None = None) -> int:
                                                                 "smoothness_weight": params.weights.smoothness})
     except BaseException:
         if snapshots:
-            print(f"snapshots kept: {snapshots[-1].parent} (last {snapshots[-1].name}); no encoder.pt",
-                  file=sys.stderr)
+            print(f"snapshots kept: {snapshots[-1].parent} (last {snapshots[-1].name}); no encoder.pt; continue "
+                  f"with: {resume_command(argv, snapshots[-1])}", file=sys.stderr)
         elif created:
             shutil.rmtree(args.out, ignore_errors=True)
         raise
@@ -112,6 +122,19 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{args.arch} ({args.size}) {params.steps} steps in {summary['train_seconds']:.0f} s: validation "
           f"reconstruction {last['reconstruction']:.4f} -> {args.out}/encoder.pt")
     return 0
+
+
+def resume_command(argv: list[str] | None, snapshot: Path) -> str:
+    """This command line with ``--resume SNAPSHOT`` in place of any ``--resume`` it had."""
+    args, out, skip = list(sys.argv[1:] if argv is None else argv), [], False
+    for a in args:
+        if skip:
+            skip = False
+        elif a == "--resume":
+            skip = True
+        elif not a.startswith("--resume="):
+            out.append(a)
+    return command_line("tools/train_ae.py", [*out, "--resume", str(snapshot)])
 
 
 if __name__ == "__main__":

@@ -10,16 +10,20 @@ from typing import Any
 import numpy as np
 
 from ..analysis.video import save_png
+from ..errors import UserError
 from ..files import write_json, write_text
 from .ae_plots import keypoint_overlay, plot_losses, reconstructions
 from .ae_train import save_checkpoint, split_centres
 from .autoencoders import SAEV, Autoencoder
-from .frames import frames_hfov
+from .frames import frames_hfov, triplet_centres
 
 
 def example_frames(data: dict[str, np.ndarray], n: int = 6) -> np.ndarray:
     """``n`` held-out frames with the most members in view (spread over the validation episodes)."""
-    _, val = split_centres(data["episode"], 10)
+    try:
+        _, val = split_centres(data["episode"], 10)
+    except UserError:  # too few episodes to hold any out (a smoke run): show any
+        val = triplet_centres(data["episode"])
     visible = np.isfinite(data["members_px"][val, :, 0]).sum(axis=1)
     order = val[np.argsort(-visible, kind="stable")]
     picked: list[int] = []

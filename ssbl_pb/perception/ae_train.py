@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
+import warnings
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -51,11 +52,22 @@ class AETrainParams:
             raise UserError(f"--lr {self.lr!r}: expected a number in (0, 1)")
 
 
-def split_centres(episode: np.ndarray, every: int) -> tuple[np.ndarray, np.ndarray]:
-    """Triplet centres of the training and the validation episodes (episode number divisible by ``every``)."""
+def split_centres(episode: np.ndarray, every: int, strict: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """Triplet centres of the training and the validation episodes (every ``every``-th episode: numbers
+    ``every - 1``, ``2 every - 1``, ...). Too few episodes to hold one out (or to keep one for training) is a
+    ``UserError`` naming how many are needed; with ``strict=False`` a warning, and validation on the training
+    episodes."""
     c = triplet_centres(episode)
     val = (np.asarray(episode)[c] % every) == every - 1
-    if val.all() or not val.any():  # too few episodes to hold any out: validate on the training set
+    if val.all() or not val.any():
+        n = len(np.unique(np.asarray(episode)[c]))
+        what = "none is held out for validation" if not val.any() else "all are held out for validation"
+        msg = (f"the frames hold {n} episode(s) of three or more frames and {what} (one episode in {every}, "
+               f"numbers {every - 1}, {2 * every - 1}, ...): collect at least {every} episodes "
+               f"(tools/collect_frames.py --episodes {every})")
+        if strict:
+            raise UserError(msg)
+        warnings.warn(msg + "; validating on the training episodes instead", UserWarning, stacklevel=2)
         return c, c
     return c[~val], c[val]
 
@@ -104,15 +116,16 @@ def train_autoencoder(data: dict[str, np.ndarray], arch: str, size: str | AESize
         raise UserError(f"frames are {data['frames'].shape[1]}x{data['frames'].shape[1]}, the {model.size.name} "
                         f"encoder takes {s}x{s}")
     frames = torch.from_numpy(np.ascontiguousarray(data["frames"]))
-    train_c, val_c = split_centres(data["episode"], params.val_every_episode)
-    if len(train_c) == 0:
+    if len(triplet_centres(data["episode"])) == 0:
         raise UserError("the frames hold no triplet of consecutive frames of one episode")
+    # tools/train_ae.py refuses too few episodes up front (split_centres); callers here get a warning
+    train_c, val_c = split_centres(data["episode"], params.val_every_episode, strict=False)
     val_c = rng.permutation(val_c)[:max_val]
     opt = torch.optim.Adam(model.parameters(), lr=params.lr)
     history: list[dict[str, float]] = []
     start, offset = 1, 0.0
     if resume is not None:
-        state = _resume_state(resume, model, params, len(frames))
+        state = resume_state(resume, model.arch, model.size.name, params, len(frames))
         model.load_state_dict(read_checkpoint(resume)["state_dict"])
         opt.load_state_dict(state["optimizer"])
         rng.bit_generator.state = state["numpy_rng"]
@@ -152,14 +165,15 @@ def train_autoencoder(data: dict[str, np.ndarray], arch: str, size: str | AESize
     return model.eval(), history
 
 
-def _resume_state(path: str | Path, model: Autoencoder, params: AETrainParams, n_frames: int) -> dict[str, Any]:
-    """A snapshot's resume state, checked against the run it is to continue."""
-    blob = read_checkpoint(path)
+def resume_state(path: str | Path, arch: str, size: str, params: AETrainParams, n_frames: int) -> dict[str, Any]:
+    """A snapshot's resume state, checked against the run it is to continue (``arch``, ``size`` name, settings,
+    number of frames); errors name ``--resume``. Cheap: tools check it before any work or output."""
+    blob = read_checkpoint(path, "--resume")
     state = blob["extra"].get("resume")
     if not isinstance(state, dict):
         raise CheckpointError(f"--resume {path}: holds no training state (tools/train_ae.py --snapshot-every "
                               f"writes snapshots that do)")
-    for what, have, want in (("architecture", blob["arch"], model.arch), ("size", blob["size"], model.size.name),
+    for what, have, want in (("architecture", blob["arch"], arch), ("size", blob["size"], size),
                              ("number of frames", state.get("frames"), n_frames),
                              ("loss weights", state.get("weights", dataclasses.asdict(LossWeights())),
                               dataclasses.asdict(params.weights)),
@@ -180,16 +194,17 @@ def save_checkpoint(path: str | Path, model: Autoencoder, extra: dict[str, Any] 
     return atomic_write(path, lambda tmp: torch.save(blob, tmp))
 
 
-def read_checkpoint(path: str | Path) -> dict[str, Any]:
+def read_checkpoint(path: str | Path, flag: str = "encoder checkpoint") -> dict[str, Any]:
+    """A checkpoint's contents; errors start with ``flag`` and the path (e.g. ``--resume FILE: ...``)."""
     path = Path(path)
     if not path.is_file():
-        raise CheckpointError(f"encoder checkpoint {path}: file not found (tools/train_ae.py writes one)")
+        raise CheckpointError(f"{flag} {path}: file not found (tools/train_ae.py writes one)")
     try:
         blob = torch.load(path, map_location="cpu", weights_only=True)
     except Exception as exc:  # a torch archive that is not ours, a truncated file, ...
-        raise CheckpointError(f"encoder checkpoint {path}: unreadable ({type(exc).__name__}: {exc})") from exc
+        raise CheckpointError(f"{flag} {path}: unreadable ({type(exc).__name__}: {exc})") from exc
     if not isinstance(blob, dict) or blob.get("format") != FORMAT or blob.get("arch") not in ARCHS:
-        raise CheckpointError(f"encoder checkpoint {path}: not an autoencoder checkpoint of tools/train_ae.py")
+        raise CheckpointError(f"{flag} {path}: not an autoencoder checkpoint of tools/train_ae.py")
     return blob
 
 
@@ -218,8 +233,8 @@ def load_autoencoder(path: str | Path, arch: str | None = None, size: str | None
     return model.eval()
 
 
-def checkpoint_info(path: str | Path) -> dict[str, Any]:
+def checkpoint_info(path: str | Path, flag: str = "encoder checkpoint") -> dict[str, Any]:
     """Architecture, size name, input resolution and extra metadata of a checkpoint (without building it)."""
-    blob = read_checkpoint(path)
+    blob = read_checkpoint(path, flag)
     return {k: blob[k] for k in ("arch", "size", "resolution", "extra")}
 
