@@ -87,6 +87,10 @@ def test_overwrite_refuses_a_folder_that_holds_no_run_and_deletes_nothing(tmp_pa
     empty = tmp_path / "empty"
     empty.mkdir()
     check_new_run(tiny_config(), empty, overwrite=True)  # an empty folder is fine
+    (empty / "checkpoints").mkdir()  # as is a run killed between its first checkpoint and its config.yaml
+    for name in ("ckpt_000000000.zip", "ckpt_000000000_vecnormalize.pkl", "latest.json"):
+        (empty / "checkpoints" / name).write_text("x")
+    check_new_run(tiny_config(), empty, overwrite=True)
 
 
 def test_overwrite_removes_what_a_run_wrote_and_nothing_else(tmp_path: Path) -> None:

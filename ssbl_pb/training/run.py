@@ -37,14 +37,22 @@ class RunError(UserError):
 
 
 def is_run_dir(path: Path) -> bool:
-    """``path`` holds a run of this tool: its ``config.yaml`` is a mapping of training settings."""
+    """``path`` holds a run of this tool: its ``config.yaml`` is a mapping of training settings, or it holds only
+    the first checkpoint (a run killed in the moment between that and its ``config.yaml``)."""
     import yaml
 
     try:
         cfg = yaml.safe_load((path / "config.yaml").read_text())
     except (OSError, ValueError, yaml.YAMLError):
-        return False
+        return _only_checkpoints(path)
     return isinstance(cfg, dict) and {"obs_mode", "ppo"} <= set(cfg)
+
+
+def _only_checkpoints(path: Path) -> bool:
+    ckpts = path / "checkpoints"
+    return ([p.name for p in path.iterdir()] == ["checkpoints"] and ckpts.is_dir()
+            and all(p.is_file() and (p.name.startswith(("ckpt_", ".ckpt_", ".latest.")) or p.name == "latest.json")
+                    for p in ckpts.iterdir()))
 
 
 def remove_run(run_dir: Path) -> None:
@@ -429,7 +437,9 @@ def resume(run_dir: Path, total_steps: int | None = None) -> dict[str, Any]:
     from ..env.trained import STEP_STAMP
 
     if not (run_dir / "config.yaml").is_file():
-        raise RunError(f"{run_dir}: not a run directory (no config.yaml)")
+        hint = "; it was killed as it was created: start it again with the same command" if (
+            run_dir.is_dir() and _only_checkpoints(run_dir)) else ""
+        raise RunError(f"{run_dir}: not a run directory (no config.yaml){hint}")
     cfg = load_config(run_dir / "config.yaml", {"total_steps": total_steps} if total_steps else None)
     model_path, norm_path, step = latest_checkpoint(run_dir)
     if step >= cfg.total_steps and _finished_at(run_dir) == step:
