@@ -73,6 +73,8 @@ def test_group_geometry_against_a_hand_computation():
     ("unknown_id", "member id(s) [9]"),
     ("columns", "expected finite rows [id, x, y, orientation]"),
     ("stamp", "has no frame in features.mat"),
+    ("text", "features.mat: not a readable .mat file (IndexError"),  # a text file named .mat (issue 39)
+    ("strings", "'features' frame 0 is not numeric"),
 ])
 def test_loader_rejects_malformed_files_naming_file_and_field(tmp_path, case, expect):
     frames, groups = [PAIR_AND_TRIO], [[[1, 2]]]
@@ -90,6 +92,13 @@ def test_loader_rejects_malformed_files_naming_file_and_field(tmp_path, case, ex
     folder = tmp_path / "ds"
     if case == "missing":
         folder.mkdir()
+    elif case == "text":
+        write_dataset(folder, frames, groups)
+        (folder / "features.mat").write_text("hello world this is text\n")
+    elif case == "strings":
+        write_dataset(folder, frames, groups)
+        savemat(folder / "features.mat", {"features": cells([np.array(["ab"], dtype=object)]),
+                                          "timestamp": np.array([[1]])})
     elif case == "columns":
         folder.mkdir()
         savemat(folder / "features.mat", {"features": cells([np.array(frames[0], dtype=float)]),

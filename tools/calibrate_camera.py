@@ -13,8 +13,8 @@ from pathlib import Path
 
 from ssbl_pb.calib import reports
 from ssbl_pb.calib.intrinsics import calibrate, leave_k_out, parse_board
-from ssbl_pb.cli import ArgumentParser, command_line, run
-from ssbl_pb.files import check_output_path
+from ssbl_pb.calib.io import check_outputs
+from ssbl_pb.cli import ArgumentParser, UserError, command_line, int_at_least, run
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -28,12 +28,15 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--zero-tangent", action="store_true", help="assume no tangential distortion")
     ap.add_argument("--outlier-factor", type=float, default=3.0,
                     help="reject images whose error exceeds this x the median (0: keep all; default 3)")
-    ap.add_argument("--min-images", type=int, default=5, help="fail below this many usable images")
-    ap.add_argument("--stability", type=int, default=0, metavar="K",
+    ap.add_argument("--min-images", type=int_at_least(1), default=5, help="fail below this many usable images")
+    ap.add_argument("--stability", type=int_at_least(0), default=0, metavar="K",
                     help="also refit with every K-subset left out and report the largest change")
     ap.add_argument("--name", default="pepper_camera_top", help="camera_name in the YAML")
     args = ap.parse_args(argv)
-    check_output_path(args.out, is_dir=False)
+    check_outputs(args.out, (".png", ".md"))
+    if args.stability and len(args.images) - args.stability < 3:  # known before any image is read
+        raise UserError(f"--stability {args.stability}: leaving {args.stability} out of {len(args.images)} images "
+                        f"keeps fewer than 3; give more images or a smaller K")
     board = parse_board(args.board)
     res = calibrate(args.images, board, args.square, fix_aspect=args.fix_aspect, zero_tangent=args.zero_tangent,
                     fix_k3=args.fix_k3, outlier_factor=args.outlier_factor, min_images=args.min_images,

@@ -23,10 +23,10 @@ from pathlib import Path
 
 from ssbl_pb.calib import groups
 from ssbl_pb.calib.fformations import load_datasets
-from ssbl_pb.calib.io import save_figure, write_yaml
+from ssbl_pb.calib.io import check_outputs, save_figure, write_yaml
 from ssbl_pb.cli import ArgumentParser, UserError, command_line, run
 from ssbl_pb.env.layouts import GroupModel, parse_group_data
-from ssbl_pb.files import check_output_path, write_text
+from ssbl_pb.files import write_text
 from ssbl_pb.params import SocialParams
 
 DEFAULT_DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "fformations"
@@ -44,7 +44,7 @@ def main(argv: list[str] | None = None) -> int:
         raise UserError(f"--per-size {args.per_size}: expected an integer >= 1")
     if args.out.suffix not in (".yaml", ".yml"):
         raise UserError(f"--out {args.out}: expected a .yaml file name (the figure and table go beside it)")
-    check_output_path(args.out, "--out", is_dir=False)
+    check_outputs(args.out, (".png", ".md"))
     datasets = load_datasets(args.data)
     content = groups.groups_yaml(datasets)
     data = parse_group_data(content, str(args.out))

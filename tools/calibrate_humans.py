@@ -13,9 +13,8 @@ from pathlib import Path
 
 from ssbl_pb.calib import reports
 from ssbl_pb.calib.humans import SCENES, fit_social, real_stats, sim_stats
-from ssbl_pb.calib.io import write_yaml
+from ssbl_pb.calib.io import check_outputs, write_yaml
 from ssbl_pb.cli import ArgumentParser, UserError, command_line, int_at_least, run
-from ssbl_pb.files import check_output_path
 from ssbl_pb.params import SocialParams, from_dict
 
 DEFAULT_DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "trajectories" / "eth_ucy_raw"
@@ -29,7 +28,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--episodes", type=int_at_least(1), default=40, help="simulated group episodes per parameter set")
     ap.add_argument("--seed", type=int, default=0)
     args = ap.parse_args(argv)
-    check_output_path(args.out, is_dir=False)
+    check_outputs(args.out, (".png", ".md"))
     if not args.data.is_dir():
         raise UserError(f"{args.data}: data folder not found (give --data)")
     real = real_stats(args.data, tuple(args.scenes))

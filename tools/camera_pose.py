@@ -13,6 +13,7 @@ from pathlib import Path
 
 from ssbl_pb.calib.extrinsics import pose_from_image
 from ssbl_pb.calib.intrinsics import parse_board, read_grey
+from ssbl_pb.calib.io import check_outputs
 from ssbl_pb.cli import ArgumentParser, run
 from ssbl_pb.perception.camera import PinholeCamera
 
@@ -28,6 +29,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--forward", type=float, help="camera_forward to record (m ahead of the base centre)")
     ap.add_argument("--out", type=Path, help="YAML to write (default: overwrite --camera)")
     args = ap.parse_args(argv)
+    check_outputs(args.out or args.camera, (), "--out" if args.out else "--camera (rewritten without --out)")
     cam = PinholeCamera.from_yaml(args.camera)
     if args.forward is not None:
         cam.forward = args.forward

@@ -11,10 +11,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ssbl_pb.calib.io import write_text, write_yaml
+from ssbl_pb.calib.io import check_outputs, write_text, write_yaml
 from ssbl_pb.calib.pointcloud import analyse, load_points, parse_up, scan_figure, scan_yaml
 from ssbl_pb.cli import ArgumentParser, command_line, run
-from ssbl_pb.files import check_output_path
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -26,7 +25,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--min-floor-share", type=float, default=0.02, help="smallest share of points for the floor")
     ap.add_argument("--seed", type=int, default=0)
     args = ap.parse_args(argv)
-    check_output_path(args.out, is_dir=False)
+    check_outputs(args.out, (".png", ".md"))
     up = parse_up(args.up)
     pts = load_points(args.scan)
     scan = analyse(pts, up, min_floor_share=args.min_floor_share, distance=args.distance, seed=args.seed,

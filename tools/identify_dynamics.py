@@ -15,7 +15,7 @@ from pathlib import Path
 from ssbl_pb.calib import reports
 from ssbl_pb.calib.dynamics import identify
 from ssbl_pb.calib.dynamics_log import excitation_plan, read_log, simulate_log, write_log
-from ssbl_pb.calib.io import write_yaml
+from ssbl_pb.calib.io import check_outputs, write_yaml
 from ssbl_pb.cli import ArgumentParser, command_line, run
 from ssbl_pb.params import RobotParams, from_dict, load_yaml
 
@@ -37,6 +37,7 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     command = command_line("tools/identify_dynamics.py", argv)
     if args.simulate:
+        check_outputs(args.log, (".truth.yaml",), "LOG")
         truth = RobotParams(latency_s=args.latency, time_constant_s=args.tau, max_accel=args.accel,
                             max_speed=args.speed, max_yaw_rate=0.8, max_yaw_accel=1.2)
         cmd = excitation_plan(truth, args.dt, args.seed)
@@ -47,13 +48,17 @@ def main(argv: list[str] | None = None) -> int:
                    header=f"{command}\ntrue parameters of the simulated log {args.log}")
         print(f"{args.log}: {len(t)} rows, {t[-1]:.1f} s")
         return 0
-    log = read_log(args.log)
-    res = identify(log, progress=True)
     out = args.out or args.log.with_suffix(".yaml")
+    check_outputs(out, (".png", ".md"), "--out" if args.out else "--out (default: LOG with .yaml)")
+    log = read_log(args.log)
+    truth = None
+    if args.truth:  # checked as RobotParams fields (numbers), before any work
+        truth = load_yaml(args.truth)
+        from_dict(RobotParams, truth, str(args.truth))
+    res = identify(log, progress=True)
+    params = from_dict(RobotParams, res.params, f"RobotParams identified from {args.log}")
     write_yaml(out, res.params, header=f"{command}\nRobotParams fields identified from {args.log}")
-    params = from_dict(RobotParams, res.params)
     reports.dynamics_figure(log, res, params, out.with_suffix(".png"))
-    truth = load_yaml(args.truth) if args.truth else None
     reports.write_markdown(out.with_suffix(".md"), reports.dynamics_markdown(log, res, command, truth))
     print(f"{out}: " + ", ".join(f"{k} {v:.4f}" for k, v in res.params.items()))
     for note in res.notes:

@@ -12,12 +12,12 @@ with its obstacles (scenarios ``@map``, the default with such a YAML). Exit code
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
-from ssbl_pb.calib.io import write_yaml
+from ssbl_pb.calib.io import check_outputs, write_yaml
 from ssbl_pb.calib.room_map import extract_room, read_map, room_figure, room_yaml
-from ssbl_pb.cli import ArgumentParser, run
-from ssbl_pb.files import check_output_path
+from ssbl_pb.cli import ArgumentParser, UserError, run
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -32,9 +32,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--size-from", choices=("bounds", "free"), default="bounds",
                     help="room_size from the wall-to-wall bounds or the largest furniture-free rectangle")
     args = ap.parse_args(argv)
-    check_output_path(args.out, is_dir=False)
+    check_outputs(args.out, (".png",))
     if args.region is None and args.seed is None:
         ap.error("give --region and/or --seed")
+    if not (math.isfinite(args.door_width) and args.door_width > 0):
+        raise UserError(f"--door-width {args.door_width}: expected a width in metres > 0")
     m = read_map(args.map)
     seed = tuple(args.seed) if args.seed else None
     region = tuple(args.region) if args.region else None

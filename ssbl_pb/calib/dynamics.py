@@ -168,6 +168,8 @@ def identify(log: DynamicsLog, axes: tuple[str, ...] = AXES, base: RobotParams |
     base = base or RobotParams()
     fits = {}
     notes = []
+    if not any(np.abs(log.cmd[:, AXES.index(ax)]).max() > 1e-9 for ax in axes):  # before any progress line
+        raise CalibrationError(f"{log.path}: no axis is ever commanded")
     it = axes
     if progress:
         from ..cli import progress as bar

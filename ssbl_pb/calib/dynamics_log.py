@@ -104,7 +104,7 @@ def read_log(path: str | Path) -> DynamicsLog:
     if bad.size:
         i = int(bad[0])
         raise CalibrationError(f"{path}: timestamps not strictly increasing at row {i + 3} "
-                               f"(t = {t[i + 1]!r} after {t[i]!r})")
+                               f"(t = {float(t[i + 1])!r} after {float(t[i])!r})")
     dt = np.diff(t)
     if dt.max() > 5 * np.median(dt):
         i = int(np.argmax(dt))

@@ -54,14 +54,13 @@ class Dataset:
 
 def _load(path: Path, keys: tuple[str, ...]) -> dict[str, Any]:
     from scipy.io import loadmat
-    from scipy.io.matlab import MatReadError
 
     if not path.is_file():
         raise CalibrationError(f"{path}: file not found (a dataset folder holds {FEATURES} and {GROUNDTRUTH})")
     try:
         data = loadmat(str(path))
-    except (MatReadError, ValueError, OSError) as exc:
-        raise CalibrationError(f"{path}: not a readable .mat file ({exc})") from exc
+    except Exception as exc:  # scipy's parser fails on foreign bytes in many ways (IndexError, zlib.error, ...)
+        raise CalibrationError(f"{path}: not a readable .mat file ({type(exc).__name__}: {exc})") from exc
     found = sorted(k for k in data if not k.startswith("__"))
     for key in keys:
         if key not in data:
@@ -110,7 +109,11 @@ def load_dataset(folder: str | Path, name: str | None = None) -> Dataset:
         if t not in index:
             raise CalibrationError(f"{gpath}: 'GTtimestamp' frame {k} ({t}) has no frame in {fpath.name} "
                                    f"'timestamp'")
-        r = np.asarray(frames[index[t]], dtype=float)
+        try:
+            r = np.asarray(frames[index[t]], dtype=float)
+        except (TypeError, ValueError):  # text, or ragged rows
+            raise CalibrationError(f"{fpath}: 'features' frame {index[t]} is not numeric; expected finite rows "
+                                   f"[id, x, y, orientation]") from None
         if r.size == 0:
             raise CalibrationError(f"{fpath}: 'features' frame {index[t]} (annotated frame {k}, time stamp {t}) "
                                    f"is empty; an annotated frame needs its people's positions")

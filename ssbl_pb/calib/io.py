@@ -6,17 +6,30 @@ or a bad input never leaves a half-written file behind.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 import yaml
 
-from ..files import atomic_write, write_text
+from ..files import atomic_write, check_output_path, write_text
 from ..params import ConfigError
 
 
 class CalibrationError(ConfigError):
     """Bad calibration input (a file, a field, too few usable samples); the message names the file."""
+
+
+def check_outputs(out: Path, beside: Sequence[str] = (), flag: str = "--out") -> None:
+    """Check, before any work, that ``out`` and the files written beside it (``out`` with each suffix of
+    ``beside``, e.g. ".png", ".md") can be written; ``UserError`` naming ``flag`` otherwise."""
+    check_output_path(out, flag, is_dir=False)
+    for suffix in beside:
+        side = out.with_suffix(suffix)
+        if side == out:
+            raise CalibrationError(f"{flag} {out}: the {suffix} file goes beside it with the same name; give "
+                                   f"another suffix (e.g. .yaml)")
+        check_output_path(side, f"{flag} {out}: its {suffix} file", is_dir=False)
 
 
 class _Dumper(yaml.SafeDumper):

@@ -13,9 +13,16 @@ the angle between the floor normal and the up axis, split into pitch (down +) an
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import math
+import os
+import re
+import sys
+import tempfile
+from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -36,20 +43,51 @@ def parse_up(text: str) -> np.ndarray:
     return v
 
 
-def load_points(path: str | Path) -> np.ndarray:
-    """Finite XYZ points (N, 3) from a PLY/PCD file; ``CalibrationError`` names the file."""
+def _open3d() -> Any:
+    """open3d with its log quiet: its warnings (and RPly's) would precede our one-line error."""
     import open3d as o3d
 
+    o3d.utility.set_verbosity_level(o3d.utility.VerbosityLevel.Error)
+    return o3d
+
+
+@contextlib.contextmanager
+def _captured_output() -> Iterator[list[str]]:
+    """What C code prints to stdout/stderr inside the block (RPly writes there directly), as lines of the list."""
+    lines: list[str] = []
+    for stream in (sys.stdout, sys.stderr):
+        stream.flush()
+    saved = [os.dup(1), os.dup(2)]
+    with tempfile.TemporaryFile() as tmp:
+        try:
+            os.dup2(tmp.fileno(), 1)
+            os.dup2(tmp.fileno(), 2)
+            yield lines
+        finally:
+            os.dup2(saved[0], 1)
+            os.dup2(saved[1], 2)
+            for fd in saved:
+                os.close(fd)
+            tmp.seek(0)
+            text = re.sub(r"\x1b\[[0-9;]*m", "", tmp.read().decode(errors="replace"))  # no colour codes
+            lines += [ln.strip() for ln in text.splitlines() if ln.strip()]
+
+
+def load_points(path: str | Path) -> np.ndarray:
+    """Finite XYZ points (N, 3) from a PLY/PCD file; ``CalibrationError`` names the file."""
     path = Path(path)
     if not path.is_file():
         raise CalibrationError(f"{path}: file not found")
     if path.suffix.lower() not in (".ply", ".pcd", ".xyz", ".pts"):
         raise CalibrationError(f"{path}: expected a .ply or .pcd point cloud")
-    pcd = o3d.io.read_point_cloud(str(path))
+    o3d = _open3d()
+    with _captured_output() as said:
+        pcd = o3d.io.read_point_cloud(str(path))
     pts = np.asarray(pcd.points)
     pts = pts[np.all(np.isfinite(pts), axis=1)]
     if len(pts) < 100:
-        raise CalibrationError(f"{path}: {len(pts)} finite points; not a readable scan")
+        why = f" ({'; '.join(said)})" if said else ""
+        raise CalibrationError(f"{path}: {len(pts)} finite points; not a readable scan{why}")
     return pts
 
 
@@ -81,8 +119,7 @@ class RoomScan:
 def find_planes(pts: np.ndarray, max_planes: int = 8, distance: float = 0.02, voxel: float = 0.03,
                 min_share: float = 0.01, seed: int = 0) -> list[tuple[np.ndarray, float, float, float]]:
     """Up to ``max_planes`` planes (normal, d, share of points, inlier RMS) by sequential RANSAC."""
-    import open3d as o3d
-
+    o3d = _open3d()
     o3d.utility.random.seed(seed)
     pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(pts))
     pcd = pcd.voxel_down_sample(voxel) if voxel > 0 else pcd

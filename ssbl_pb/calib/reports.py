@@ -114,7 +114,8 @@ def dynamics_markdown(log: DynamicsLog, res: DynamicsResult, command: str,
     for k, v in res.params.items():
         row = f"| {k} | {v:.4f} |"
         if truth and k in truth:
-            row += f" {truth[k]:.4f} | {100 * (v - truth[k]) / truth[k]:+.1f} % |"
+            err = f"{100 * (v - truth[k]) / truth[k]:+.1f} %" if truth[k] else f"{v - truth[k]:+.4f}"
+            row += f" {truth[k]:.4f} | {err} |"
         lines.append(row)
     if res.notes:
         lines += ["", "Notes:", ""] + [f"- {n}" for n in res.notes]
