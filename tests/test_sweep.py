@@ -184,6 +184,32 @@ def test_workers_exit_when_the_sweep_is_killed(tmp_path):
     assert _gone(worker)
 
 
+def test_ctrl_c_while_a_worker_starts_is_one_line_from_the_parent(tmp_path):
+    """Ctrl-C to the process group (as a terminal sends it) while a worker is still starting (importing): the
+    worker ignores it from its first instruction and is stopped; only the parent reports, in one line (issue 39)."""
+    marker = tmp_path / "importing"
+    script = tmp_path / "slow_start.py"
+    script.write_text(
+        "import sys, time\nfrom pathlib import Path\n"
+        f"sys.path.insert(0, {str(ROOT / 'tests')!r})\n"
+        "if __name__ == '__mp_main__':  # a spawned worker imports this file first: hold it there\n"
+        "    Path(sys.argv[1]).write_text('x')\n    time.sleep(60)\n"
+        "if __name__ == '__main__':\n"
+        "    import signal\n    signal.signal(signal.SIGINT, signal.default_int_handler)\n"
+        "    from test_sweep import Echo\n    from ssbl_pb.cli import run\n    from ssbl_pb.sweep import run_trials\n"
+        "    run(lambda argv: run_trials([Echo('a', 1.0)], Path(sys.argv[2]), workers=1) and 0)\n")
+    proc = subprocess.Popen([sys.executable, str(script), str(marker), str(tmp_path / "root")],
+                            start_new_session=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 60
+    while time.time() < deadline and not marker.exists() and proc.poll() is None:
+        time.sleep(0.05)
+    assert marker.exists(), proc.communicate()
+    os.killpg(proc.pid, signal.SIGINT)
+    out, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130 and err.splitlines() == ["interrupted (Ctrl-C)"], err
+    assert not list((tmp_path / "root").glob("trials/*/result.json"))
+
+
 # -- a real sweep: 2 configurations x 2 seeds of 1024 training steps, evaluated on 3 held-out episodes -------------
 def _sweep(cmd: list[str], trials: Path) -> dict:
     """Start the sweep, SIGKILL its process group once a trial has finished, start it again and run to the end."""

@@ -54,6 +54,18 @@ def evaluate(policy: str, seeds: range, label: str) -> dict[str, dict[str, float
     return results
 
 
+def stop_workers() -> None:
+    """End this process's children, the evaluation's pool workers: interrupted, a worker still loading the
+    staged policy would otherwise fail on its removed files and print tracebacks after the one-line exit."""
+    import multiprocessing as mp
+
+    children = mp.active_children()
+    for p in children:
+        p.terminate()
+    for p in children:
+        p.join(5.0)
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = ArgumentParser(description=__doc__)
     ap.add_argument("run", type=Path, help="training run directory")
@@ -105,6 +117,9 @@ def main(argv: list[str] | None = None) -> int:
             os.replace(dest, old)
         os.replace(stage, dest)
         shutil.rmtree(old, ignore_errors=True)
+    except BaseException:
+        stop_workers()  # before their staged policy goes
+        raise
     finally:
         shutil.rmtree(stage, ignore_errors=True)
     size = sum(f.stat().st_size for f in dest.iterdir()) / 1e6

@@ -9,13 +9,14 @@ the next run starts again.
 
 from __future__ import annotations
 
+import contextlib
 import multiprocessing as mp
 import os
 import signal
 import threading
 import time
 import traceback
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from multiprocessing.connection import Connection, wait
 from pathlib import Path
 from typing import Any
@@ -27,7 +28,14 @@ class _Worker:
     def __init__(self, ctx: Any) -> None:
         self.conn, child = ctx.Pipe()
         self.proc = ctx.Process(target=_serve, args=(child, os.getpid()), daemon=True)
-        self.proc.start()
+        try:
+            with _children_ignore_sigint():
+                self.proc.start()
+        except BaseException:  # a Ctrl-C held back during the start: this worker goes with the others
+            if self.proc.pid is not None:
+                self.proc.kill()
+                self.proc.join()
+            raise
         child.close()
         self.task: Trial | None = None
 
@@ -50,6 +58,23 @@ class _Worker:
             self.proc.kill()
             self.proc.join()
         self.conn.close()
+
+
+@contextlib.contextmanager
+def _children_ignore_sigint() -> Iterator[None]:
+    """Processes started inside ignore SIGINT from their first instruction (SIG_IGN survives exec), so a Ctrl-C
+    while a worker still imports prints no traceback there; only the parent reports it. A Ctrl-C meanwhile is
+    held (blocked, not lost) and reaches the parent as the block ends."""
+    if threading.current_thread() is not threading.main_thread():  # signals reach the main thread only
+        yield
+        return
+    signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})  # blocked first: a SIGINT now stays pending
+    old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, signal.SIG_DFL if old is None else old)
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
 
 
 def run_local(trials: Sequence[Trial], root: Path, workers: int,
@@ -100,7 +125,10 @@ def _serve(conn: Connection, parent: int) -> None:
     """A worker: run the trials the parent sends until it sends None (or goes away)."""
     for var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS"):  # one CPU per trial (torch reads these on import)
         os.environ[var] = "1"
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent handles Ctrl-C and stops its workers
+    # the parent handles Ctrl-C and stops its workers (ignored since the start, see _children_ignore_sigint,
+    # whose block this process need not keep)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
     # a session of its own: where the kernel groups CPU time by session (autogroup, on by default in many
     # distributions), N workers then get the share of N separate runs on a busy machine, not that of one
     os.setsid()
