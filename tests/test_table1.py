@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+import time
 from pathlib import Path
 
 import pytest
@@ -196,3 +197,82 @@ def test_encoders_must_have_learned_through_the_tables_camera(tmp_path: Path) ->
     with pytest.raises(UserError, match=r"--conv \S*nosuch.pt: file not found"):
         prepare_encoders(full, tmp_path, {"conv"}, {"conv": str(tmp_path / "nosuch.pt")})
     assert not (tmp_path / "frames.npz").exists()  # nothing trained or collected
+
+
+def _store(root: Path, trial, task: dict, finished: str = "2030-01-01T00:00:00") -> Path:
+    from ssbl_pb.sweep.runner import RESULT, _normal, trial_dir
+
+    path = trial_dir(root, trial.name) / RESULT
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps({"task": _normal(task), "result": _res(trial.row.label, trial.seed, -1.0),
+                                "finished": finished}))
+    return path
+
+
+def _saev(path: Path, seed: int) -> Path:
+    import torch
+
+    from ssbl_pb.perception import autoencoders as A
+    from ssbl_pb.perception.ae_train import save_checkpoint
+
+    torch.manual_seed(seed)
+    tiny = A.AESize("tiny", 24, (4, 6, 5), (3, 3, 3), 2, 12, (4, 4), 8, 6)
+    return save_checkpoint(path, A.build("saev", tiny).eval(), {"summary": {"camera_hfov_deg": 26.5}})
+
+
+def test_a_changed_reward_or_encoder_file_is_another_trial(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import hashlib
+
+    from ssbl_pb.analysis import table1
+    from ssbl_pb.errors import UserError
+    from ssbl_pb.sweep import finished
+
+    ckpt = _saev(tmp_path / "saev.pt", 0)
+    rows = [find_row("vector_ff"), find_row("cameraonly_saev_ff")]
+    trials = row_trials(rows, 1, BUDGETS["smoke"], {"saev": str(ckpt)})
+    vector, camera = (t.definition() for t in trials)
+    assert vector["reward"] == camera["reward"] == table1.table_reward()
+    assert table1.table_reward()["reward_ramp"] == table1._default_reward()["reward_ramp"]  # configs/vector_ff.yaml
+    assert camera["encoder_sha256"] == hashlib.sha256(ckpt.read_bytes()).hexdigest()
+    assert "encoder_sha256" not in vector
+    root = tmp_path / "table"
+    for t in trials:
+        _store(root, t, t.definition())
+    assert sorted(finished(root, trials)) == sorted(t.name for t in trials)
+    # configs/vector_ff.yaml edited: its reward is in every row's definition, so stored rows are not reused
+    monkeypatch.setattr(table1, "_default_reward", lambda: {"reward": {"w_smooth": 0.1}})
+    with pytest.raises(UserError, match=r"trial vector_ff,seed=0 was run with another definition \(reward changed"):
+        finished(root, row_trials(rows[:1], 1, BUDGETS["smoke"], {}))
+    monkeypatch.undo()
+    _saev(ckpt, 1)  # the same path, other weights
+    with pytest.raises(UserError, match=r"cameraonly_saev_ff,seed=0 was run with another definition "
+                                        r"\(encoder_sha256 changed"):
+        finished(root, row_trials(rows[1:], 1, BUDGETS["smoke"], {"saev": str(ckpt)}))
+
+
+def test_rows_stored_before_reward_and_hash_were_recorded_are_kept_if_their_run_agrees(tmp_path: Path) -> None:
+    import os
+
+    import yaml
+
+    from ssbl_pb.analysis.table1 import table_reward
+    from ssbl_pb.errors import UserError
+    from ssbl_pb.sweep import finished
+    from ssbl_pb.sweep.runner import trial_dir
+
+    ckpt = _saev(tmp_path / "saev.pt", 0)
+    rows = [find_row("vector_ff"), find_row("cameraonly_saev_ff")]
+    trials = row_trials(rows, 1, BUDGETS["smoke"], {"saev": str(ckpt)})
+    root = tmp_path / "table"
+    for t in trials:  # as written before this change: no reward, no hash
+        old = {k: v for k, v in t.definition().items() if k not in ("reward", "encoder_sha256")}
+        _store(root, t, old)
+        (trial_dir(root, t.name) / "config.yaml").write_text(yaml.safe_dump({"name": t.name, **table_reward()}))
+    assert sorted(finished(root, trials)) == sorted(t.name for t in trials)  # their runs trained this reward
+    os.utime(ckpt, (time.time(), time.mktime((2031, 1, 1, 0, 0, 0, 0, 0, -1))))  # modified after they finished
+    with pytest.raises(UserError, match="encoder_sha256 changed"):
+        finished(root, trials[1:])
+    (trial_dir(root, trials[0].name) / "config.yaml").write_text(
+        yaml.safe_dump({**table_reward(), "reward_ramp": {}}))  # a run that trained another reward
+    with pytest.raises(UserError, match="reward changed"):
+        finished(root, trials[:1])

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ssbl_pb.cli import ArgumentParser, command_line, run
+from ssbl_pb.cli import ArgumentParser, command_line, int_at_least, run
 from ssbl_pb.sweep.cli import add_run_options
 
 
@@ -47,14 +47,13 @@ def main(argv: list[str] | None = None) -> int:
                     help="low-pass of the camera rows' encoded features over each episode, the newest frame's "
                          f"weight in (0, 1] (default {TABLE_FEATURE_SMOOTHING:g}; 1: off, the paper's raw features; "
                          "docs/decisions.md, 'A low-pass on the encoded features')")
-    ap.add_argument("--threads", type=int, default=1, help="torch threads per trial (default 1)")
+    ap.add_argument("--threads", type=int_at_least(1), default=1, help="torch threads per trial (default 1)")
     add_run_options(ap)
     args = ap.parse_args(argv)
 
-    from ssbl_pb.analysis.table1 import find_row, get_budget
+    from ssbl_pb.analysis.table1 import check_given_encoders, find_row, get_budget
     from ssbl_pb.env.encoded import check_feature_smoothing
     from ssbl_pb.errors import UserError
-    from ssbl_pb.perception.ae_train import checkpoint_info
     from ssbl_pb.perception.frames import check_hfov
     from ssbl_pb.sweep.cli import TrialsRoot
 
@@ -65,9 +64,7 @@ def main(argv: list[str] | None = None) -> int:
     check_feature_smoothing(args.feature_smoothing, "--feature-smoothing")
     rows = [find_row(s) for s in args.rows.split(",")] if args.rows else list(ROWS)
     given = {"saev": args.saev, "conv": args.conv}
-    for arch, path in given.items():
-        if path and checkpoint_info(path)["arch"] != arch:
-            raise UserError(f"--{arch} {path}: holds a {checkpoint_info(path)['arch']} autoencoder, not {arch}")
+    check_given_encoders(given, args.camera_hfov)  # before --out exists
     where = TrialsRoot(args)
     where.connect()
 
@@ -77,7 +74,7 @@ def main(argv: list[str] | None = None) -> int:
     from ssbl_pb.analysis.table1_report import write_table
     from ssbl_pb.sweep import finished
 
-    torch.set_num_threads(max(1, args.threads))
+    torch.set_num_threads(args.threads)
     args.out.mkdir(parents=True, exist_ok=True)
     # stage 1 beside the trials: on a cluster, every node reads the encoders from there
     encoders = prepare_encoders(budget, where.path, {r.encoder for r in rows} & {"saev", "conv"}, given,

@@ -23,6 +23,8 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import hashlib
+import json
 import re
 import time
 from pathlib import Path
@@ -128,6 +130,38 @@ def percent(value: float, random: float, baseline: float) -> float:
 
 
 # -- stage 1: encoders ---------------------------------------------------------------------------------------
+def check_given_encoders(given: dict[str, str | None], camera_hfov_deg: float | None = None) -> None:
+    """Refuse, naming the flag (``--saev`` / ``--conv``), a given checkpoint that is missing, unreadable, of
+    another architecture or learned through another camera than ``camera_hfov_deg``: before any output exists."""
+    from ..env.encoded import encoder_hfov
+    from ..perception.ae_train import CheckpointError, checkpoint_info
+
+    for arch, path in given.items():
+        if not path:
+            continue
+        flag = f"--{arch} {path}"
+        try:
+            have = checkpoint_info(path)["arch"]
+            hfov = encoder_hfov(path)
+        except CheckpointError as exc:  # its message names the file as "encoder checkpoint PATH: ..."
+            text = str(exc).removeprefix(f"encoder checkpoint {path}: ")
+            raise UserError(f"{flag}: {text}") from None
+        if have != arch:
+            raise UserError(f"{flag}: holds a {have} autoencoder, not {arch}")
+        if camera_hfov_deg is not None and abs(hfov - camera_hfov_deg) > 1e-3:
+            raise UserError(f"{flag}: learned through a {hfov:g} deg camera, the table asks for --camera-hfov "
+                            f"{camera_hfov_deg:g} (give a matching encoder, or that --camera-hfov)")
+
+
+def file_sha256(path: str | Path) -> str:
+    """The SHA-256 of a file's bytes (an encoder checkpoint: a trial's result depends on its weights)."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
 def prepare_encoders(budget: Budget, out: Path, archs: set[str], given: dict[str, str | None], seed: int = 0,
                      progress: Any = None, camera_hfov_deg: float | None = None) -> dict[str, str]:
     """Checkpoint path per architecture in ``archs``: given ones as they are, else trained into
@@ -172,16 +206,27 @@ def _default_reward() -> dict[str, Any]:
     return {k: cfg[k] for k in ("reward", "reward_ramp", "reward_ramp_fraction") if k in cfg}
 
 
+def table_reward() -> dict[str, Any]:
+    """The reward every row trains with, resolved as the training config holds it (``reward``, ``reward_ramp``,
+    ``reward_ramp_fraction``, defaults filled in): what a trial's definition records and its run trains with."""
+    from ..training.config import load_config
+
+    cfg = load_config(None, _default_reward())
+    return json.loads(json.dumps({"reward": cfg.reward, "reward_ramp": cfg.reward_ramp,
+                                  "reward_ramp_fraction": cfg.reward_ramp_fraction}))
+
+
 def features_raw(row: Row) -> bool:
     """Whether a row's observation reaches the policy unstandardised: a frozen encoder's features do."""
     return row.encoder in ("conv", "saev")
 
 
-def row_config(row: Row, seed: int, budget: Budget, encoders: dict[str, str], feature_smoothing: float = 1.0
-               ) -> dict[str, Any]:
+def row_config(row: Row, seed: int, budget: Budget, encoders: dict[str, str], feature_smoothing: float = 1.0,
+               reward: dict[str, Any] | None = None) -> dict[str, Any]:
     """The training config (``training.config`` keys) of a row (``feature_smoothing``: the camera rows' low-pass
-    of the encoded features, ``env.encoded``; 1 = off)."""
-    cfg: dict[str, Any] = {**_default_reward(), "normalize_obs": not features_raw(row),
+    of the encoded features, ``env.encoded``; 1 = off; ``reward``: the reward keys, default ``_default_reward()``)."""
+    reward = _default_reward() if reward is None else reward
+    cfg: dict[str, Any] = {**reward, "normalize_obs": not features_raw(row),
         "name": f"{row.slug}_s{seed}", "obs_mode": row.obs_mode, "encoder": row.encoder, "policy": row.policy,
         "scenario": "default", "seed": seed, "n_envs": budget.n_envs, "safety_shield": False,
         "total_steps": budget.vector_steps if row.obs_mode == "vector" else budget.camera_steps,
@@ -218,13 +263,14 @@ def _column(path: Path, name: str) -> list[float]:
 
 
 def run_row(row: Row, seed: int, budget: Budget, run_dir: Path, encoders: dict[str, str] | None = None,
-            feature_smoothing: float = 1.0) -> dict[str, Any]:
-    """Train (into ``run_dir``, a normal run directory) and evaluate one row for one seed."""
+            feature_smoothing: float = 1.0, reward: dict[str, Any] | None = None) -> dict[str, Any]:
+    """Train (into ``run_dir``, a normal run directory) and evaluate one row for one seed (``reward``: the reward
+    keys, default ``_default_reward()``)."""
     t0 = time.perf_counter()
     if row.obs_mode == "random":
         from ..training.config import TrainConfig, load_config
 
-        cfg = load_config(None, row_config(BASELINE, seed, budget, {}))
+        cfg = load_config(None, row_config(BASELINE, seed, budget, {}, reward=reward))
         final = {**cfg.reward, **{k: v[1] for k, v in cfg.reward_ramp.items()}}  # as the evaluations
         evals = _test_episodes("random", budget.eval_episodes, TrainConfig.eval_seed, final)
         test = _test_episodes("random", budget.test_episodes)
@@ -233,7 +279,7 @@ def run_row(row: Row, seed: int, budget: Budget, run_dir: Path, encoders: dict[s
         from ..training.config import load_config
         from ..training.run import train
 
-        cfg = load_config(None, row_config(row, seed, budget, encoders or {}, feature_smoothing))
+        cfg = load_config(None, row_config(row, seed, budget, encoders or {}, feature_smoothing, reward))
         summary = train(cfg, run_dir, overwrite=True)
         returns = _column(run_dir / "learning_curve.csv", "return")
         evals = _column(run_dir / "eval.csv", "mean_return")
@@ -257,27 +303,62 @@ class RowTrial:
     encoders: tuple[tuple[str, str], ...] = ()  # (arch, checkpoint path) the camera rows use
     threads: int = 1  # torch threads in the trial's process (does not change what it computes)
     feature_smoothing: float = 1.0  # the camera rows' low-pass of the encoded features (1 = off)
+    reward: str = ""  # the reward trained with (``table_reward()``) as JSON; "" = read it when run
+    encoder_sha256: str = ""  # of the row's encoder checkpoint ("" = none, or not hashed)
 
     @property
     def name(self) -> str:
         return f"{self.row.slug},seed={self.seed}"
 
+    def _reward(self) -> dict[str, Any]:
+        return json.loads(self.reward) if self.reward else table_reward()
+
     def definition(self) -> dict[str, Any]:
+        """What the result depends on: a changed reward (configs/vector_ff.yaml) or encoder file is a new trial."""
         return {"kind": "table1_row", "row": self.row.label, "seed": self.seed,
                 "budget": dataclasses.asdict(self.budget), "encoder": dict(self.encoders).get(self.row.encoder),
-                "normalize_obs": not features_raw(self.row)} | (
+                "normalize_obs": not features_raw(self.row), "reward": self._reward()} | (
+                    {"encoder_sha256": self.encoder_sha256} if self.encoder_sha256 else {}) | (
                     {"feature_smoothing": self.feature_smoothing}
                     if self.feature_smoothing != 1.0 and features_raw(self.row) else {})
+
+    def upgrade(self, stored: dict[str, Any], record: dict[str, Any], trial_dir: Path) -> dict[str, Any]:
+        """A result stored before definitions held the reward and the encoder's hash, completed from what its run
+        left: the reward in its run's config.yaml, and this encoder's hash if the file is no newer than the
+        result (so an unchanged table keeps its finished rows; anything else runs again)."""
+        if "reward" in stored:
+            return stored
+        out = dict(stored)
+        if self.row.obs_mode == "random":
+            return out  # no run to read the reward from: it runs again (evaluations only, quick)
+        try:
+            from ..params import load_yaml
+
+            config = load_yaml(trial_dir / "config.yaml")
+        except UserError:
+            return out
+        out["reward"] = {k: config[k] for k in ("reward", "reward_ramp", "reward_ramp_fraction") if k in config}
+        encoder = stored.get("encoder")
+        if encoder and self.encoder_sha256:
+            finished = time.mktime(time.strptime(record.get("finished", "1970-01-01T00:00:00"), "%Y-%m-%dT%H:%M:%S"))
+            if Path(encoder).is_file() and Path(encoder).stat().st_mtime <= finished:
+                out["encoder_sha256"] = file_sha256(encoder)
+        return out
 
     def __call__(self, trial_dir: Path) -> dict[str, Any]:
         import torch
 
         torch.set_num_threads(max(1, self.threads))
-        return run_row(self.row, self.seed, self.budget, trial_dir, dict(self.encoders), self.feature_smoothing)
+        return run_row(self.row, self.seed, self.budget, trial_dir, dict(self.encoders), self.feature_smoothing,
+                       self._reward())
 
 
 def row_trials(rows: list[Row], seeds: int, budget: Budget, encoders: dict[str, str], threads: int = 1,
                feature_smoothing: float = 1.0) -> list[RowTrial]:
-    """Every row x seed ``0 .. seeds-1`` (seed-major: a seed's rows finish together, its percentages first)."""
+    """Every row x seed ``0 .. seeds-1`` (seed-major: a seed's rows finish together, its percentages first), each
+    defined by the reward read now and its encoder file's hash (where the file exists)."""
     enc = tuple(sorted(encoders.items()))
-    return [RowTrial(row, seed, budget, enc, threads, feature_smoothing) for seed in range(seeds) for row in rows]
+    reward = json.dumps(table_reward(), sort_keys=True)
+    hashes = {arch: file_sha256(path) for arch, path in encoders.items() if Path(path).is_file()}
+    return [RowTrial(row, seed, budget, enc, threads, feature_smoothing, reward, hashes.get(row.encoder, ""))
+            for seed in range(seeds) for row in rows]

@@ -4,7 +4,9 @@ A trial is any picklable object with a ``name`` (its folder: ``ROOT/trials/NAME/
 JSON-able dict of what its result depends on) and ``__call__(trial_dir) -> dict`` (does the work, returns a
 JSON-able dict of numbers). A trial is finished when ``ROOT/trials/NAME/result.json`` exists: running the same
 list again runs only the others, and an unfinished trial starts again from scratch, so a result never depends on
-when a run was interrupted. Each attempt's output goes to ``ROOT/logs/NAME.log``.
+when a run was interrupted. Each attempt's output goes to ``ROOT/logs/NAME.log``. A trial whose definition gained
+keys may have ``upgrade(stored, record, trial_dir) -> dict``: an older stored definition completed from what its
+run left, so results that still hold are kept.
 
     from ssbl_pb.sweep import run_trials
     outcome = run_trials(trials, Path("results/table1"), workers=2)            # local pool
@@ -90,9 +92,15 @@ def finished(root: Path, trials: Sequence[Trial]) -> dict[str, dict[str, Any]]:
             stored = record["task"]
         except (ValueError, KeyError, TypeError):
             continue  # unreadable: run the trial again
-        if stored != _normal(t.definition()):
-            raise UserError(f"{path}: trial {t.name} was run with another definition (the spec, its base config or "
-                            f"the evaluation changed since); use another --out, or remove {path.parent}")
+        current = _normal(t.definition())
+        if stored != current and hasattr(t, "upgrade"):
+            stored = _normal(t.upgrade(stored, record, trial_dir(root, t.name)))
+        if stored != current:
+            keys = set(stored) | set(current) if isinstance(stored, dict) else set(current)
+            changed = sorted(k for k in keys if not isinstance(stored, dict) or stored.get(k) != current.get(k))
+            raise UserError(f"{path}: trial {t.name} was run with another definition ({', '.join(changed)} changed "
+                            f"since: the spec, its base config, the evaluation, the reward or an encoder file); use "
+                            f"another --out, or remove {path.parent}")
         out[t.name] = record
     return out
 
