@@ -236,6 +236,14 @@ CASES = [
     C("evaluate.py", "--policy", "sffm", "--episodes", "2", "--out", "/proc/x", expect="--out /proc/x: "),
     C("train_ae.py", "--frames", "{file}", "--arch", "saev", "--resume", "{file}", "--out", "{out}",
       expect="a_file.txt: unreadable"),
+    # issue 39: calibration, Table I, sweeps
+    C("import_map.py", "{file}", "--seed", "0", "0", "--door-width", "-1", "--out", "{out}.yaml",
+      expect="--door-width -1.0: expected a width in metres > 0"),
+    C("table1.py", "--budget", "smoke", "--threads", "-3", "--out", "{out}", expect="argument --threads"),
+    C("table1.py", "--budget", "smoke", "--saev", "ssbl_pb/policies/camera_speed_saev/encoder.pt", "--out", "{out}",
+      expect="--saev ssbl_pb/policies/camera_speed_saev/encoder.pt: learned through a 56.3 deg camera"),
+    C("table1.py", "--budget", "smoke", "--saev", "{tmp}/none.pt", "--out", "{out}", expect="--saev "),
+    C("sweep.py", "{tmp}", "--out", "{out}", expect="is a directory, expected a YAML file"),
 ]
 
 

@@ -14,7 +14,7 @@ from scipy import stats
 
 from ..files import write_json, write_text
 
-__all__ = ["mean_ci", "summarize", "write_csv", "write_json", "plot_paths"]
+__all__ = ["mean_ci", "proportion_ci", "wilson_interval", "summarize", "write_csv", "write_json", "plot_paths"]
 
 SUMMARY_ALIASES = {"success_rate": "success", "collision_rate": "collision", "violation_rate": "violation",
                    "obstacle_collision_rate": "obstacle_collision", "mean_return": "return"}
@@ -33,10 +33,41 @@ def mean_ci(values: Sequence[float], level: float = 0.95) -> dict[str, float]:
     return {"mean": m, "ci_low": m - half, "ci_high": m + half, "n": n}
 
 
+def wilson_interval(p: float, n: float, level: float = 0.95) -> tuple[float, float]:
+    """Wilson score interval of a proportion ``p`` seen over ``n`` trials (``n`` may be an effective, fractional
+    count); unlike mean +- t * SE it stays inside [0, 1] and is not empty at 0 or 1 successes."""
+    z = float(stats.norm.ppf(0.5 + level / 2))
+    denom = 1.0 + z * z / n
+    centre = (p + z * z / (2 * n)) / denom
+    half = z * math.sqrt(max(p * (1 - p), 0.0) / n + z * z / (4 * n * n)) / denom
+    return (0.0 if p <= 0 else max(0.0, centre - half)), (1.0 if p >= 1 else min(1.0, centre + half))
+
+
+def proportion_ci(values: Sequence[float], per_value: int = 1, level: float = 0.95) -> dict[str, float]:
+    """Mean and Wilson interval of a proportion: ``values`` are 0/1 outcomes (``per_value`` 1, e.g. success per
+    episode) or rates each over ``per_value`` outcomes (a sweep's seeds, each evaluated on that many episodes).
+    Rates count as their pooled outcomes, or as fewer where the seeds disagree more than binomial noise
+    explains: as many as make the interval's spread the Student-t one over the seeds."""
+    v = np.asarray([x for x in values if x is not None and math.isfinite(x)], dtype=float)
+    n = len(v)
+    if n == 0:
+        return {"mean": float("nan"), "ci_low": float("nan"), "ci_high": float("nan"), "n": 0}
+    p = float(np.clip(v.mean(), 0.0, 1.0))
+    count = float(n * max(1, per_value))
+    if per_value > 1 and n > 1 and v.var(ddof=1) > 0 and 0 < p < 1:
+        t, z = stats.t.ppf(0.5 + level / 2, n - 1), stats.norm.ppf(0.5 + level / 2)
+        count = min(count, float(p * (1 - p) / (v.var(ddof=1) / n) * (z / t) ** 2))
+    low, high = wilson_interval(p, count, level)
+    return {"mean": p, "ci_low": low, "ci_high": high, "n": n}
+
+
 def summarize(rows: list[dict[str, float]], extra: dict[str, Any] | None = None) -> dict[str, Any]:
-    """Mean and 95 % CI of every metric; the headline keys (``success_rate``, ...) hold the means."""
+    """Mean and 95 % CI of every metric (Wilson for the 0/1 ones: success, collision, ...; Student t for the
+    others); the headline keys (``success_rate``, ...) hold the means."""
+    from ..env.metrics import METRICS
+
     keys = [k for k in rows[0] if k != "seed"]
-    per = {k: mean_ci([r[k] for r in rows]) for k in keys}
+    per = {k: (proportion_ci if METRICS.get(k, ("",))[0] == "0/1" else mean_ci)([r[k] for r in rows]) for k in keys}
     out: dict[str, Any] = dict(extra or {})
     out["episodes"] = len(rows)
     for alias, key in SUMMARY_ALIASES.items():

@@ -10,7 +10,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from ..analysis.report import mean_ci
+from ..analysis.report import mean_ci, proportion_ci
 from ..files import atomic_write, write_text
 from .spec import SweepSpec
 from .trial import METRICS, TrainEvalTrial
@@ -22,6 +22,7 @@ SHOWN = (("success_rate", "success %", 100, 1), ("mean_return", "return", 1, 2),
          ("mean_jerk", "jerk m/s^3", 1, 3), ("arrival_speed", "arrival m/s", 1, 3),
          ("outside_fov_time_s", "outside view s", 1, 2))
 PLOTTED = ("success_rate", "mean_return", "personal_zone_time_s", "mean_jerk")
+RATES = ("success_rate", "collision_rate", "violation_rate")  # proportions of episodes: Wilson intervals
 
 
 def rows(spec: SweepSpec, records: dict[str, dict[str, Any]]) -> list[dict[str, Any]]:
@@ -32,17 +33,21 @@ def rows(spec: SweepSpec, records: dict[str, dict[str, Any]]) -> list[dict[str, 
 def group_rows(groups: dict[str, dict[str, Any]], trials: Sequence[TrainEvalTrial],
                records: dict[str, dict[str, Any]]) -> list[dict[str, Any]]:
     """One dict per group (``groups``: name -> the columns that describe it) over the finished ``trials`` of each
-    (their ``group``): seeds finished and, per metric, the mean and 95 % CI over them."""
+    (their ``group``): seeds finished and, per metric, the mean and 95 % CI over them (rates: a Wilson interval
+    over the seeds' episodes, inside 0-1; ``analysis.report.proportion_ci``)."""
     out = []
     by_group: dict[str, list[dict[str, Any]]] = {}
+    episodes: dict[str, int] = {}
     for t in trials:
         if t.name in records:
             by_group.setdefault(t.group, []).append(records[t.name]["result"])
+            episodes[t.group] = t.evaluation.episodes
     for name, values in groups.items():
         results = by_group.get(name, [])
         row: dict[str, Any] = {"config": name, **values, "seeds": len(results)}
         for m in METRICS:
-            ci = mean_ci([r.get(m) for r in results])
+            seeds = [r.get(m) for r in results]
+            ci = proportion_ci(seeds, episodes.get(name, 1)) if m in RATES else mean_ci(seeds)
             row.update({f"{m}_mean": ci["mean"], f"{m}_ci_low": ci["ci_low"], f"{m}_ci_high": ci["ci_high"]})
         row["_per_seed"] = results
         out.append(row)
@@ -100,8 +105,10 @@ def markdown(spec: SweepSpec, table: list[dict[str, Any]], done: int, command: s
              f"- each trial: its {ev.model} model on {ev.episodes} held-out episodes (seeds {ev.seed}-"
              f"{ev.seed + ev.episodes - 1}, the same for every trial), scenario "
              f"{ev.scenario or 'as trained'}, default reward weights (returns comparable across configurations)",
-             "- cells: mean over seeds [95 % CI, Student t over seeds]; with few seeds the CI is wide, and "
-             "seed-to-seed variance is often as large as a setting's effect (docs/benchmarks.md)", "",
+             "- cells: mean over seeds [95 % CI: Student t over seeds; for the % of episodes a Wilson interval over "
+             "the seeds' episodes, as wide as the t interval where the seeds disagree more than chance, always in "
+             "0-100 %]; with few seeds the CI is wide, and seed-to-seed variance is often as large as a setting's "
+             "effect (docs/benchmarks.md)", "",
              "| config | seeds | " + " | ".join(h for _, h, _, _ in SHOWN) + " |",
              "|---|---|" + "---|" * len(SHOWN)]
     for r in table:
