@@ -148,6 +148,17 @@ def test_camera_stability_beyond_the_images_is_refused_before_reading_them(
                                    "images or a smaller K"]
 
 
+def test_camera_pose_names_the_camera_yaml_its_checks_refuse(tmp_path: Path,
+                                                             capfd: pytest.CaptureFixture[str]) -> None:
+    cam = tmp_path / "cam.yaml"
+    cam.write_text("image_width: 640\nimage_height: 480\ncamera_matrix: {rows: 3, cols: 3, data: [-500, 0, 320, 0, "
+                   "500, 240, 0, 0, 1]}\ndistortion_coefficients: {rows: 1, cols: 5, data: [0, 0, 0, 0, 0]}\n")
+    code, lines = exit_code("camera_pose", [str(tmp_path / "floor.png"), "--camera", str(cam), "--square", "0.1",
+                                            "--out", str(tmp_path / "posed.yaml")], capfd)
+    assert code == 2 and len(lines) == 1 and lines[0].startswith(f"error: --camera {cam}: "), lines
+    assert "fx=-500.0" in lines[0] and not (tmp_path / "posed.yaml").exists()
+
+
 def test_a_yaml_path_that_is_a_folder_says_so(tmp_path: Path) -> None:
     from ssbl_pb.params import ConfigError, load_yaml
 
