@@ -167,6 +167,11 @@ CASES = [
     C("bench_deploy.py", "--runs", "-1", "--out", "{out}", expect="argument --runs"),
     C("bench_deploy.py", "--policy", "nosuch", "--out", "{out}", expect="--policy 'nosuch'"),
     C("bench_deploy.py", "--groups", "round", "--out", "{out}", expect="argument --groups"),
+    # issue 39: a calibration file's own checks name the file
+    C("evaluate.py", "--policy", "sffm", "--camera-yaml", "tests/camera_specs/negative_height.yaml", "--out", "{out}",
+      expect="negative_height.yaml: camera pepper_camera_top: camera_height=-1.15 must be > 0"),
+    C("evaluate.py", "--policy", "sffm", "--room-yaml", "tests/room_specs/tiny.yaml", "--out", "{out}",
+      expect="tiny.yaml: world.room_size = (3.0, 3.0): expected each side >= 6.26 m"),
     # issue 39: deploy, the virtual Pepper, the watchdog, the deploy benchmark
     C("-m ssbl_pb.deploy", "--robot-ip", "127.0.0.1", "--map", "{file}", "--start-pose", "nan", "20", "0",
       "--log-dir", "{out}", expect="--start-pose nan 20 0: expected three finite numbers"),

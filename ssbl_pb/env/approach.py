@@ -106,8 +106,11 @@ def parse_env_params(scenario: str, world: Any, robot: Any, social: Any, reward:
     furniture_p = _params(FurnitureParams, furniture, "furniture")
     biggest = max(max(sc.sizes) for sc in mix.members)
     if "empty" in mix.rooms:  # a map room is checked by spawning in it (``BatchedApproach._check_map_room``)
-        world_p.check_fits(social_p)
-        WorldParams(**{**world_p.__dict__, "n_humans": biggest}).check_fits(social_p)
+        try:
+            world_p.check_fits(social_p)
+            WorldParams(**{**world_p.__dict__, "n_humans": biggest}).check_fits(social_p)
+        except ConfigError as exc:  # a room YAML's size: name the file
+            raise (ConfigError(f"{paths[0]}: {exc}") if len(paths) == 1 else exc) from None
     if "furnished" in mix.rooms:
         smallest = (furniture_p.size_min, furniture_p.size_min)
         try:

@@ -198,8 +198,11 @@ class PinholeCamera:
             w, h = int(data["image_width"]), int(data["image_height"])
         except (TypeError, ValueError) as exc:
             raise CalibrationError(f"{where}: image_width/image_height must be integers") from exc
-        return cls(width=w, height=h, K=K, dist=dist, name=str(data.get("camera_name", "camera")),
-                   extrinsics_calibrated="camera_height" in data, **kwargs)
+        try:
+            return cls(width=w, height=h, K=K, dist=dist, name=str(data.get("camera_name", "camera")),
+                       extrinsics_calibrated="camera_height" in data, **kwargs)
+        except CalibrationError as exc:  # the camera's own checks: name the file they read
+            raise CalibrationError(f"{where}: {exc}") from None
 
     def to_dict(self) -> dict[str, Any]:
         """The YAML mapping (ROS camera_info layout + extrinsics when calibrated)."""
