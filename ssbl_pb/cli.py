@@ -138,6 +138,23 @@ def die_with_parent(parent: int) -> None:
     threading.Thread(target=watch, daemon=True, name="die-with-parent").start()
 
 
+@contextlib.contextmanager
+def children_ignore_sigint() -> Iterator[None]:
+    """Processes started inside ignore SIGINT from their first instruction (SIG_IGN survives exec), so a Ctrl-C
+    while a worker still imports prints no traceback there; only the parent reports it. A Ctrl-C meanwhile is
+    held (blocked, not lost) and reaches the parent as the block ends."""
+    if threading.current_thread() is not threading.main_thread():  # signals reach the main thread only
+        yield
+        return
+    signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})  # blocked first: a SIGINT now stays pending
+    old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, signal.SIG_DFL if old is None else old)
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+
+
 class DeferredSignals:
     """Within ``with``: SIGINT/SIGTERM only set ``signum`` (code polls it and stops at a safe point); a second
     signal raises at once. On exit the previous handlers return. Outside the main thread (a Ray Tune trial runs

@@ -312,3 +312,12 @@ def test_ctrl_c_keeps_the_snapshots_and_prints_the_resume_command(tmp_path: Path
     assert snap.is_file() and not (out / "encoder.pt").exists()
     assert (f"continue with: python tools/train_ae.py --frames {tmp_path / 'f.npz'} --arch saev --steps 20 "
             f"--snapshot-every 2 --out {out} --resume {snap}") in err[0], err
+
+
+def test_load_frames_refuses_a_truncated_archive_for_every_caller(tmp_path: Path) -> None:
+    from ssbl_pb.perception.frames import FramesError, load_frames
+
+    whole = save_frames(tmp_path / "f.npz", moving_square(10, 5, size=64)).read_bytes()
+    (tmp_path / "tail.npz").write_bytes(whole[:-40])  # bench_camera and Table I read frames this way too
+    with pytest.raises(FramesError, match="tail.npz: not a readable .npz"):
+        load_frames(tmp_path / "tail.npz")

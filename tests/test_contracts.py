@@ -168,6 +168,10 @@ CASES = [
     C("bench_deploy.py", "--policy", "nosuch", "--out", "{out}", expect="--policy 'nosuch'"),
     C("bench_deploy.py", "--groups", "round", "--out", "{out}", expect="argument --groups"),
     # issue 39: a calibration file's own checks name the file
+    C("train_pb.py", "--config", "tests/config_specs/small_room.yaml", "--out", "{out}",
+      expect="small_room.yaml: world.room_size = (1, 1)"),
+    C("train_pb.py", "--config", "tests/config_specs/bad_lr.yaml", "--out", "{out}",
+      expect="bad_lr.yaml: ppo.learning_rate = -1"),
     C("evaluate.py", "--policy", "sffm", "--camera-yaml", "tests/camera_specs/negative_height.yaml", "--out", "{out}",
       expect="negative_height.yaml: camera pepper_camera_top: camera_height=-1.15 must be > 0"),
     C("evaluate.py", "--policy", "sffm", "--room-yaml", "tests/room_specs/tiny.yaml", "--out", "{out}",

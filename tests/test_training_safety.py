@@ -296,47 +296,39 @@ def test_a_bug_while_fine_tuning_keeps_its_traceback(tmp_path: Path, monkeypatch
 
 
 # -- 15: evaluation workers die with their tool ---------------------------------------------------------------
-def test_evaluation_workers_are_tied_to_their_tool(tmp_path: Path, monkeypatch) -> None:
-    import ssbl_pb.analysis.evaluation as E
-
-    seen = []
-
-    def capture(make, seeds, workers, **kwargs):
-        seen.append((make, workers))
-        raise KeyboardInterrupt
-
-    monkeypatch.setattr(E, "run_episodes", capture)
-    for workers in (2, 1):
-        with pytest.raises(KeyboardInterrupt):
-            E.evaluate(E.Setup("sffm"), 4, 0, tmp_path / "eval", workers)
-    (pooled, _), (alone, _) = seen
-    assert isinstance(pooled, E.WorkerSetup) and pooled.parent == os.getpid() and pooled.setup == E.Setup("sffm")
-    assert alone == E.Setup("sffm")  # in this process: nothing to tie
-
-
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
-def test_a_worker_dies_with_its_sigkilled_parent(tmp_path: Path) -> None:
-    script = tmp_path / "parent.py"
+def test_episode_workers_die_with_their_sigkilled_tool(tmp_path: Path) -> None:
+    """Every tool's episode pool (evaluate, compare, bench_policies, ship_policy: ``rollout.run_episodes``):
+    SIGKILL the tool while its workers play, and no worker is left running."""
+    script = tmp_path / "tool.py"
     script.write_text(
-        "import multiprocessing as mp, os, sys, time\n"
-        "from ssbl_pb.analysis.evaluation import WorkerSetup\n"
-        "def work(parent):\n"
-        "    WorkerSetup(lambda: None, parent)()\n"
-        "    time.sleep(60)\n"
+        "import os, sys\n"
+        "from ssbl_pb.analysis.evaluation import Setup\n"
+        "from ssbl_pb.env.rollout import run_episodes\n"
         "if __name__ == '__main__':\n"
-        "    p = mp.get_context('spawn').Process(target=work, args=(os.getpid(),))\n"
-        "    p.start()\n"
-        "    time.sleep(3)\n"
-        "    print(p.pid, flush=True)\n"
-        "    time.sleep(60)\n")
+        "    print(os.getpid(), flush=True)\n"
+        "    run_episodes(Setup('sffm'), range(100000), workers=2)\n")
     proc = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, text=True, cwd=ROOT)
-    child = int(proc.stdout.readline())
+    parent = int(proc.stdout.readline())
+    deadline, workers = time.monotonic() + 60, []
+    while time.monotonic() < deadline and len(workers) < 2:  # the pool's workers (and its resource tracker)
+        time.sleep(0.2)
+        workers = _children(parent)
+    assert len(workers) >= 2, "the pool never started"
+    time.sleep(2.0)  # they build their envs and play
     proc.send_signal(signal.SIGKILL)
     proc.wait(timeout=10)
     deadline = time.monotonic() + 10
-    while time.monotonic() < deadline and _alive(child):
+    while time.monotonic() < deadline and any(_alive(w) for w in workers):
         time.sleep(0.1)
-    assert not _alive(child), "the worker outlived its SIGKILLed parent"
+    assert not any(_alive(w) for w in workers), "a worker outlived its SIGKILLed tool"
+
+
+def _children(pid: int) -> list[int]:
+    try:
+        return [int(c) for c in Path(f"/proc/{pid}/task/{pid}/children").read_text().split()]
+    except OSError:
+        return []
 
 
 def _alive(pid: int) -> bool:

@@ -19,8 +19,6 @@ from __future__ import annotations
 
 import shutil
 import sys
-import zipfile
-import zlib
 from pathlib import Path
 
 from ssbl_pb.cli import ArgumentParser, command_line, run
@@ -72,10 +70,7 @@ def main(argv: list[str] | None = None) -> int:
 
         if "resume" not in checkpoint_info(args.resume, "--resume")["extra"]:
             raise UserError(f"--resume {args.resume}: holds no training state (a snapshot of --snapshot-every does)")
-    try:
-        data = load_frames(args.frames, get_size(args.size).input_size)
-    except (zipfile.BadZipFile, EOFError, zlib.error) as exc:  # a truncated or damaged archive
-        raise FramesError(f"--frames {args.frames}: not a readable .npz ({exc})") from exc
+    data = load_frames(args.frames, get_size(args.size).input_size)
     try:  # enough episodes to hold some out for validation
         split_centres(data["episode"], params.val_every_episode)
     except UserError as exc:

@@ -55,7 +55,7 @@ def main(argv: list[str] | None = None) -> int:
         over = {k: v for k, v in flags.items() if v is not None}
         over.update(parse_overrides(args.set))
         config = args.config or default_config(args.policy, args.obs_mode)
-        cfg = load_config(config, over)
+        cfg = load_config(config, over, env_check=True)
         cfg = run_name(cfg, load_config(config), "name" in over)
         out = args.out or ROOT / "runs" / cfg.name
         summary = train(cfg, out, args.overwrite, args.init_from)

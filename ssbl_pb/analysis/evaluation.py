@@ -38,21 +38,6 @@ class Setup:
         return env, build_policy(self.policy, env, self.shield)
 
 
-@dataclasses.dataclass(frozen=True)
-class WorkerSetup:
-    """``setup`` for a pool worker: the worker first ties its life to the process ``parent`` (``cli.die_with_parent``),
-    so that a SIGKILLed tool leaves no workers running."""
-
-    setup: Any
-    parent: int
-
-    def __call__(self) -> tuple[gym.Env, Policy]:
-        from ..cli import die_with_parent
-
-        die_with_parent(self.parent)
-        return self.setup()
-
-
 def build_policy(spec: str, env: gym.Env, shield: bool | None = None) -> Policy:
     """A baseline by name, the shipped model by name, or a trained model from a path (``shield``: see
     ``Setup``; baselines never use it)."""
@@ -91,8 +76,7 @@ def evaluate(setup: Setup, episodes: int, seed: int, out: Path, workers: int = 1
     env, _ = setup()  # fail fast on a bad model / obs mode / scenario before any episode or output
     room = env.unwrapped.world_params.room_size
     env.close()
-    make = WorkerSetup(setup, os.getpid()) if workers > 1 else setup
-    results = run_episodes(make, range(seed, seed + episodes), workers, keep_trajectories=n_paths,
+    results = run_episodes(setup, range(seed, seed + episodes), workers, keep_trajectories=n_paths,
                            progress=progress)
     rows = [r.metrics for r in results]
     summary = summarize(rows, {"policy": setup.policy, "obs_mode": setup.obs_mode, "scenario": setup.scenario,

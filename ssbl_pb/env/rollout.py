@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 import multiprocessing as mp
+import os
 import signal
 import sys
 from collections.abc import Callable, Iterable
@@ -17,6 +18,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from ..cli import children_ignore_sigint
 from .metrics import episode_metrics
 from .policies import Policy
 from .reward import TERMS
@@ -123,9 +125,15 @@ def run_batch(env: gym.Env, policy: Policy, seeds: list[int], keep: list[bool]) 
 _WORKER: dict[str, Any] = {}
 
 
-def _init_worker(make: Callable[[], tuple[gym.Env, Policy]], child: bool = False) -> None:
-    if child:  # Ctrl-C is the parent's to handle: workers are shut down, they print no tracebacks
+def _init_worker(make: Callable[[], tuple[gym.Env, Policy]], parent: int | None = None) -> None:
+    """Build a worker's env and policy; a pool worker (``parent``: the pool owner's pid) ignores Ctrl-C (the
+    parent's to handle: it shuts the pool down, the workers print no tracebacks) and dies with its parent, even
+    a SIGKILLed one (``cli.die_with_parent``: no worker of ~600 MB left running)."""
+    if parent is not None:
+        from ..cli import die_with_parent
+
         signal.signal(signal.SIGINT, signal.SIG_IGN)
+        die_with_parent(parent)
     _WORKER["env"], _WORKER["policy"] = make()
     if "torch" in sys.modules:  # small networks: threads only wait on each other (20x slower on a busy machine)
         sys.modules["torch"].set_num_threads(1)
@@ -166,10 +174,12 @@ def run_episodes(make: Callable[[], tuple[gym.Env, Policy]], seeds: Iterable[int
         return out
     # a worker that fails to start breaks the pool (an error), instead of being respawned for ever
     pool = ProcessPoolExecutor(workers, mp_context=mp.get_context("spawn"), initializer=_init_worker,
-                               initargs=(make, True))
+                               initargs=(make, os.getpid()))
     done = False
     try:
-        for res in pool.map(_run_jobs, chunks):
+        with children_ignore_sigint():  # the workers start here: a Ctrl-C while they import is the parent's
+            results = pool.map(_run_jobs, chunks)
+        for res in results:
             out += res
             if progress:
                 progress(len(res))

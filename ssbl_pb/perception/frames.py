@@ -25,6 +25,8 @@ camera_hfov    () f4           the camera's horizontal (= vertical) field of vie
 from __future__ import annotations
 
 import math
+import zipfile
+import zlib
 from collections.abc import Callable
 from pathlib import Path
 
@@ -124,7 +126,7 @@ def load_frames(path: str | Path, size: int | None = None) -> dict[str, np.ndarr
     try:
         with np.load(path, allow_pickle=False) as npz:
             data = {k: npz[k] for k in npz.files}
-    except (OSError, ValueError) as exc:
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error) as exc:  # not an archive, or cut short
         raise FramesError(f"--frames {path}: not a readable .npz ({exc})") from exc
     missing = sorted(set(KEYS) - set(data))
     if missing:

@@ -9,18 +9,18 @@ the next run starts again.
 
 from __future__ import annotations
 
-import contextlib
 import multiprocessing as mp
 import os
 import signal
 import threading
 import time
 import traceback
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Sequence
 from multiprocessing.connection import Connection, wait
 from pathlib import Path
 from typing import Any
 
+from ..cli import children_ignore_sigint
 from .runner import Trial, run_task
 
 
@@ -29,7 +29,7 @@ class _Worker:
         self.conn, child = ctx.Pipe()
         self.proc = ctx.Process(target=_serve, args=(child, os.getpid()), daemon=True)
         try:
-            with _children_ignore_sigint():
+            with children_ignore_sigint():
                 self.proc.start()
         except BaseException:  # a Ctrl-C held back during the start: this worker goes with the others
             if self.proc.pid is not None:
@@ -58,23 +58,6 @@ class _Worker:
             self.proc.kill()
             self.proc.join()
         self.conn.close()
-
-
-@contextlib.contextmanager
-def _children_ignore_sigint() -> Iterator[None]:
-    """Processes started inside ignore SIGINT from their first instruction (SIG_IGN survives exec), so a Ctrl-C
-    while a worker still imports prints no traceback there; only the parent reports it. A Ctrl-C meanwhile is
-    held (blocked, not lost) and reaches the parent as the block ends."""
-    if threading.current_thread() is not threading.main_thread():  # signals reach the main thread only
-        yield
-        return
-    signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})  # blocked first: a SIGINT now stays pending
-    old = signal.signal(signal.SIGINT, signal.SIG_IGN)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGINT, signal.SIG_DFL if old is None else old)
-        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
 
 
 def run_local(trials: Sequence[Trial], root: Path, workers: int,
@@ -125,7 +108,7 @@ def _serve(conn: Connection, parent: int) -> None:
     """A worker: run the trials the parent sends until it sends None (or goes away)."""
     for var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS"):  # one CPU per trial (torch reads these on import)
         os.environ[var] = "1"
-    # the parent handles Ctrl-C and stops its workers (ignored since the start, see _children_ignore_sigint,
+    # the parent handles Ctrl-C and stops its workers (ignored since the start, see cli.children_ignore_sigint,
     # whose block this process need not keep)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})

@@ -252,19 +252,57 @@ def nest_overrides(pairs: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
-def load_config(path: str | Path | None, overrides: dict[str, Any] | None = None) -> TrainConfig:
-    """Defaults, then the YAML file, then ``overrides`` (command-line flags); errors name the file and key."""
-    data: dict[str, Any] = load_yaml(path) if path else {}
+def load_config(path: str | Path | None, overrides: dict[str, Any] | None = None, env_check: bool = False
+                ) -> TrainConfig:
+    """Defaults, then the YAML file, then ``overrides`` (command-line flags); errors name the key, and the file
+    when the file alone has the same error. ``env_check`` (a user's ``--config``) also checks the ``env:``
+    sections (world, robot, social, task, rooms) as the env will, before anything is built."""
+    file_data: dict[str, Any] = load_yaml(path) if path else {}
+    data = dict(file_data)
     for key, value in (overrides or {}).items():
         if isinstance(value, dict):  # merged into the file's mapping; an empty one ({}) clears it
             data[key] = {**data.get(key, {}), **value} if value else {}
         else:
             data[key] = value
-    where = f"{path}" if path else "config"
+    try:
+        return _checked(data, env_check)
+    except ConfigError as exc:
+        if path and not str(exc).startswith(str(path)) and str(exc) == _error(file_data, env_check):
+            raise ConfigError(f"{path}: {exc}") from None  # the file's own value, not a flag's
+        raise
+
+
+def _checked(data: dict[str, Any], env_check: bool) -> TrainConfig:
+    cfg = _from_dict(data, "config")
+    if env_check:
+        check_env(cfg)
+    return cfg
+
+
+def _error(data: dict[str, Any], env_check: bool) -> str | None:
+    try:
+        _checked(data, env_check)
+    except ConfigError as exc:
+        return str(exc)
+    return None
+
+
+def _from_dict(data: dict[str, Any], where: str) -> TrainConfig:
     try:
         return from_dict(TrainConfig, data, where)
     except TypeError as exc:
         raise ConfigError(f"{where}: {exc}") from exc
+
+
+def check_env(cfg: TrainConfig) -> None:
+    """The config's env parameters as the env will check them (room size for its groups, group data, room
+    YAMLs), before anything is built."""
+    from ..env.approach import parse_env_params
+
+    env = cfg.env
+    parse_env_params(cfg.scenario, env.get("world"), env.get("robot"), env.get("social"), cfg.reward,
+                     env.get("task"), env.get("groups"), env.get("groups_yaml"), env.get("room_yaml"),
+                     env.get("furniture"))
 
 
 def run_name(cfg: TrainConfig, file_cfg: TrainConfig, named: bool) -> TrainConfig:
