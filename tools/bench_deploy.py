@@ -4,6 +4,15 @@ timings and a soak. Writes OUT.json and OUT.md (the docs/benchmarks.md section) 
 
     python tools/bench_deploy.py                                   # 20 runs, all faults, a 600 s soak (~25 min)
     python tools/bench_deploy.py --runs 3 --faults sigint --soak 60 --out results/bench_deploy_quick
+    python tools/bench_deploy.py --scenario mixed --runs 10 --faults none --soak 0 --lockstep --out /tmp/bd
+
+Every approach is also scored for perception against the virtual Pepper's ground truth, tick by tick
+(``ssbl_pb/deploy/perception_errors.py``): member position and velocity errors against distance, members
+missed (out of view, at the image's edge, occluded, not detected), tracked twice, track ids per member, the group
+centre, o-space radius and free slot errors, and how far the policy network's action moves between the perceived
+and the true observation; per run and pooled in OUT.json, a table in OUT.md and the figure OUT_errors.png.
+``--lockstep`` runs the approaches in this process on a simulated clock (deterministic, no qi, faster than real
+time); faults and the soak always run over qi.
 
 The runs' logs go to the folder OUT/ (OUT without its suffix). A rerun replaces the runs it wrote there before
 (the folder carries a ``.bench_deploy`` marker) and nothing else; a folder it did not write is refused.
@@ -44,8 +53,10 @@ def main(argv: list[str] | None = None) -> int:
                     "(default: the policy's, its config's env.groups)")
     ap.add_argument("--faults", default=",".join(FAULTS), help=f"comma list of {', '.join(FAULTS)}, or none")
     ap.add_argument("--soak", type=float_in(0.0, 86400.0), default=600.0, help="soak seconds (0: none)")
+    ap.add_argument("--lockstep", action="store_true", help="approaches in this process on a simulated clock "
+                    "(deterministic, no qi)")
     ap.add_argument("--out", type=Path, default=ROOT / "results" / "bench_deploy",
-                    help="results stem: OUT.json, OUT.md and the runs' logs in OUT/")
+                    help="results stem: OUT.json, OUT.md, OUT_errors.png and the runs' logs in OUT/")
     args = ap.parse_args(argv)
     faults = [] if args.faults == "none" else args.faults.split(",")
     bad = sorted(set(faults) - set(FAULTS))
@@ -63,31 +74,39 @@ def main(argv: list[str] | None = None) -> int:
         args.groups = policy_groups(args.policy)
     check_output_path(args.out.with_suffix(".json"), is_dir=False)
     check_output_path(args.out.with_suffix(".md"), is_dir=False)
+    figure = args.out.with_name(args.out.with_suffix("").name + "_errors.png")
+    check_output_path(figure, is_dir=False)
     logs = args.out.with_suffix("")
     check_output_path(logs)
     written = _written_before(logs)
 
-    from ssbl_pb.deploy.bench import environment, markdown, run_approach, run_fault, soak
+    from ssbl_pb.deploy import bench
     from ssbl_pb.files import write_json, write_text
 
     for old in written:  # the runs of an earlier benchmark into the same folder, and only those
         shutil.rmtree(old) if old.is_dir() else old.unlink()
     logs.mkdir(parents=True, exist_ok=True)
     (logs / MARKER).write_text("runs of tools/bench_deploy.py; a rerun replaces them\n")
-    res = {"environment": environment(), "scenario": args.scenario, "policy": args.policy, "groups": args.groups,
-           "approaches": [],
-           "faults": []}
+    res = {"environment": bench.environment(), "scenario": args.scenario, "policy": args.policy, "groups": args.groups,
+           "lockstep": args.lockstep, "approaches": [], "faults": []}
+    approach = bench.lockstep_approach if args.lockstep else bench.run_approach
     with progress_bar(args.runs, "approaches", "run") as bar:
         for i in range(args.runs):
-            res["approaches"].append(run_approach(logs / f"run{i:02d}", args.seed + i, args.policy, args.scenario,
-                                                   groups=args.groups))
+            res["approaches"].append(approach(logs / f"run{i:02d}", args.seed + i, args.policy, args.scenario,
+                                              groups=args.groups))
             bar(1)
+    if args.runs:
+        per_run, pooled = bench.perception_report([logs / f"run{i:02d}" for i in range(args.runs)], args.policy, figure)
+        for r, p in zip(res["approaches"], per_run, strict=True):
+            r["perception"] = p
+        if pooled is not None:
+            res["perception"], res["perception_figure"] = pooled, str(figure)
     for f in faults:
-        res["faults"].append(run_fault(f, logs / f"fault_{f}"))
+        res["faults"].append(bench.run_fault(f, logs / f"fault_{f}"))
     if args.soak > 0:
-        res["soak"] = soak(logs / "soak", args.soak, args.seed, args.policy)
+        res["soak"] = bench.soak(logs / "soak", args.soak, args.seed, args.policy)
     write_json(args.out.with_suffix(".json"), res)
-    text = markdown(res)
+    text = bench.markdown(res)
     write_text(args.out.with_suffix(".md"), text)
     print(text)
     return 0

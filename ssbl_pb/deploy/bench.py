@@ -138,6 +138,86 @@ def run_approach(folder: Path, seed: int, policy: str = "vector", scenario: str 
             "stderr_tail": err.strip().splitlines()[-1:] if err.strip() else []}
 
 
+def lockstep_approach(folder: Path, seed: int, policy: Any = "vector", scenario: str = "default",
+                      duration: float = 60.0, groups: str | None = None, fps: float = 15.0) -> dict[str, Any]:
+    """One approach in this process, deterministic (no qi): deploy's loop on a ``SimRobot`` in lockstep
+    (``SimClock``, the camera at ``fps``, perception inline), writing the two logs ``run_approach`` leaves
+    (``folder/deploy/log.jsonl``, ``folder/virtual_pepper.jsonl``); ``wall`` in both is the simulated time, and
+    each tick's ground truth is logged at its tick's time. ``policy``: a spec as deploy's ``--policy`` or a
+    policy object (``predict``). Returns the outcome and the ground-truth score."""
+    from ..env.task import TaskParams
+    from ..env.trained import policy_env_kwargs
+    from ..params import RobotParams, SocialParams
+    from .__main__ import _policy
+    from .frames import Frames
+    from .group import policy_groups
+    from .log import RunLog, write_summary
+    from .loop import DeployLoop, DeployParams, Setup
+    from .perceive import Perception
+    from .robot import SimClock, SimRobot
+    from .virtual_robot import state_row
+
+    spec = isinstance(policy, str)
+    groups = groups or (policy_groups(policy) if spec else "calibrated")
+    robot_params, social, task, params = RobotParams(), SocialParams(), TaskParams(), DeployParams(
+        duration_s=duration, status_s=0.0)
+    pol = _policy(policy, robot_params, social, task, params.stop_distance) if spec else policy
+    seen = policy_env_kwargs(policy) if spec and hasattr(pol, "model") else {}
+    (folder / "deploy").mkdir(parents=True, exist_ok=True)
+    (folder / "deploy" / LOG).unlink(missing_ok=True)  # RunLog appends
+    vp_log = folder / "virtual_pepper.jsonl"
+    robot = SimRobot(scenario, seed, groups=groups)
+    clock = SimClock(robot, fps)
+    with open(vp_log, "w") as fh:
+        fh.write(json.dumps({"kind": "start", "wall": robot.t, "start_pose": robot.start_pose.tolist(),
+                             **robot.info}) + "\n")
+
+        class Log(RunLog):  # each tick row at simulated time, and the truth beside it
+            def write(self, row: dict[str, Any]) -> None:
+                row = {**row, "wall": robot.t, "tick_ms": 0.0, "odom_ms": 0.0}
+                super().write(row)
+                fh.write(json.dumps(state_row(robot, robot.t)) + "\n")
+
+        log = Log(folder / "deploy")
+        perception = Perception(robot, clock.now, "colour", robot_params, social=social, threaded=False)
+        loop = DeployLoop(Setup(robot, pol, perception, Frames(), robot_params, social, task, groups,
+                                bool(seen.get("waypoints", False)), bool(seen.get("waypoints_near_group", False))),
+                          params, log, now=clock.now, sleep=clock.sleep)
+        try:
+            outcome, message = loop.run()
+        finally:
+            log.close()
+            robot.close()
+    summary = log.summary(outcome, loop.exit_code, message, {})
+    write_summary(folder / "deploy", summary)
+    return {"seed": seed, **summary, **truth_score(vp_log, folder / "deploy", task)}
+
+
+def perception_report(folders: list[Path], policy: str = "vector", figure: Path | None = None
+                      ) -> tuple[list[dict[str, Any] | None], dict[str, Any] | None]:
+    """Perception's errors (``perception_errors``) of each run folder (None where it has no logs) and pooled
+    over them, the policy's action difference with the policy ``policy``; ``figure``: the pooled figure."""
+    from ..env.task import TaskParams
+    from ..env.trained import policy_env_kwargs
+    from ..params import RobotParams, SocialParams
+    from .__main__ import _policy
+    from .loop import DeployParams
+    from .perception_errors import analyse_folder, plot, pool, summarise
+
+    pol = _policy(policy, RobotParams(), SocialParams(), TaskParams(), DeployParams().stop_distance)
+    seen = policy_env_kwargs(policy) if hasattr(pol, "model") else {}
+    waypoints = (bool(seen.get("waypoints", False)), bool(seen.get("waypoints_near_group", False)))
+    parts = [analyse_folder(f, pol, waypoints=waypoints)
+             if (f / "deploy" / LOG).is_file() and (f / "virtual_pepper.jsonl").is_file() else None for f in folders]
+    found = [p for p in parts if p is not None]
+    if not found:
+        return [None] * len(folders), None
+    if figure is not None:
+        plot(pool(found), figure, f"{len(found)} runs, policy {policy}: deploy's perception against the virtual "
+                                  f"Pepper's ground truth")
+    return [None if p is None else summarise(p) for p in parts], summarise(pool(found))
+
+
 def _rss_mb(pid: int) -> float | None:
     with contextlib.suppress(OSError):
         for line in Path(f"/proc/{pid}/status").read_text().splitlines():
@@ -298,7 +378,8 @@ def markdown(res: dict[str, Any]) -> str:
         ticks = sum(r.get("policy_ticks") or 0 for r in runs)
         shielded = sum(r.get("shield_interventions") or 0 for r in runs)
         out += [f"**Approaches** ({len(runs)} seeded runs, seeds {runs[0]['seed']}-{runs[-1]['seed']}, scenario "
-                f"`{res['scenario']}`, {res.get('groups') or 'calibrated'} groups, policy `{res['policy']}`): "
+                f"`{res['scenario']}`, {res.get('groups') or 'calibrated'} groups, policy `{res['policy']}`"
+                f"{'; lockstep, in process: tick times are not measured' if res.get('lockstep') else ''}): "
                 f"success by the simulator's own rule and ground truth in **{ok}/{len(runs)}** (deploy claimed "
                 f"{claimed}); intimate-zone entries: **{intimate}**; "
                 f"smallest true clearance {min(cleared, default=float('nan')):.2f} m.",
@@ -314,6 +395,23 @@ def markdown(res: dict[str, Any]) -> str:
                        f"{r.get('tick_ms_p99') or 0:.1f} | {r.get('estimate_age_ms_median') or 0:.0f} | "
                        f"{100 * (r.get('shield_intervention_rate') or 0):.0f} |")
         out.append("")
+    if res.get("perception"):
+        from .perception_errors import markdown_table
+
+        per = res["perception"]
+        pos, ids, miss = per["position_error_m"], per["ids_per_member"], per["missed"]
+        figure = f" Figure: `{res['perception_figure']}`." if res.get("perception_figure") else ""
+        out += [f"**Perception against ground truth** (the same runs, every tick; `ssbl_pb/deploy/"
+                f"perception_errors.py`): detected members' position error median "
+                f"{pos['seen']['median'] or 0:.2f} m (p90 {pos['seen']['p90'] or 0:.2f} m), remembered ones "
+                f"{pos['remembered']['median'] or 0:.2f} m; members without any track "
+                f"{100 * (miss['rate'] or 0):.0f} % of member-ticks ({miss['out_of_view']} out of view, "
+                f"{miss['edge']} at the image's edge, {miss['occluded']} occluded, {miss['in_view']} in view); "
+                f"{per['duplicated_member_ticks']} member-ticks tracked twice; {ids['mean'] or 0:.2f} track ids per "
+                f"member (max {ids['max']}); the policy network's action moved by "
+                f"{per['action_delta']['mean'] or 0:.3f} on average (|delta| of its 2-D action, perceived vs true "
+                f"observation).{figure}", "",
+                markdown_table(res.get("approaches", []), per)]
     faults = res.get("faults", [])
     if faults:
         out += ["**Faults** (each injected once the base moved; times from the virtual Pepper's own log):", "",

@@ -145,12 +145,14 @@ class SimRobot:
             self._frame = frame
 
     def truth(self) -> dict[str, Any]:
-        """Ground truth for logs and tests: room-frame poses, members, free slot, clearances."""
+        """Ground truth for logs and tests: room-frame poses, members (positions, velocities m/s), the group's
+        centre, o-space radius (m) and free slot, clearances."""
         with self._lock:
             w, g = self.world, self.world.group
             clear = w.human_clearance()
             return {"t": self.t, "pose": w.robot_pose.tolist(), "vel": w.base.body_velocity.tolist(),
-                    "cmd": self._cmd.tolist(), "members": g.pos.tolist(), "centre": g.centre.tolist(),
+                    "cmd": self._cmd.tolist(), "members": g.pos.tolist(), "member_vel": g.vel.tolist(),
+                    "centre": g.centre.tolist(), "radius": g.radius,
                     "slot": g.free_slot(w.robot_pose[:2]).tolist(), "clearance": float(clear.min()),
                     "collision": bool(w.in_contact(clear))}
 

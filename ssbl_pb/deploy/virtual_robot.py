@@ -124,6 +124,13 @@ class Camera:
             self.proc.kill()
 
 
+def state_row(robot: SimRobot, wall: float) -> dict[str, Any]:
+    """A ``kind: state`` log row: the robot's ground truth (``SimRobot.truth``, room frame) at ``wall`` and its
+    odometry pose (the room pose relative to the start pose)."""
+    truth = robot.truth()
+    return {"kind": "state", "wall": wall, **truth, "odom": relative(robot.start_pose, truth["pose"]).tolist()}
+
+
 class VirtualPepper:
     """The simulation thread's state shared with the qi services (one lock: the ``SimRobot``'s)."""
 
@@ -151,10 +158,7 @@ class VirtualPepper:
                 self._log.write(json.dumps(row) + "\n")
 
     def step_row(self) -> None:
-        r = self.robot
-        truth = r.truth()
-        self.write({"kind": "state", "wall": time.time(), **truth, "odom": relative(r.start_pose, truth["pose"])
-                    .tolist()})
+        self.write(state_row(self.robot, time.time()))
 
     def run(self, stop: threading.Event) -> None:
         """Advance the world in real time (and render the camera at the subscribed rate) until ``stop``."""
