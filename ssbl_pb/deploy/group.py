@@ -20,6 +20,7 @@ import math
 from typing import Any
 
 import numpy as np
+from scipy.optimize import linear_sum_assignment
 
 from ..env.humans import MAX_HUMANS, measured_group
 from ..params import SocialParams
@@ -194,6 +195,8 @@ class GroupTracker:
         self.model = model or default_model(self.social)
         self.members: dict[int, Member] = {}
         self.centre0: np.ndarray | None = None  # the group's centre before joining (the loop's ``GroupModel``)
+        self.alias: dict[int, int] = {}  # tracker id -> member id, for tracks that took over a member
+        self._known: set[int] = set()  # tracker ids reported before
 
     def visible(self, xy_robot: np.ndarray, seen_robot: np.ndarray) -> np.ndarray:
         """Which robot-frame points (k, 2) a detector should find: in range, the whole body inside the image
@@ -236,18 +239,55 @@ class GroupTracker:
         for m, q, v in zip(gone, group.pos[len(seen):], group.vel[len(seen):], strict=True):
             m.pos, m.vel = q, v
 
+    def _take_over(self, states: list[Any], rot: np.ndarray, t: np.ndarray) -> list[Any]:
+        """A track reported for the first time, detected now, within ``same_person_m`` of a member not detected
+        now (a remembered member, or a coasting track) is that member seen again: it takes the member's id (and
+        rest), and a coasting track it replaces is deleted. Without this a person who left the view (or was hidden
+        long enough for the tracker to drop them) came back under a new id, and a track born beside a coasting one
+        showed one person twice."""
+        alive = {tr.id for tr in self.tracker.tracks}  # ids never come back: forget those the tracker deleted
+        self._known &= alive
+        self.alias = {k: v for k, v in self.alias.items() if k in alive}
+        new = [st for st in states if st.id not in self._known and st.misses == 0]
+        self._known.update(st.id for st in states)
+        if not new:
+            return states
+        coasting = {self.alias.get(st.id, st.id): st for st in states if st.misses > 0}
+        reported = {self.alias.get(st.id, st.id) for st in states}
+        old = {k: m.pos for k, m in self.members.items() if k not in reported}
+        old.update({k: rot @ st.position + t for k, st in coasting.items()})
+        if not old:
+            return states
+        keys = list(old)
+        d = np.hypot(*(np.array([rot @ st.position + t for st in new])[:, None, :]
+                       - np.array([old[k] for k in keys])[None, :, :]).transpose(2, 0, 1))
+        rows, cols = linear_sum_assignment(np.where(d < self.p.same_person_m, d, 1e9))
+        dropped = set()
+        for r, c in zip(rows, cols, strict=True):
+            if d[r, c] < self.p.same_person_m:
+                self.alias[new[r].id] = keys[c]
+                if keys[c] in coasting:
+                    dropped.add(coasting[keys[c]].id)
+        if dropped:  # the coasting tracks taken over: gone from the tracker too
+            self.tracker.tracks = [tr for tr in self.tracker.tracks if tr.id not in dropped]
+            for tid in dropped:
+                self.alias.pop(tid, None)
+        return [st for st in states if st.id not in dropped]
+
     def update(self, detections: np.ndarray, dt: float, pose: np.ndarray) -> list[Member]:
         """One frame's robot-frame ground detections (n, 2) taken at odometry ``pose``; returns the members."""
         states = self.tracker.update(np.asarray(detections, dtype=float).reshape(-1, 2), dt=dt, odom=pose)
         rot, t = _se2(pose)
+        states = self._take_over(states, rot, t)
         seen = {}
         at_rest = self.model.weight == 0.0  # the robot is not joining: where people stand now is their rest
         for st in states:
-            m = Member(st.id, rot @ st.position + t, rot @ st.velocity, rot @ st.covariance[:2, :2] @ rot.T,
+            mid = self.alias.get(st.id, st.id)
+            m = Member(mid, rot @ st.position + t, rot @ st.velocity, rot @ st.covariance[:2, :2] @ rot.T,
                        st.misses == 0)
-            old = self.members.get(st.id)
+            old = self.members.get(mid)
             m.rest = m.pos.copy() if at_rest or old is None or old.rest is None else old.rest
-            seen[st.id] = m
+            seen[mid] = m
         seen_robot = np.array([st.position for st in states]).reshape(-1, 2)
         gone = [m for k, m in self.members.items() if k not in seen]
         for m in gone:
@@ -255,7 +295,9 @@ class GroupTracker:
         self.predict(list(seen.values()), gone, pose[:2], dt)
         if gone:
             local = (np.array([m.pos for m in gone]) - t) @ rot  # odometry -> robot frame
-            in_view = self.visible(local, seen_robot)
+            # anyone known may hide a remembered member: a person cut by the image's side is not detected (perceive
+            # drops the box) yet hides whoever stands behind them, who was then forgotten and came back under a new id
+            in_view = self.visible(local, np.vstack([seen_robot, local]))
             seen_xy = np.array([m.pos for m in seen.values()]).reshape(-1, 2)
             for m, vis in zip(gone, in_view, strict=True):
                 m.unseen_in_view = m.unseen_in_view + 1 if vis else 0
