@@ -155,7 +155,7 @@ def test_camera_pose_names_the_camera_yaml_its_checks_refuse(tmp_path: Path,
                    "500, 240, 0, 0, 1]}\ndistortion_coefficients: {rows: 1, cols: 5, data: [0, 0, 0, 0, 0]}\n")
     code, lines = exit_code("camera_pose", [str(tmp_path / "floor.png"), "--camera", str(cam), "--square", "0.1",
                                             "--out", str(tmp_path / "posed.yaml")], capfd)
-    assert code == 2 and len(lines) == 1 and lines[0].startswith(f"error: --camera {cam}: "), lines
+    assert code == 2 and len(lines) == 1 and lines[0].startswith(f"error: {cam}: camera "), lines
     assert "fx=-500.0" in lines[0] and not (tmp_path / "posed.yaml").exists()
 
 

@@ -13,7 +13,7 @@ from pathlib import Path
 
 from ssbl_pb.calib.extrinsics import pose_from_image
 from ssbl_pb.calib.intrinsics import parse_board, read_grey
-from ssbl_pb.calib.io import CalibrationError, check_outputs
+from ssbl_pb.calib.io import check_outputs
 from ssbl_pb.cli import ArgumentParser, run
 from ssbl_pb.perception.camera import PinholeCamera
 
@@ -30,10 +30,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, help="YAML to write (default: overwrite --camera)")
     args = ap.parse_args(argv)
     check_outputs(args.out or args.camera, (), "--out" if args.out else "--camera (rewritten without --out)")
-    try:
-        cam = PinholeCamera.from_yaml(args.camera)
-    except CalibrationError as exc:  # the camera's own checks name the camera, not its file
-        raise CalibrationError(str(exc) if str(args.camera) in str(exc) else f"--camera {args.camera}: {exc}") from None
+    cam = PinholeCamera.from_yaml(args.camera)  # its errors name the file
     if args.forward is not None:
         cam.forward = args.forward
     r = pose_from_image(cam, read_grey(args.image), parse_board(args.board), args.square, where=str(args.image))
