@@ -155,6 +155,19 @@ def test_the_action_difference_is_the_policy_on_the_perceived_minus_on_the_true_
     assert np.asarray(s.action_delta) == pytest.approx(np.array([[0.1, 0.0]]), abs=1e-6)
     r = summarise(s)
     assert r["action_delta"]["ticks"] == 1 and r["action_delta"]["mean"] == pytest.approx(0.1, abs=1e-6)
+    assert r["action_delta_still"]["mean"] == pytest.approx(0.1, abs=1e-6)  # nobody moves: the same
+
+
+def test_members_velocities_are_zeroed_in_both_observations_for_the_still_difference():
+    class VelocityPolicy:  # acts on the nearest member's velocity entries only
+        def predict(self, obs, state=None, episode_start=None, deterministic=True):
+            return np.asarray(obs[16:18], dtype=float), None
+
+    row = tick(1.0, [(1, 3.0, 0.8, 0.0, 0.2)], group=((3.0, 0.0), 0.8, (2.0, 0.0)))
+    s = analyse([row], {"start_pose": START.tolist()}, [state(1.0, [[3.0, 0.8]], centre=(3.0, 0.0), slot=(2.0, 0.0))],
+                policy=VelocityPolicy())
+    assert np.asarray(s.action_delta) == pytest.approx(np.array([[0.0, 0.2]]), abs=1e-6)
+    assert np.asarray(s.action_delta_still) == pytest.approx(np.zeros((1, 2)), abs=1e-9)
 
 
 def test_summaries_pool_runs_and_make_a_table_and_a_figure(tmp_path):

@@ -410,7 +410,8 @@ def markdown(res: dict[str, Any]) -> str:
                 f"{per['duplicated_member_ticks']} member-ticks tracked twice; {ids['mean'] or 0:.2f} track ids per "
                 f"member (max {ids['max']}); the policy network's action moved by "
                 f"{per['action_delta']['mean'] or 0:.3f} on average (|delta| of its 2-D action, perceived vs true "
-                f"observation).{figure}", "",
+                f"observation; {per['action_delta_still']['mean'] or 0:.3f} with the members' velocities zeroed in "
+                f"both).{figure}", "",
                 markdown_table(res.get("approaches", []), per)]
     faults = res.get("faults", [])
     if faults:

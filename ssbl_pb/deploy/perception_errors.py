@@ -39,6 +39,7 @@ from .robot import compose
 VIEW_CLASSES = ("in_view", "edge", "occluded", "out_of_view")  # why a member may be missed, by the true geometry
 DISTANCE_BINS = (0.0, 1.0, 1.5, 2.0, 2.5, 3.0, 4.0, 6.0, math.inf)  # m, for position error against distance
 BEARING_BINS = (0.0, 10.0, 20.0, 28.0, 40.0, 60.0, 90.0, 180.0)  # deg |bearing|, for miss rates
+MEMBER_VELOCITY = [14 + ob.MEMBER_FIELDS * k + j for k in range(ob.MAX_MEMBERS) for j in (2, 3)]  # observation
 
 
 @dataclasses.dataclass(frozen=True)
@@ -58,7 +59,8 @@ class Samples:
     left positive), ``view`` (index in ``VIEW_CLASSES``), ``tracks`` (how many tracks are on it: 0 missed, 2+
     duplicated), ``seen`` (one of them detected in this frame), ``pos_err``/``vel_err`` (m, m/s, of its assigned
     track; NaN when missed) and ``remembered`` (its assigned track is not seen). Per tick: ``false_tracks``. Per
-    policy tick: group errors (m) and the action difference (perceived - true network action). ``ids``: per run
+    policy tick: group errors (m) and the action difference (perceived - true network action; ``_still``: with the
+    members' velocity entries zeroed in both, what positions and the group estimate alone move). ``ids``: per run
     and true member, the track ids on it over the run, in order of first appearance."""
 
     range_m: list[float] = dataclasses.field(default_factory=list)
@@ -74,6 +76,7 @@ class Samples:
     radius_err: list[float] = dataclasses.field(default_factory=list)
     slot_err: list[float] = dataclasses.field(default_factory=list)
     action_delta: list[list[float]] = dataclasses.field(default_factory=list)
+    action_delta_still: list[list[float]] = dataclasses.field(default_factory=list)  # members' velocities zeroed
     ids: list[list[list[int]]] = dataclasses.field(default_factory=list)
     switches: list[int] = dataclasses.field(default_factory=list)  # per run: changes of a member's assigned id
     shared_ids: list[int] = dataclasses.field(default_factory=list)  # per run: ids assigned to 2+ members
@@ -298,8 +301,10 @@ def analyse(rows: list[dict[str, Any]], start: dict[str, Any], states: list[dict
                 true.append(observation(fr_t, pose, np.asarray(st["vel"]), members, mvel, centre,
                                         float(st.get("radius", row["radius"])), slot, *args))
     if perceived:
-        s.action_delta.extend((network_actions(policy, np.array(perceived))
-                               - network_actions(policy, np.array(true))).tolist())
+        obs_p, obs_t = np.array(perceived), np.array(true)
+        s.action_delta.extend((network_actions(policy, obs_p) - network_actions(policy, obs_t)).tolist())
+        obs_p[:, MEMBER_VELOCITY] = obs_t[:, MEMBER_VELOCITY] = 0.0
+        s.action_delta_still.extend((network_actions(policy, obs_p) - network_actions(policy, obs_t)).tolist())
     s.ids.append([ids.get(j, []) for j in range(max(ids, default=-1) + 1)])
     s.switches.append(switches)
     s.shared_ids.append(sum(len(v) > 1 for v in owners.values()))
@@ -374,8 +379,11 @@ def summarise(s: Samples) -> dict[str, Any]:
         bins_bearing.append({"lo": lo, "hi": hi, "n": int(here.sum()),
                              "missed_rate": float(missed[here].mean()) if here.any() else None,
                              "unseen_rate": float(unseen[here].mean()) if here.any() else None})
-    delta = np.asarray(s.action_delta, dtype=float).reshape(len(s.action_delta), -1) if s.action_delta else \
-        np.zeros((0, 2))
+    def actions(delta: list[list[float]]) -> dict[str, Any]:
+        d = np.asarray(delta, dtype=float).reshape(len(delta), -1) if delta else np.zeros((0, 2))
+        return {"ticks": len(d), "mean_abs": np.abs(d).mean(axis=0).tolist() if len(d) else None,
+                **{k: v for k, v in _stats(np.hypot(*d[:, :2].T) if len(d) else []).items() if k != "n"}}
+
     return {
         "member_ticks": n, "ticks": len(s.false_tracks),
         "position_error_m": {"seen": _stats(pos[detected]), "remembered": _stats(pos[remembered])},
@@ -395,9 +403,7 @@ def summarise(s: Samples) -> dict[str, Any]:
         "centre_error_m": _stats(s.centre_err), "slot_error_m": _stats(s.slot_err),
         "radius_error_m": {**_stats(np.abs(s.radius_err)), "bias": float(np.mean(s.radius_err)) if s.radius_err
                            else None},
-        "action_delta": {"ticks": len(delta), "mean_abs": np.abs(delta).mean(axis=0).tolist() if len(delta) else None,
-                         **{k: v for k, v in _stats(np.hypot(*delta[:, :2].T) if len(delta) else []).items()
-                            if k != "n"}},
+        "action_delta": actions(s.action_delta), "action_delta_still": actions(s.action_delta_still),
     }
 
 
@@ -408,8 +414,8 @@ def markdown_table(runs: list[dict[str, Any]], total: dict[str, Any]) -> str:
 
     head = ("| run | pos. error seen, median / p90 (m) | remembered (m) | vel. error (m/s) | missed: out of view / "
             "edge / occluded / in view | duplicated member-ticks | ids per member (max) | centre / slot error (m) | "
-            "radius error (m) | mean \\|delta action\\| |")
-    out = [head, "|---" * (head.count("|") - 1) + "|"]
+            "radius error (m) | mean \\|delta action\\| (members' velocities zeroed) |")
+    out = [head, "|---" * 10 + "|"]
     each = [(str(r.get("seed", i)), r["perception"]) for i, r in enumerate(runs) if r.get("perception")]
     for name, r in [*each, ("all", total)]:
         m = r["missed"]
@@ -421,7 +427,8 @@ def markdown_table(runs: list[dict[str, Any]], total: dict[str, Any]) -> str:
             f"{m['out_of_view']} / {m['edge']} / {m['occluded']} / {m['in_view']} of {r['member_ticks']} | "
             f"{r['duplicated_member_ticks']} | {f(ids['mean'])} ({ids['max']}) | "
             f"{f(r['centre_error_m']['median'])} / {f(r['slot_error_m']['median'])} | "
-            f"{f(r['radius_error_m']['median'])} | {f(act['mean'], '.3f')} |")
+            f"{f(r['radius_error_m']['median'])} | {f(act['mean'], '.3f')} "
+            f"({f(r['action_delta_still']['mean'], '.3f')}) |")
     return "\n".join(out) + "\n"
 
 
@@ -436,7 +443,7 @@ def plot(s: Samples, path: Path, title: str = "") -> Path:
     r = summarise(s)
     fig, (a, b) = plt.subplots(1, 2, figsize=(11, 4.2))
     for key, label, colour in (("position_error_by_distance", "detected", "C0"),
-                               ("remembered_error_by_distance", "remembered (out of view)", "C1")):
+                               ("remembered_error_by_distance", "not detected now (coasting, remembered)", "C1")):
         bins = [x for x in r[key] if x["n"]]
         mid = [0.5 * (x["lo"] + (x["hi"] if x["hi"] is not None else x["lo"] + 2.0)) for x in bins]
         a.plot(mid, [x["median"] for x in bins], "o-", color=colour, label=f"{label}: median")
@@ -447,7 +454,7 @@ def plot(s: Samples, path: Path, title: str = "") -> Path:
     a.set_xlabel("true distance from the robot (m)")
     a.set_ylabel("position error (m)")
     a.set_title("member position error (counts: member-ticks)")
-    a.legend(fontsize=7)
+    a.legend(fontsize=7, loc="upper left")
     a.grid(alpha=0.3)
     bins = [x for x in r["by_bearing"] if x["n"]]
     mid = [0.5 * (x["lo"] + x["hi"]) for x in bins]
