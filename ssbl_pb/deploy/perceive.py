@@ -55,26 +55,33 @@ def torso_depth(xy: np.ndarray, centre: np.ndarray | None) -> np.ndarray:
 TRACKER = TrackerParams(meas_std=0.1, birth_hits=2, accel_std=0.7)
 
 
-class OnePerColour:
+def one_per_colour(palette: list[Any]) -> Callable[[np.ndarray], np.ndarray]:
     """The colour detector with one box per colour, the union of that colour's blobs: each simulated person wears
     their own colour (``world.HUMAN_COLOURS``), and one standing behind a nearer person shows a sliver of their
     torso on either side of that person, which made two detections, hence two tracks, of one person (virtual
     Pepper, lockstep ``mixed`` runs). The union spans the torso's hidden middle, so its centre is the torso's."""
+    import cv2
 
-    def __init__(self, palette: list[Any]) -> None:
-        from ..perception.detectors import ColourDetector
+    from ..perception.detectors import ColourDetector
 
-        self.detectors = [ColourDetector([colour]) for colour in palette]
+    class OnePerColour(ColourDetector):
+        def __call__(self, frame: np.ndarray) -> np.ndarray:
+            p = self.params
+            hsv = cv2.cvtColor(np.ascontiguousarray(frame), cv2.COLOR_RGB2HSV)
+            sat = (hsv[..., 1] >= p.min_saturation) & (hsv[..., 2] >= p.min_value)
+            hue = hsv[..., 0].astype(int)
+            out = []
+            for h0 in self.hues:
+                d = np.abs(hue - h0)
+                blobs: list = []
+                self._blobs(sat & (np.minimum(d, 180 - d) <= p.hue_tol), blobs)
+                if blobs:
+                    b = np.array(blobs, dtype=float)
+                    x0, y0 = b[:, 0].min(), b[:, 1].min()
+                    out.append([x0, y0, (b[:, 0] + b[:, 2]).max() - x0, (b[:, 1] + b[:, 3]).max() - y0, b[:, 4].max()])
+            return np.array(out, dtype=float).reshape(-1, 5)
 
-    def __call__(self, rgb: np.ndarray) -> np.ndarray:
-        out = []
-        for detect in self.detectors:
-            b = detect(rgb)
-            if len(b):
-                x0, y0 = b[:, 0].min(), b[:, 1].min()
-                x1, y1 = (b[:, 0] + b[:, 2]).max(), (b[:, 1] + b[:, 3]).max()
-                out.append([x0, y0, x1 - x0, y1 - y0, b[:, 4].max()])
-        return np.array(out, dtype=float).reshape(-1, 5)
+    return OnePerColour(palette)
 
 
 def make_detector(name: str) -> tuple[Callable[[np.ndarray], np.ndarray], bool]:
@@ -85,7 +92,7 @@ def make_detector(name: str) -> tuple[Callable[[np.ndarray], np.ndarray], bool]:
     if name == "colour":
         from ..env.world import HUMAN_COLOURS
 
-        return OnePerColour(HUMAN_COLOURS), True
+        return one_per_colour(HUMAN_COLOURS), True
     if name == "hog":
         # Pepper's QVGA frames show a standing person 2-5 m away 100-250 px tall: downscales fit the 128 px window
         hog = HogDetector(HogParams(scales=(0.5, 0.7, 1.0)))
