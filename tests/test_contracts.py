@@ -167,6 +167,9 @@ CASES = [
     C("bench_deploy.py", "--runs", "-1", "--out", "{out}", expect="argument --runs"),
     C("bench_deploy.py", "--policy", "nosuch", "--out", "{out}", expect="--policy 'nosuch'"),
     C("bench_deploy.py", "--groups", "round", "--out", "{out}", expect="argument --groups"),
+    # issue 37: the observation model
+    C("evaluate.py", "--policy", "sffm", "--perception", "maybe", "--out", "{out}", expect="argument --perception"),
+    C("train_pb.py", "--set", "env.perception.miss_prob=2", "--out", "{out}", expect="perception.miss_prob"),
     # issue 39: a calibration file's own checks name the file
     C("train_pb.py", "--config", "tests/config_specs/small_room.yaml", "--out", "{out}",
       expect="small_room.yaml: world.room_size = (1, 1)"),

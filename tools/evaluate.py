@@ -34,6 +34,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--groups", choices=["calibrated", "paper"],
                     help="where members stand: as real groups do (calibrated, the default) or on the paper's 1.0 m "
                          "o-space circle (paper)")
+    ap.add_argument("--perception", choices=["off", "on"], default="off",
+                    help="the policy sees the true state (off, default) or the group as deploy's perception would "
+                         "see it through Pepper's camera (on: the observation model, ssbl_pb/perception/simulated.py)")
     ap.add_argument("--shield", choices=["auto", "on", "off"], default="auto",
                     help="a trained policy's safety shield: as trained (auto, default), or forced on/off")
     for name, what in (("camera", "tools/calibrate_camera.py"), ("robot", "tools/identify_dynamics.py"),
@@ -49,11 +52,14 @@ def main(argv: list[str] | None = None) -> int:
                   if (v := getattr(args, f"{k}_yaml")) is not None)
     if args.groups is not None:
         calib += (("groups", args.groups),)
+    if args.perception == "on":
+        calib += (("perception", True),)
     shield = {"auto": None, "on": True, "off": False}[args.shield]
     setup = Setup(args.policy, args.obs_mode, args.scenario, calib, shield)
     with progress_bar(args.episodes, f"evaluate {args.policy}") as bar:
         summary, _ = evaluate(setup, args.episodes, args.seed, args.out, workers, args.paths, bar)
     print(f"success {summary['success_rate']:.1%}  collision {summary['collision_rate']:.1%}  "
+          f"shield {summary['shield_intervention_rate']:.1%} of steps  "
           f"return {summary['mean_return']:.3f}  personal-zone {summary['personal_zone_time_s']:.2f}s  "
           f"-> {args.out}/summary.json")
     return 0

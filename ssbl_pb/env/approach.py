@@ -169,6 +169,7 @@ class ApproachGroupEnv(gym.Env):
         scan: bool = True,
         waypoints: bool = False,
         waypoints_near_group: bool = False,
+        perception: Any = None,
     ) -> None:
         """``record`` keeps every step's state in ``trajectory`` (metrics, plots; on when rendering).
         ``groups``: where members stand, ``"calibrated"`` (default: real groups' size and irregularity) or
@@ -179,7 +180,9 @@ class ApproachGroupEnv(gym.Env):
         (``rooms.FurnitureParams``); ``scan``: the range scan in the observation (False: the 40 entries policies
         trained before it read); ``waypoints``: in rooms with obstacles, the slot's entries show the way around
         them while the slot is out of sight (``planner``; off for policies trained before it);
-        ``waypoints_near_group``: right up to the group's keep-out disc (``planner.way_in_for_group``)."""
+        ``waypoints_near_group``: right up to the group's keep-out disc (``planner.way_in_for_group``);
+        ``perception``: the observation model (``perception.simulated``; off by default: the true state), true or
+        a mapping of ``PerceptionParams``' fields: the policy sees the group as deploy's perception would."""
         from .batched import BatchedApproach
 
         if render_mode not in (None, "rgb_array"):
@@ -187,7 +190,7 @@ class ApproachGroupEnv(gym.Env):
         if not isinstance(render_width, int) or not 64 <= render_width <= 4096:
             raise UserError(f"render width {render_width!r}: expected an integer in [64, 4096] pixels")
         self.sim = BatchedApproach(1, scenario, world, robot, social, reward, task, groups, groups_yaml, room_yaml,
-                                   furniture, scan, waypoints, waypoints_near_group)
+                                   furniture, scan, waypoints, waypoints_near_group, perception)
         sim = self.sim
         self.scenario, self.world_params, self.robot_params = sim.scenario, sim.world_params, sim.robot_params
         self.social, self.task, self.groups = sim.social, sim.task, sim.groups
@@ -245,6 +248,8 @@ class ApproachGroupEnv(gym.Env):
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
         super().reset(seed=seed)
         self.sim.rngs[0] = self.np_random  # the env's generator draws the episode
+        if seed is not None and self.sim.perceived is not None:  # the observation model's own generator
+            self.sim.perceived.seed(0, seed)
         info = self.sim.reset(0, options)
         self.world.set_room(self.sim.rooms[0])
         self.world.t = 0.0

@@ -45,7 +45,11 @@ class BatchedApproach:
                  reward: RewardWeights | dict | None = None, task: TaskParams | dict | None = None,
                  groups: str | GroupModel | None = None, groups_yaml: str | None = None,
                  room_yaml: str | list[str] | None = None, furniture: FurnitureParams | dict | None = None,
-                 scan: bool = True, waypoints: bool = False, waypoints_near_group: bool = False) -> None:
+                 scan: bool = True, waypoints: bool = False, waypoints_near_group: bool = False,
+                 perception: Any = None) -> None:
+        """``perception``: the observation model (``perception.simulated``): None/False, the true state (the
+        default); True or a ``PerceptionParams`` (or a dict of its fields), the group as deploy's perception would
+        see it, and the robot turning in place while it knows fewer than two people."""
         if not isinstance(num, int) or num < 1:
             raise UserError(f"number of copies {num!r}: expected an integer >= 1")
         for name, flag in (("scan", scan), ("waypoints", waypoints), ("waypoints_near_group", waypoints_near_group)):
@@ -55,7 +59,7 @@ class BatchedApproach:
         self.kwargs = {"scenario": scenario, "world": world, "robot": robot, "social": social, "reward": reward,
                        "task": task, "groups": groups, "groups_yaml": groups_yaml, "room_yaml": room_yaml,
                        "furniture": furniture, "scan": scan, "waypoints": waypoints,
-                       "waypoints_near_group": waypoints_near_group}  # ``like`` builds more
+                       "waypoints_near_group": waypoints_near_group, "perception": perception}  # ``like`` builds more
         self.waypoints = waypoints  # rooms with obstacles: the slot's entries show the way around them (planner)
         self.waypoints_near_group = waypoints_near_group  # ... up to the group's keep-out disc
         ep = parse_env_params(scenario, world, robot, social, reward, task, groups, groups_yaml, room_yaml, furniture)
@@ -85,6 +89,17 @@ class BatchedApproach:
         self._obs = np.zeros((num, self.obs_size), dtype=np.float32)
         self._all = np.arange(num)
         self._init_rooms()
+        self.perceived = self._perception(perception)
+
+    def _perception(self, value: Any) -> Any:
+        """The copies' perceived groups (``perception.simulated.PerceivedGroups``), or None for the true state."""
+        from ..perception.simulated import PerceivedGroups, PerceptionParams
+
+        params = PerceptionParams.of(value)
+        if params is None:
+            return None
+        return PerceivedGroups(self.num, self.robot_params, self.social, self.keep, self.groups.name == "paper",
+                               params)
 
     def _init_rooms(self) -> None:
         """Room rows and the distance fields' slots (sized for the largest room the scenario may draw)."""
@@ -180,16 +195,21 @@ class BatchedApproach:
         self.weights = {**dataclasses.asdict(self.weights), **changes}
 
     def observations(self, rows: np.ndarray | None = None) -> np.ndarray:
-        """The Vector observations (N, OBS_SIZE) of the current states (recomputing ``rows`` only, if given)."""
-        g = self.groups_state
-        kernels.observations(self._tp, self.pose, self.vel, g.count, g.pos, g.vel, g.centre, g.scalars, self.slot,
+        """The Vector observations (N, OBS_SIZE) of the current states (recomputing ``rows`` only, if given): of
+        the true group, or with the observation model of the perceived one."""
+        g = self.perceived or self.groups_state
+        slot = self.slot if self.perceived is None else self.perceived.slot
+        kernels.observations(self._tp, self.pose, self.vel, g.count, g.pos, g.vel, g.centre, g.scalars, slot,
                              self.room, self.fields, self.plans, self._obs, self._all if rows is None else rows)
         return self._obs.copy()
 
     # -- episodes ---------------------------------------------------------------------------------------
     def seed(self, i: int, seed: int | None) -> None:
-        """Seed copy ``i``'s generator as ``ApproachGroupEnv.reset(seed=...)`` seeds the single env's."""
+        """Seed copy ``i``'s generator as ``ApproachGroupEnv.reset(seed=...)`` seeds the single env's (and the
+        observation model's own)."""
         self.rngs[i] = seeding.np_random(seed)[0]
+        if self.perceived is not None:
+            self.perceived.seed(i, seed)
 
     def reset(self, i: int, options: dict | None = None) -> dict[str, Any]:
         """Start copy ``i``'s next episode (``reset(options=...)`` as ``ApproachGroupEnv``); returns its info."""
@@ -221,6 +241,8 @@ class BatchedApproach:
         kernels.clearances(self._tp, self.pose[i], n, g.pos[i], self.clearance[i])
         _, self.room[i, kernels.OBSTACLE] = kernels.static_clearance(self._tp, self.pose[i], self.room[i], self.fields)
         self.potential[i] = self.potential_of(i, 0.0)
+        if self.perceived is not None:
+            self.perceived.reset(i, self.pose[i], g.pos[i, :n], self.dt)
         return {"n_humans": n, "formation": formation, "start": start}
 
     def _plan(self, i: int) -> None:
@@ -252,10 +274,19 @@ class BatchedApproach:
         """
         a = np.ascontiguousarray(actions, dtype=np.float64).reshape(self.num, self.n_act)
         b, g = self.bases, self.groups_state
+        aim = g.centre
+        if self.perceived is not None:  # the robot faces the centre it perceives; knowing too few, it searches
+            aim = self.perceived.aim(self.pose, self.task.heading_gain)
+            a = a.copy()
+            a[~self.perceived.known] = 0.0
         kernels.step(self._tp, self._bp, self._sp, self._w, a, b.pose, b.vel, b.queue, g.count, g.pos, g.vel, g.yaw,
                      g.centre0, g.centre, g.scalars, g.ring_offset, g.comfort, g.force, g.repulsion, g.robot_force,
                      self.steps, self.prev_accel, self.clearance, self.slot, self.potential, self.sums, self.terms,
-                     self.rewards, self.flags, self.room, self.fields, self.plans)
+                     self.rewards, self.flags, self.room, self.fields, self.plans, aim)
+        if self.perceived is not None:  # the camera's frame of the new state, for the copies that go on
+            over = self.flags[:, kernels.TERMINATED] | self.flags[:, kernels.TRUNCATED]
+            for i in np.flatnonzero(~over).tolist():
+                self.perceived.frame(i, self.pose[i], g.pos[i, :int(g.count[i])], self.dt)
         return self.rewards.copy(), self.flags[:, kernels.TERMINATED].copy(), self.flags[:, kernels.TRUNCATED].copy()
 
     def keep_out(self, i: int, margin: float) -> float:

@@ -141,15 +141,16 @@ def step(tp: np.ndarray, bp: np.ndarray, sp: np.ndarray, weights: np.ndarray, ac
          comfort: np.ndarray, force: np.ndarray, rep: np.ndarray, robot_force: np.ndarray, steps: np.ndarray,
          prev_accel: np.ndarray, clearance: np.ndarray, slot: np.ndarray, potentials: np.ndarray, sums: np.ndarray,
          terms: np.ndarray, rewards: np.ndarray, flags: np.ndarray, room: np.ndarray, fields: np.ndarray,
-         plans: np.ndarray) -> None:
+         plans: np.ndarray, aim: np.ndarray) -> None:
     """One step of every copy (the arrays of ``batched.BatchedApproach``, updated in place); ``terms`` gets each
     copy's unweighted reward terms, ``flags`` (terminated, truncated, success, violation, collision, obstacle
-    collision)."""
+    collision). ``aim`` (N, 2): the point each robot turns to face and whose direction is its actions' frame,
+    the conversation centre as the robot knows it (``centre`` itself, or the perceived one)."""
     dt = tp[DT]
     after = np.empty(pos.shape[1])
     for i in range(pose.shape[0]):
         a2 = actions[i, 2] if actions.shape[1] > 2 else 0.0
-        fx, fy, w = action_command(actions[i, 0], actions[i, 1], a2, heading_error(pose[i], centre[i]),
+        fx, fy, w = action_command(actions[i, 0], actions[i, 1], a2, heading_error(pose[i], aim[i]),
                                    tp[TURN] > 0, tp[HEADING_GAIN], tp[MAX_SPEED], tp[MAX_YAW_RATE])
         n = count[i]
         robot_before, vel_before = pose[i, :2].copy(), vel[i, :2].copy()

@@ -1,0 +1,210 @@
+"""The group as the robot would perceive it, in simulation (issue 37): an observation model for the engine.
+
+On the robot the policy does not read the true state: deploy's perception detects the people in Pepper's 56 deg
+camera, projects them to the ground, tracks them (``perception.tracker``, ego-motion compensated), remembers the
+ones out of view and moves them by the group's model, and computes the group's centre, o-space radius and free
+slot from those estimates (``deploy.group``). This module runs that same pipeline from the simulator's state,
+with the camera replaced by a model of the detector: a member is detected when deploy's own rule expects it
+(``GroupTracker.visible``: in range, the whole body inside the image, not hidden behind a nearer person), missed
+with probability ``miss_prob``, and placed with range and bearing noise that grows with distance. Everything
+after the detections is deploy's code itself: ``GroupTracker.update`` (the Kalman tracker with deploy's
+settings, ``deploy.perceive.TRACKER``, and its memory of people out of view) and ``GroupModel.update`` (centre,
+radius, joining weight, free slot), called as ``deploy.loop.DeployLoop`` calls them.
+
+While fewer than two people are known, deploy does not run the policy: it turns in place to find the group
+(``DeployLoop._search``). ``search`` gives the engine that turn. Not modelled: deploy's 0.5 s settle at the
+start, its sidestep after a full turn with one person in sight, and the estimate's latency (one frame, ~60 ms).
+Seeded per copy, apart from the env's own generator, so an episode's start is the same with the model on or off.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any
+
+import numpy as np
+
+from ..params import RobotParams, SocialParams, _check
+
+# QVGA, the resolution deploy subscribes (``deploy.naoqi.NaoqiParams.resolution``)
+IMAGE_SIZE = (320, 240)
+
+
+@dataclasses.dataclass(frozen=True)
+class PerceptionParams:
+    """The detector's model (ours; docs/benchmarks.md, "Perception against the virtual Pepper", says where each
+    number comes from) and the search turn (``deploy.loop.DeployParams.search_turn``)."""
+
+    range_std_m: float = 0.03  # m: range noise of a detection at the robot ...
+    range_std_per_m: float = 0.02  # ... growing by this per metre of distance
+    bearing_std_deg: float = 1.0  # deg: bearing noise (a box's column error)
+    miss_prob: float = 0.05  # a person deploy expects to see is not detected in a frame
+    search_turn: float = 0.5  # rad/s in place while fewer than two people are known (DeployParams.search_turn)
+
+    def __post_init__(self) -> None:
+        for name in ("range_std_m", "range_std_per_m", "bearing_std_deg"):
+            v = getattr(self, name)
+            _check(isinstance(v, int | float) and math.isfinite(v) and v >= 0, "perception", name, v,
+                   "a finite number >= 0")
+        _check(isinstance(self.miss_prob, int | float) and 0 <= self.miss_prob < 1, "perception", "miss_prob",
+               self.miss_prob, "a probability in [0, 1)")
+        _check(isinstance(self.search_turn, int | float) and 0 < self.search_turn <= 2, "perception",
+               "search_turn", self.search_turn, "rad/s in (0, 2]")
+
+    @classmethod
+    def of(cls, value: Any) -> PerceptionParams | None:
+        """The env's ``perception`` argument: None/False (off: the true state), True (these defaults), a dict of
+        fields or an instance."""
+        from ..params import ConfigError, from_dict
+
+        if value is None or value is False:
+            return None
+        if value is True:
+            return cls()
+        if isinstance(value, cls):
+            return value
+        if isinstance(value, dict):
+            return from_dict(cls, value, "perception")
+        fields = [f.name for f in dataclasses.fields(cls)]
+        raise ConfigError(f"perception = {value!r}: expected false, true or a mapping of {fields}")
+
+
+def detect(xy: np.ndarray, visible: np.ndarray, params: PerceptionParams, rng: np.random.Generator) -> np.ndarray:
+    """Detections (k, 2) of the robot-frame positions ``xy`` (n, 2) that are ``visible``: each missed with
+    probability ``miss_prob``, the rest moved by range noise ``range_std_m + range_std_per_m * r`` and bearing
+    noise ``bearing_std_deg`` (Gaussian). Draws the same numbers whatever is visible (one miss, range and bearing
+    draw per member), so one member's visibility does not change another's noise."""
+    xy = np.asarray(xy, dtype=float).reshape(-1, 2)
+    n = len(xy)
+    miss = rng.random(n) < params.miss_prob
+    z_range, z_bearing = rng.standard_normal(n), rng.standard_normal(n)
+    r = np.hypot(xy[:, 0], xy[:, 1])
+    b = np.arctan2(xy[:, 1], xy[:, 0])
+    r = np.maximum(r + (params.range_std_m + params.range_std_per_m * r) * z_range, 0.05)
+    b = b + math.radians(params.bearing_std_deg) * z_bearing
+    keep = np.asarray(visible, dtype=bool) & ~miss
+    return np.column_stack([r * np.cos(b), r * np.sin(b)])[keep]
+
+
+class CopyPerception:
+    """One copy's pipeline: its generator, deploy's tracker with its memory, and deploy's group model."""
+
+    def __init__(self, robot: RobotParams, social: SocialParams, keep: float, paper: bool,
+                 params: PerceptionParams) -> None:
+        from ..deploy.group import GroupModel, GroupTracker
+        from ..deploy.perceive import TRACKER
+        from .sim_eval import sim_camera
+
+        self.params, self.paper = params, paper
+        self.model = GroupModel(social, keep, paper=paper)
+        self.tracker = GroupTracker(sim_camera(robot, *IMAGE_SIZE), TRACKER, social=social, model=self.model)
+        self.rng = np.random.default_rng()
+        self.approaching = False
+        self.search_side = 0.0
+        self.members: list[Any] = []
+        self.group: tuple[np.ndarray, float, float, np.ndarray] | None = None  # centre, radius, joining, slot
+
+    def seed(self, seed: int | None) -> None:
+        self.rng = np.random.default_rng(None if seed is None else [int(seed), 37])
+
+    def reset(self) -> None:
+        """A new episode: nothing known (the generator goes on)."""
+        self.tracker.tracker.reset()
+        self.tracker.members.clear()
+        self.tracker.centre0 = None
+        self.model.reset()
+        self.approaching, self.search_side, self.members, self.group = False, 0.0, [], None
+
+    def frame(self, pose: np.ndarray, members: np.ndarray, dt: float) -> None:
+        """One camera frame at the robot's ``pose`` (room frame, used as the odometry frame) with the true
+        ``members`` (n, 2): detect, track, and, with two or more people known, the group as deploy's loop
+        computes it (a new approach resets the model, as ``DeployLoop._act`` does)."""
+        c, s = math.cos(pose[2]), math.sin(pose[2])
+        rel = np.asarray(members, dtype=float).reshape(-1, 2) - pose[:2]
+        xy = np.column_stack([c * rel[:, 0] + s * rel[:, 1], -s * rel[:, 0] + c * rel[:, 1]])
+        seen = detect(xy, self.tracker.visible(xy, xy), self.params, self.rng)
+        self.members = self.tracker.update(seen, dt, np.asarray(pose, dtype=float))
+        if len(self.members) < 2:
+            self.approaching, self.group = False, None
+            self.tracker.centre0 = None
+            return
+        if not self.approaching:
+            self.model.reset()
+            self.approaching, self.search_side = True, 0.0
+        pos = np.array([m.pos for m in self.members])
+        rest = np.array([m.pos if m.rest is None else m.rest for m in self.members])
+        self.group = self.model.update(pos, np.asarray(pose[:2], dtype=float), rest)
+        self.tracker.centre0 = self.model.centre
+
+    def search_aim(self, pose: np.ndarray, heading_gain: float) -> np.ndarray:
+        """The point the robot turns toward while searching: ``search_turn`` rad/s under the env's proportional
+        heading control, toward the one known person's side first (``DeployLoop._search``)."""
+        if self.search_side == 0.0:
+            if self.members:
+                d = self.members[0].pos - pose[:2]
+                side = math.remainder(math.atan2(d[1], d[0]) - pose[2], 2 * math.pi)
+                self.search_side = 1.0 if side >= 0 else -1.0
+            else:
+                self.search_side = 1.0
+        turn = self.search_side * self.params.search_turn / heading_gain
+        return np.asarray(pose[:2], dtype=float) + np.array([math.cos(pose[2] + turn), math.sin(pose[2] + turn)])
+
+
+class PerceivedGroups:
+    """N copies' perceived groups in the engine's array layout (``env.humans.GroupArrays``' ``count``, ``pos``,
+    ``vel``, ``centre``, ``scalars[:, RADIUS]``, and the slot), which ``env.kernels.observations`` turns into the
+    Vector observation in place of the true ones; ``known``: two or more people known (else the robot
+    searches, and the observation's group is empty: its centre just ahead of the robot, its place at it)."""
+
+    def __init__(self, num: int, robot: RobotParams, social: SocialParams, keep: float, paper: bool,
+                 params: PerceptionParams) -> None:
+        from ..env.humans import MAX_HUMANS, N_SCALARS
+
+        self.params = params
+        self.copies = [CopyPerception(robot, social, keep, paper, params) for _ in range(num)]
+        self.count = np.zeros(num, dtype=np.int64)
+        self.pos = np.zeros((num, MAX_HUMANS, 2))
+        self.vel = np.zeros((num, MAX_HUMANS, 2))
+        self.centre = np.zeros((num, 2))
+        self.scalars = np.zeros((num, N_SCALARS))
+        self.slot = np.zeros((num, 2))
+        self.known = np.zeros(num, dtype=bool)
+
+    def seed(self, i: int, seed: int | None) -> None:
+        self.copies[i].seed(seed)
+
+    def reset(self, i: int, pose: np.ndarray, members: np.ndarray, dt: float) -> None:
+        """Copy ``i``'s new episode and its first frame."""
+        self.copies[i].reset()
+        self.frame(i, pose, members, dt)
+
+    def frame(self, i: int, pose: np.ndarray, members: np.ndarray, dt: float) -> None:
+        """Copy ``i``'s frame after a step, into the arrays."""
+        from ..env.humans import MAX_HUMANS, RADIUS
+
+        cp = self.copies[i]
+        cp.frame(pose, members, dt)
+        people = cp.members
+        if cp.group is not None and len(people) > MAX_HUMANS:  # the observation holds the nearest few anyway
+            d = [float(np.hypot(*(m.pos - cp.group[0]))) for m in people]
+            people = [people[k] for k in np.argsort(d, kind="stable")[:MAX_HUMANS]]
+        n = min(len(people), MAX_HUMANS)
+        self.count[i] = n
+        self.pos[i], self.vel[i] = 0.0, 0.0
+        for k, m in enumerate(people[:n]):
+            self.pos[i, k], self.vel[i, k] = m.pos, m.vel
+        self.known[i] = cp.group is not None
+        if cp.group is not None:
+            centre, radius, _, slot = cp.group
+            self.centre[i], self.scalars[i, RADIUS], self.slot[i] = centre, radius, slot
+        else:
+            ahead = np.array([math.cos(pose[2]), math.sin(pose[2])])
+            self.centre[i], self.scalars[i, RADIUS], self.slot[i] = pose[:2] + 1e-3 * ahead, 0.0, pose[:2]
+
+    def aim(self, pose: np.ndarray, heading_gain: float) -> np.ndarray:
+        """(N, 2): each robot's aim (``kernels.step``): the perceived centre, or its search turn."""
+        out = self.centre.copy()
+        for i in np.flatnonzero(~self.known).tolist():
+            out[i] = self.copies[i].search_aim(pose[i], heading_gain)
+        return out

@@ -1,0 +1,101 @@
+"""The observation model (issue 37): the group as deploy's perception would see it, in the engine."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from ssbl_pb.env.approach import ApproachGroupEnv
+from ssbl_pb.env.batched import BatchedApproach
+from ssbl_pb.params import ConfigError, RobotParams, SocialParams
+from ssbl_pb.perception.simulated import CopyPerception, PerceptionParams, detect
+
+EXACT = PerceptionParams(range_std_m=0.0, range_std_per_m=0.0, bearing_std_deg=0.0, miss_prob=0.0)
+
+
+def _copy(params: PerceptionParams = EXACT) -> CopyPerception:
+    cp = CopyPerception(RobotParams(), SocialParams(), keep=0.8, paper=False, params=params)
+    cp.seed(0)
+    return cp
+
+
+def test_range_noise_grows_with_distance_as_configured():
+    params = PerceptionParams(range_std_m=0.0, range_std_per_m=0.1, bearing_std_deg=0.0, miss_prob=0.0)
+    rng = np.random.default_rng(0)
+    xy = np.array([[1.0, 0.0], [0.0, 4.0]])
+    seen = np.array([detect(xy, np.ones(2, bool), params, rng) for _ in range(4000)])
+    ranges = np.hypot(seen[..., 0], seen[..., 1])
+    assert ranges[:, 0].std() == pytest.approx(0.1, rel=0.05) and ranges[:, 1].std() == pytest.approx(0.4, rel=0.05)
+    assert np.allclose(np.arctan2(seen[:, 1, 1], seen[:, 1, 0]), math.pi / 2)  # no bearing noise asked for
+
+
+def test_misses_happen_at_the_configured_rate_and_only_the_visible_are_detected():
+    params = PerceptionParams(range_std_m=0.0, range_std_per_m=0.0, bearing_std_deg=0.0, miss_prob=0.25)
+    rng = np.random.default_rng(1)
+    xy = np.array([[2.0, 0.0], [2.0, 1.0]])
+    counts = [len(detect(xy, np.array([True, False]), params, rng)) for _ in range(4000)]
+    assert np.mean(counts) == pytest.approx(0.75, abs=0.02) and max(counts) == 1
+
+
+def test_deploy_s_rule_hides_a_member_behind_another_and_outside_the_view():
+    tracker = _copy().tracker
+    xy = np.array([[2.0, 0.0], [3.2, 0.05], [1.0, 2.0], [3.0, -1.0]])  # front, behind it, 63 deg left, in view
+    assert tracker.visible(xy, xy).tolist() == [True, False, False, True]
+
+
+def test_with_exact_detection_a_group_in_view_is_estimated_where_it_stands():
+    cp = _copy()
+    members = np.array([[3.0, 0.6], [3.0, -0.6]])  # a pair 3 m ahead, both in view
+    pose = np.array([0.0, 0.0, 0.0])
+    for _ in range(5):  # the tracker confirms after two hits
+        cp.frame(pose, members, 0.1)
+    assert cp.group is not None and len(cp.members) == 2
+    centre, radius, _, slot = cp.group
+    assert centre == pytest.approx([3.0, 0.0], abs=1e-6) and radius == pytest.approx(0.6, abs=1e-6)
+    assert slot[0] < 3.0  # the place opens on the robot's side
+
+
+def test_off_is_the_true_state_and_on_keeps_the_episode_s_start():
+    on, off = BatchedApproach(1, "mixed", perception=True), BatchedApproach(1, "mixed")
+    for b in (on, off):
+        b.seed(0, 7)
+        b.reset(0)
+    assert np.array_equal(on.pose, off.pose) and np.array_equal(on.pos, off.pos)  # the same start
+    assert not np.array_equal(on.observations(), off.observations())  # seen differently
+    plain = BatchedApproach(1, "mixed", perception=False)
+    plain.seed(0, 7)
+    plain.reset(0)
+    assert np.array_equal(plain.observations(), off.observations())
+
+
+def test_the_model_is_seeded_and_deterministic():
+    def play(seed: int) -> np.ndarray:
+        env = ApproachGroupEnv("mixed", perception={"miss_prob": 0.2})
+        obs, _ = env.reset(seed=seed)
+        out = [obs]
+        for _ in range(30):
+            obs, *_ = env.step(np.array([0.5, 0.0]))
+            out.append(obs)
+        return np.array(out)
+
+    assert np.array_equal(play(3), play(3)) and not np.array_equal(play(3), play(4))
+
+
+def test_knowing_too_few_people_the_robot_turns_in_place_whatever_the_policy_asks():
+    env = ApproachGroupEnv("default", perception=True)
+    env.reset(seed=11)
+    sim = env.sim
+    sim.perceived.known[0] = False  # as at an episode's start: nobody confirmed yet
+    before = sim.pose[0].copy()
+    env.step(np.array([1.0, 1.0]))  # full speed asked
+    assert np.hypot(*(sim.pose[0, :2] - before[:2])) < 1e-9  # ignored: it searches
+    assert sim.pose[0, 2] != before[2]
+
+
+def test_bad_model_settings_are_named():
+    with pytest.raises(ConfigError, match="perception.miss_prob"):
+        BatchedApproach(1, perception={"miss_prob": 1.5})
+    with pytest.raises(ConfigError, match="perception"):
+        BatchedApproach(1, perception="yes")
