@@ -99,3 +99,31 @@ def test_bad_model_settings_are_named():
         BatchedApproach(1, perception={"miss_prob": 1.5})
     with pytest.raises(ConfigError, match="perception"):
         BatchedApproach(1, perception="yes")
+
+
+def test_the_share_of_a_torso_hidden_behind_nearer_people_by_hand():
+    from ssbl_pb.perception.simulated import hidden_share
+
+    # behind a person straight ahead: all of it; a person 0.2 m to the side (bearing atan(0.1) = 0.0997 rad,
+    # half-angle atan(0.115) = 0.1145 rad) covers the target's rays (k / 10 - 1) atan(0.23 / 3) from -0.0148 rad:
+    # k >= 9, 12 of the 21 across its width
+    assert hidden_share(np.array([[3.0, 0.0], [2.0, 0.0]]), 0.23).tolist() == [1.0, 0.0]
+    assert hidden_share(np.array([[3.0, 0.0], [2.0, 0.2]]), 0.23)[0] == pytest.approx(12 / 21)
+    assert hidden_share(np.array([[3.0, 0.0], [2.9, 0.0]]), 0.23)[0] == 0.0  # not nearer by 0.2 m: beside it
+
+
+def test_the_search_steps_sideways_after_a_full_turn_with_one_person_known():
+    from ssbl_pb.deploy.group import Member
+
+    cp = _copy()
+    cp.members = [Member(1, np.array([2.0, 1.0]), np.zeros(2), np.eye(2))]  # to the left: turn left first
+    yaw, acts = 0.0, []
+    for _ in range(140):
+        aim, act = cp.search(np.array([0.0, 0.0, yaw]), heading_gain=2.0, dt=0.1)
+        acts.append(act)
+        if not act.any():
+            yaw += 0.05  # as the base turns
+    first = next(k for k, a in enumerate(acts) if a.any())
+    assert first == 126  # 2 pi of 0.05 rad steps
+    assert np.allclose(acts[first], [0.0, 0.2]) and sum(a.any() for a in acts) == 140 - 126
+    assert aim == pytest.approx([2.0, 1.0])  # facing that person while stepping

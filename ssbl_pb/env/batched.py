@@ -276,9 +276,10 @@ class BatchedApproach:
         b, g = self.bases, self.groups_state
         aim = g.centre
         if self.perceived is not None:  # the robot faces the centre it perceives; knowing too few, it searches
-            aim = self.perceived.aim(self.pose, self.task.heading_gain)
-            a = a.copy()
-            a[~self.perceived.known] = 0.0
+            aim, search = self.perceived.steer(self.pose, self.task.heading_gain, self.dt)
+            a, lost = a.copy(), ~self.perceived.known
+            a[lost] = 0.0
+            a[lost, :2] = search[lost] / self.robot_params.max_speed
         kernels.step(self._tp, self._bp, self._sp, self._w, a, b.pose, b.vel, b.queue, g.count, g.pos, g.vel, g.yaw,
                      g.centre0, g.centre, g.scalars, g.ring_offset, g.comfort, g.force, g.repulsion, g.robot_force,
                      self.steps, self.prev_accel, self.clearance, self.slot, self.potential, self.sums, self.terms,

@@ -4,16 +4,18 @@ On the robot the policy does not read the true state: deploy's perception detect
 camera, projects them to the ground, tracks them (``perception.tracker``, ego-motion compensated), remembers the
 ones out of view and moves them by the group's model, and computes the group's centre, o-space radius and free
 slot from those estimates (``deploy.group``). This module runs that same pipeline from the simulator's state,
-with the camera replaced by a model of the detector: a member is detected when deploy's own rule expects it
-(``GroupTracker.visible``: in range, the whole body inside the image, not hidden behind a nearer person), missed
-with probability ``miss_prob``, and placed with range and bearing noise that grows with distance. Everything
+with the camera replaced by a model of the detector: a member can be detected when it is in range with its whole
+body inside the image (deploy's own rule, ``GroupTracker.visible``) and no more than ``hidden_fraction`` of its
+torso's width is hidden behind nearer people; it is then missed with probability ``miss_prob`` and placed with
+range and bearing noise that grows with distance. Everything
 after the detections is deploy's code itself: ``GroupTracker.update`` (the Kalman tracker with deploy's
 settings, ``deploy.perceive.TRACKER``, and its memory of people out of view) and ``GroupModel.update`` (centre,
 radius, joining weight, free slot), called as ``deploy.loop.DeployLoop`` calls them.
 
-While fewer than two people are known, deploy does not run the policy: it turns in place to find the group
-(``DeployLoop._search``). ``search`` gives the engine that turn. Not modelled: deploy's 0.5 s settle at the
-start, its sidestep after a full turn with one person in sight, and the estimate's latency (one frame, ~60 ms).
+While fewer than two people are known, deploy does not run the policy: it turns in place to find the group, and
+after a full turn with one person in sight steps sideways for another line of sight (``DeployLoop._search``).
+``PerceivedGroups.steer`` gives the engine the same. Not modelled: deploy's 0.5 s settle at the start and the
+estimate's latency (one frame, ~60 ms).
 Seeded per copy, apart from the env's own generator, so an episode's start is the same with the model on or off.
 """
 
@@ -43,7 +45,12 @@ class PerceptionParams:
     range_std_per_m: float = 0.012  # ... growing by this per metre of distance
     bearing_std_deg: float = 0.5  # deg: bearing noise (a box's column error; 0.026 m across at 3 m)
     miss_prob: float = 0.03  # a person deploy expects to see is not detected (measured: 3.2 % of frames)
+    # share of a torso's width that may be hidden behind nearer people with the person still detected: of the
+    # members whose line of sight passes within a torso's half-width of a nearer one, 56 % were detected
+    hidden_fraction: float = 0.75
     search_turn: float = 0.5  # rad/s in place while fewer than two people are known (DeployParams.search_turn)
+    sidestep_s: float = 3.0  # s sideways after a full turn with one person known ... (DeployParams.sidestep_s)
+    sidestep_speed: float = 0.2  # m/s ... (DeployParams.sidestep_speed)
 
     def __post_init__(self) -> None:
         for name in ("range_std_m", "range_std_per_m", "bearing_std_deg"):
@@ -52,8 +59,14 @@ class PerceptionParams:
                    "a finite number >= 0")
         _check(isinstance(self.miss_prob, int | float) and 0 <= self.miss_prob < 1, "perception", "miss_prob",
                self.miss_prob, "a probability in [0, 1)")
+        _check(isinstance(self.hidden_fraction, int | float) and 0 <= self.hidden_fraction <= 1, "perception",
+               "hidden_fraction", self.hidden_fraction, "a fraction in [0, 1]")
         _check(isinstance(self.search_turn, int | float) and 0 < self.search_turn <= 2, "perception",
                "search_turn", self.search_turn, "rad/s in (0, 2]")
+        _check(isinstance(self.sidestep_s, int | float) and 0 <= self.sidestep_s <= 30, "perception",
+               "sidestep_s", self.sidestep_s, "seconds in [0, 30]")
+        _check(isinstance(self.sidestep_speed, int | float) and 0 <= self.sidestep_speed <= 0.55, "perception",
+               "sidestep_speed", self.sidestep_speed, "m/s in [0, 0.55]")
 
     @classmethod
     def of(cls, value: Any) -> PerceptionParams | None:
@@ -71,6 +84,23 @@ class PerceptionParams:
             return from_dict(cls, value, "perception")
         fields = [f.name for f in dataclasses.fields(cls)]
         raise ConfigError(f"perception = {value!r}: expected false, true or a mapping of {fields}")
+
+
+def hidden_share(xy: np.ndarray, halfwidth: float) -> np.ndarray:
+    """Per robot-frame point (n, 2), the share of its torso's width (``halfwidth`` either side, across the line of
+    sight) that people nearer the camera by more than 0.2 m cover (their torsos alike), sampled at 21 points."""
+    xy = np.asarray(xy, dtype=float).reshape(-1, 2)
+    rng = np.maximum(np.hypot(xy[:, 0], xy[:, 1]), 1e-3)
+    bearing, half = np.arctan2(xy[:, 1], xy[:, 0]), np.arctan2(halfwidth, rng)
+    out = np.zeros(len(xy))
+    for k in range(len(xy)):
+        near = rng < rng[k] - 0.2
+        if not near.any():
+            continue
+        rays = bearing[k] + half[k] * np.linspace(-1.0, 1.0, 21)
+        gap = np.abs(np.remainder(rays[:, None] - bearing[near][None, :] + math.pi, 2 * math.pi) - math.pi)
+        out[k] = float((gap <= half[near][None, :]).any(axis=1).mean())
+    return out
 
 
 def detect(xy: np.ndarray, visible: np.ndarray, params: PerceptionParams, rng: np.random.Generator) -> np.ndarray:
@@ -96,15 +126,17 @@ class CopyPerception:
     def __init__(self, robot: RobotParams, social: SocialParams, keep: float, paper: bool,
                  params: PerceptionParams) -> None:
         from ..deploy.group import GroupModel, GroupTracker
-        from ..deploy.perceive import TRACKER
+        from ..deploy.perceive import TORSO_HALF, TRACKER
         from .sim_eval import sim_camera
 
+        self.torso_halfwidth = TORSO_HALF[1]
         self.params, self.paper = params, paper
         self.model = GroupModel(social, keep, paper=paper)
         self.tracker = GroupTracker(sim_camera(robot, *IMAGE_SIZE), TRACKER, social=social, model=self.model)
         self.rng = np.random.default_rng()
         self.approaching = False
         self.search_side = 0.0
+        self.turned, self.last_yaw, self.sidestep_left = 0.0, None, 0  # the search's progress
         self.members: list[Any] = []
         self.group: tuple[np.ndarray, float, float, np.ndarray] | None = None  # centre, radius, joining, slot
 
@@ -118,6 +150,7 @@ class CopyPerception:
         self.tracker.centre0 = None
         self.model.reset()
         self.approaching, self.search_side, self.members, self.group = False, 0.0, [], None
+        self.turned, self.last_yaw, self.sidestep_left = 0.0, None, 0
 
     def frame(self, pose: np.ndarray, members: np.ndarray, dt: float) -> None:
         """One camera frame at the robot's ``pose`` (room frame, used as the odometry frame) with the true
@@ -126,7 +159,9 @@ class CopyPerception:
         c, s = math.cos(pose[2]), math.sin(pose[2])
         rel = np.asarray(members, dtype=float).reshape(-1, 2) - pose[:2]
         xy = np.column_stack([c * rel[:, 0] + s * rel[:, 1], -s * rel[:, 0] + c * rel[:, 1]])
-        seen = detect(xy, self.tracker.visible(xy, xy), self.params, self.rng)
+        can = self.tracker.visible(xy, np.zeros((0, 2))) & (hidden_share(xy, self.torso_halfwidth)
+                                                             <= self.params.hidden_fraction)
+        seen = detect(xy, can, self.params, self.rng)
         self.members = self.tracker.update(seen, dt, np.asarray(pose, dtype=float))
         if len(self.members) < 2:
             self.approaching, self.group = False, None
@@ -134,24 +169,36 @@ class CopyPerception:
             return
         if not self.approaching:
             self.model.reset()
-            self.approaching, self.search_side = True, 0.0
+            self.approaching, self.search_side = True, 0.0  # the next search starts afresh
         pos = np.array([m.pos for m in self.members])
         rest = np.array([m.pos if m.rest is None else m.rest for m in self.members])
         self.group = self.model.update(pos, np.asarray(pose[:2], dtype=float), rest)
         self.tracker.centre0 = self.model.centre
 
-    def search_aim(self, pose: np.ndarray, heading_gain: float) -> np.ndarray:
-        """The point the robot turns toward while searching: ``search_turn`` rad/s under the env's proportional
-        heading control, toward the one known person's side first (``DeployLoop._search``)."""
-        if self.search_side == 0.0:
+    def search(self, pose: np.ndarray, heading_gain: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        """Deploy's search (``DeployLoop._search``) as the engine's aim and body action: turn in place at
+        ``search_turn`` rad/s under the env's proportional heading control, toward the one known person's side
+        first; after a full turn with still one person known, ``sidestep_s`` sideways at ``sidestep_speed``
+        facing that person. Returns the aim (2,) and the action's (forward, left) in m/s."""
+        p = self.params
+        if self.search_side == 0.0:  # a new search
+            side = 1.0
             if self.members:
                 d = self.members[0].pos - pose[:2]
-                side = math.remainder(math.atan2(d[1], d[0]) - pose[2], 2 * math.pi)
-                self.search_side = 1.0 if side >= 0 else -1.0
-            else:
-                self.search_side = 1.0
-        turn = self.search_side * self.params.search_turn / heading_gain
-        return np.asarray(pose[:2], dtype=float) + np.array([math.cos(pose[2] + turn), math.sin(pose[2] + turn)])
+                side = 1.0 if math.remainder(math.atan2(d[1], d[0]) - pose[2], 2 * math.pi) >= 0 else -1.0
+            self.search_side, self.turned, self.last_yaw, self.sidestep_left = side, 0.0, None, 0
+        if self.last_yaw is not None:
+            self.turned += abs(math.remainder(pose[2] - self.last_yaw, 2 * math.pi))
+        self.last_yaw = float(pose[2])
+        one = len(self.members) == 1
+        if self.turned >= 2 * math.pi and one:
+            self.turned, self.sidestep_left = 0.0, int(round(p.sidestep_s / dt))
+        if self.sidestep_left > 0 and one:
+            self.sidestep_left -= 1
+            return self.members[0].pos.copy(), np.array([0.0, self.search_side * p.sidestep_speed])
+        turn = self.search_side * p.search_turn / heading_gain
+        aim = np.asarray(pose[:2], dtype=float) + np.array([math.cos(pose[2] + turn), math.sin(pose[2] + turn)])
+        return aim, np.zeros(2)
 
 
 class PerceivedGroups:
@@ -205,9 +252,10 @@ class PerceivedGroups:
             ahead = np.array([math.cos(pose[2]), math.sin(pose[2])])
             self.centre[i], self.scalars[i, RADIUS], self.slot[i] = pose[:2] + 1e-3 * ahead, 0.0, pose[:2]
 
-    def aim(self, pose: np.ndarray, heading_gain: float) -> np.ndarray:
-        """(N, 2): each robot's aim (``kernels.step``): the perceived centre, or its search turn."""
-        out = self.centre.copy()
+    def steer(self, pose: np.ndarray, heading_gain: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        """(N, 2) each robot's aim (``kernels.step``: the perceived centre, or its search's) and (N, 2) the body
+        action (forward, left; m/s) of the copies that search (the others' rows are unused)."""
+        aim, act = self.centre.copy(), np.zeros((len(self.known), 2))
         for i in np.flatnonzero(~self.known).tolist():
-            out[i] = self.copies[i].search_aim(pose[i], heading_gain)
-        return out
+            aim[i], act[i] = self.copies[i].search(pose[i], heading_gain, dt)
+        return aim, act
