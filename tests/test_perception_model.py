@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -25,7 +26,7 @@ def test_range_noise_grows_with_distance_as_configured():
     params = PerceptionParams(range_std_m=0.0, range_std_per_m=0.1, bearing_std_deg=0.0, miss_prob=0.0)
     rng = np.random.default_rng(0)
     xy = np.array([[1.0, 0.0], [0.0, 4.0]])
-    seen = np.array([detect(xy, np.ones(2, bool), params, rng) for _ in range(4000)])
+    seen = np.array([detect(xy, np.ones(2, bool), params, rng)[0] for _ in range(4000)])
     ranges = np.hypot(seen[..., 0], seen[..., 1])
     assert ranges[:, 0].std() == pytest.approx(0.1, rel=0.05) and ranges[:, 1].std() == pytest.approx(0.4, rel=0.05)
     assert np.allclose(np.arctan2(seen[:, 1, 1], seen[:, 1, 0]), math.pi / 2)  # no bearing noise asked for
@@ -35,7 +36,7 @@ def test_misses_happen_at_the_configured_rate_and_only_the_visible_are_detected(
     params = PerceptionParams(range_std_m=0.0, range_std_per_m=0.0, bearing_std_deg=0.0, miss_prob=0.25)
     rng = np.random.default_rng(1)
     xy = np.array([[2.0, 0.0], [2.0, 1.0]])
-    counts = [len(detect(xy, np.array([True, False]), params, rng)) for _ in range(4000)]
+    counts = [len(detect(xy, np.array([True, False]), params, rng)[0]) for _ in range(4000)]
     assert np.mean(counts) == pytest.approx(0.75, abs=0.02) and max(counts) == 1
 
 
@@ -127,3 +128,47 @@ def test_the_search_steps_sideways_after_a_full_turn_with_one_person_known():
     assert first == 126  # 2 pi of 0.05 rad steps
     assert np.allclose(acts[first], [0.0, 0.2]) and sum(a.any() for a in acts) == 140 - 126
     assert aim == pytest.approx([2.0, 1.0])  # facing that person while stepping
+
+
+def test_facing_is_measured_from_the_front_finely_and_from_behind_coarsely():
+    params = dataclasses.replace(EXACT, facing_std_deg=10.0, facing_front_deg=80.0, facing_back_std_deg=30.0)
+    rng = np.random.default_rng(2)
+    xy = np.array([[2.0, 0.0], [3.0, 0.0], [2.0, 1.0]])
+    phi = np.array([0.2, math.pi, 0.0])
+    draws = [detect(xy, np.array([True, True, False]), params, rng, phi) for _ in range(3000)]
+    facing = np.array([d[1] for d in draws])  # the third is not detected
+    err = np.remainder(facing - phi[:2] + math.pi, 2 * math.pi) - math.pi
+    assert err.std(axis=0) == pytest.approx(np.radians([10.0, 30.0]), rel=0.05)
+    assert draws[0][2].tolist() == pytest.approx(np.radians([10.0, 30.0]).tolist())
+    unknown = dataclasses.replace(params, facing_back_std_deg=math.inf)
+    _, f, sd = detect(xy[1:2], np.array([True]), unknown, rng, phi[1:2])
+    assert np.isnan(f).all() and np.isinf(sd).all()  # from behind, unknown: not measured
+
+
+def test_facing_rays_that_cross_fix_the_centre_and_facing_each_other_do_not():
+    from ssbl_pb.deploy.group import facing_centre
+
+    c = np.array([1.0, 2.0])
+    members = c + np.array([[0.8, 0.0], [0.0, 0.8], [-0.8, 0.0]])
+    towards = np.arctan2(c[1] - members[:, 1], c[0] - members[:, 0])
+    assert facing_centre(members, towards, np.full(3, 0.1), reach=1.0) == pytest.approx(c)
+    pair = np.array([[0.0, 0.0], [1.2, 0.0]])  # vis-a-vis: facing each other along one line
+    assert facing_centre(pair, np.array([0.0, math.pi]), np.full(2, 0.1), reach=1.0) is None
+    assert facing_centre(pair, np.array([0.0, np.nan]), np.full(2, 0.1), reach=1.0) is None  # one known
+    # side by side, facing the same way (+y) 10 deg inward each: ahead of their midpoint by 0.3 / tan(10 deg),
+    # capped at the model's o-space radius
+    side = np.array([[-0.3, 0.0], [0.3, 0.0]])
+    inward = np.radians([80.0, 100.0])
+    assert facing_centre(side, inward, np.full(2, 0.5), reach=5.0) == pytest.approx([0.0, 0.3 / math.tan(
+        math.radians(10.0))])
+    assert facing_centre(side, inward, np.full(2, 0.5), reach=0.9) == pytest.approx([0.0, 0.9])
+
+
+def test_with_facing_a_pair_seen_from_behind_is_joined_on_its_far_side():
+    cp = _copy(dataclasses.replace(EXACT, facing_std_deg=0.0, facing_back_std_deg=0.0))
+    members = np.array([[3.0, 0.4], [3.0, -0.4]])  # side by side 3 m ahead, backs to the robot
+    yaw = np.radians([-10.0, 10.0])  # facing away, a little inward: their centre is beyond them (x > 3)
+    for _ in range(5):
+        cp.frame(np.zeros(3), members, 0.1, yaw)
+    centre, _, _, slot = cp.group
+    assert centre[0] > 3.5 and slot[0] > 3.0  # not the midpoint (3, 0) nor a place on the robot's side

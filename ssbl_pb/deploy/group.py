@@ -43,6 +43,8 @@ class GroupParams:
     #   the image's side: close to the group, a member 20 deg off the axis is cut and goes undetected)
     coast_tau_s: float = 1.0  # before a group is known, a remembered member's last velocity decays with this
     #                           time constant (once it is known, the social force model moves them)
+    facing_turn_std: float = 0.3  # rad/s: how fast a conversing person's facing may change (the facing filter's
+    #   process noise; people in a group turn their body slowly, their head faster: ours)
 
 
 @dataclasses.dataclass
@@ -57,6 +59,51 @@ class Member:
     seen: bool = True
     unseen_in_view: int = 0
     rest: np.ndarray | None = None  # where the member stood while the robot was not joining (odometry frame)
+    facing: float | None = None  # the direction the person faces (rad, odometry frame), where the detector tells
+    facing_std: float = math.inf  # its standard deviation (rad)
+
+
+FACING_MIN_SPREAD = 0.35  # rad: facing rays meeting at less than this do not fix a point by their crossing
+FACING_MAX_REACH = 2.5  # m: a centre farther than this from every member, or behind them, is not their o-space
+FACING_AGREE = math.radians(60)  # rad: members all facing within this of their mean direction face one way
+
+
+def facing_centre(members: np.ndarray, facing: np.ndarray, std: np.ndarray, reach: float) -> np.ndarray | None:
+    """The o-space centre from the members' facing (Kendon: each member's transactional segment points at the
+    o-space), or None when fewer than two facings are known or they do not point at one place.
+
+    Rays that cross (at ``FACING_MIN_SPREAD`` or more) give their crossing, by weighted least squares over the
+    rays' normal distances (weights 1 / std^2), if it lies ahead of every member within ``FACING_MAX_REACH``.
+    Rays that face one way, nearly parallel (people side by side, or seen from behind, where the facing is coarse),
+    give the point ``h`` ahead of the members' centroid along their mean facing, ``h`` the crossing distance of
+    rays converging by the angle between them, at most ``reach`` (the model's o-space radius). Rays facing each
+    other (vis-a-vis) give None: the positions tell the centre then (``group_circle``). ``facing`` NaN: unknown."""
+    pts = np.asarray(members, dtype=float).reshape(-1, 2)
+    f, sd = np.asarray(facing, dtype=float).ravel(), np.asarray(std, dtype=float).ravel()
+    known = np.isfinite(f) & np.isfinite(sd) & (sd > 0)
+    if known.sum() < 2:
+        return None
+    pts, f, w = pts[known], f[known], 1.0 / sd[known] ** 2
+    u = np.column_stack([np.cos(f), np.sin(f)])
+    proj = np.eye(2)[None] - u[:, :, None] * u[:, None, :]  # onto each ray's normal
+    a = (w[:, None, None] * proj).sum(axis=0)
+    if np.linalg.eigvalsh(a)[0] >= math.sin(FACING_MIN_SPREAD) ** 2 * w.min():
+        b = (w[:, None, None] * proj @ pts[:, :, None]).sum(axis=0).ravel()
+        c = np.linalg.solve(a, b)
+        ahead = ((c - pts) * u).sum(axis=1)
+        if (ahead > 0).all() and np.hypot(*(c - pts).T).min() <= FACING_MAX_REACH:
+            return c
+        return None
+    mean = (w[:, None] * u).sum(axis=0)
+    if np.hypot(*mean) < 1e-9:
+        return None
+    mean = mean / np.hypot(*mean)
+    if (u @ mean < math.cos(FACING_AGREE)).any():  # not one way: facing each other
+        return None
+    spread = float(np.arccos(np.clip(u @ mean, -1.0, 1.0)).max())  # half the angle between the outermost rays
+    half_width = 0.5 * float(np.ptp((pts - pts.mean(axis=0)) @ np.array([-mean[1], mean[0]])))
+    h = min(half_width / math.tan(spread), reach) if spread > 1e-6 else reach
+    return pts.mean(axis=0) + h * mean
 
 
 def group_circle(members: np.ndarray, robot_xy: np.ndarray, social: SocialParams, paper: bool = False
@@ -88,6 +135,16 @@ def group_circle(members: np.ndarray, robot_xy: np.ndarray, social: SocialParams
     if not (r2 > 0 and math.sqrt(r2) <= 3.0 * social.ospace_radius_for(n + 1)):  # collinear: fall back
         return centroid
     return centre, math.sqrt(r2)
+
+
+def member_arrays(members: list[Member]) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Positions (n, 2), rest positions (n, 2), facings (n,; NaN unknown) and their std (n,) of tracked members,
+    as ``GroupModel.update`` takes them."""
+    pos = np.array([m.pos for m in members], dtype=float).reshape(-1, 2)
+    rest = np.array([m.pos if m.rest is None else m.rest for m in members], dtype=float).reshape(-1, 2)
+    facing = np.array([np.nan if m.facing is None else m.facing for m in members], dtype=float)
+    std = np.array([m.facing_std for m in members], dtype=float)
+    return pos, rest, facing, std
 
 
 class GroupModel:
@@ -126,14 +183,19 @@ class GroupModel:
         g.pos[:] = members
         return g
 
-    def update(self, members: np.ndarray, robot_xy: np.ndarray, rest: np.ndarray | None = None
+    def update(self, members: np.ndarray, robot_xy: np.ndarray, rest: np.ndarray | None = None,
+               facing: np.ndarray | None = None, facing_std: np.ndarray | None = None
                ) -> tuple[np.ndarray, float, float, np.ndarray]:
         """Centre (2,), o-space radius (m), joining weight and free slot (2,) for members (n >= 2, (n, 2)) and
-        the robot; ``rest``: where each member stood before the robot came to join (default: where it stands)."""
+        the robot; ``rest``: where each member stood before the robot came to join (default: where it stands);
+        ``facing``/``facing_std`` (n,): where each faces (rad, NaN unknown): where their rays meet is the centre
+        (``facing_centre``), else it is measured from positions (``group_circle``)."""
         members = np.asarray(members, dtype=float).reshape(-1, 2)
         rest = members if rest is None else np.asarray(rest, dtype=float).reshape(-1, 2)
         n = len(members)
-        measured, _ = group_circle(members, robot_xy, self.social, self.paper)
+        met = None if facing is None else facing_centre(members, facing, facing_std,
+                                                         self.social.ospace_radius_for(max(n, 2)))
+        measured = met if met is not None else group_circle(members, robot_xy, self.social, self.paper)[0]
         if self.centre0 is None or n != self.n:
             self.centre0, self.n = measured, n
         else:
@@ -144,7 +206,7 @@ class GroupModel:
         # a calibrated pair stands symmetric about its centre, in the env as it re-forms too: its midpoint, now (a
         # held centre would make one of its gaps wider than the other as the estimates jitter; the env breaks their
         # 10 deg tie toward the robot). The paper's pair moves its centre toward the robot: the held one, shifted.
-        centre = members.mean(axis=0) if n == 2 and not self.paper else self.centre0
+        centre = members.mean(axis=0) if n == 2 and not self.paper and met is None else self.centre0
         self.centre = centre
         g = self.group(members, centre, rest)
         g.update_centre(robot_xy)
@@ -274,9 +336,35 @@ class GroupTracker:
                 self.alias.pop(tid, None)
         return [st for st in states if st.id not in dropped]
 
-    def update(self, detections: np.ndarray, dt: float, pose: np.ndarray) -> list[Member]:
-        """One frame's robot-frame ground detections (n, 2) taken at odometry ``pose``; returns the members."""
-        states = self.tracker.update(np.asarray(detections, dtype=float).reshape(-1, 2), dt=dt, odom=pose)
+    def _filter_facing(self, m: Member, measured: tuple[float, float] | None, dt: float) -> None:
+        """A one-state Kalman filter on the member's facing angle: the facing drifts (``facing_turn_std``), a
+        measurement (angle, std) pulls it by its share of the variance."""
+        if m.facing is not None:
+            m.facing_std = math.hypot(m.facing_std, self.p.facing_turn_std * math.sqrt(dt))
+        if measured is None:
+            return
+        z, r = measured
+        if m.facing is None or not math.isfinite(m.facing_std):
+            m.facing, m.facing_std = math.remainder(z, 2 * math.pi), r
+            return
+        var, rr = m.facing_std ** 2, r * r
+        k = var / (var + rr)
+        m.facing = math.remainder(m.facing + k * math.remainder(z - m.facing, 2 * math.pi), 2 * math.pi)
+        m.facing_std = math.sqrt((1.0 - k) * var)
+
+    def update(self, detections: np.ndarray, dt: float, pose: np.ndarray, facing: np.ndarray | None = None,
+               facing_std: np.ndarray | None = None) -> list[Member]:
+        """One frame's robot-frame ground detections (n, 2) taken at odometry ``pose``; returns the members.
+        ``facing``/``facing_std`` (n,): each detected person's facing relative to their line of sight (rad, 0:
+        looking at the robot, counter-clockwise positive; NaN unknown), filtered per member (``Member.facing``)."""
+        xy = np.asarray(detections, dtype=float).reshape(-1, 2)
+        payloads = None
+        if facing is not None:  # odometry-frame facing: the direction person -> camera, turned by phi
+            toward = np.arctan2(-xy[:, 1], -xy[:, 0]) + float(pose[2])
+            std = np.full(len(xy), math.inf) if facing_std is None else np.asarray(facing_std, dtype=float)
+            payloads = [(float(toward[k] + f), float(sd)) if np.isfinite(f) and np.isfinite(sd) else None
+                        for k, (f, sd) in enumerate(zip(np.asarray(facing, dtype=float), std, strict=True))]
+        states = self.tracker.update(xy, dt=dt, odom=pose, payloads=payloads)
         rot, t = _se2(pose)
         states = self._take_over(states, rot, t)
         seen = {}
@@ -287,6 +375,9 @@ class GroupTracker:
                        st.misses == 0)
             old = self.members.get(mid)
             m.rest = m.pos.copy() if at_rest or old is None or old.rest is None else old.rest
+            if old is not None:
+                m.facing, m.facing_std = old.facing, old.facing_std
+            self._filter_facing(m, st.payload if st.misses == 0 else None, dt)
             seen[mid] = m
         seen_robot = np.array([st.position for st in states]).reshape(-1, 2)
         gone = [m for k, m in self.members.items() if k not in seen]

@@ -32,7 +32,7 @@ from ..errors import Terminated
 from ..params import RobotParams, SocialParams, _check, _positive
 from .faults import EXIT_CODES, DeployFault, HumanTooClose, StaleFrame, StaleOdometry
 from .frames import Frames
-from .group import GroupModel
+from .group import GroupModel, member_arrays
 from .log import RunLog, dynamics_columns
 from .perceive import Perception
 from .robot import Robot, clamp_command
@@ -135,7 +135,8 @@ class DeployLoop:
         pos = np.array([m.pos + m.vel * age for m in est.members])
         return pos, np.array([m.vel for m in est.members]), est.members, age, est.detections
 
-    def _act(self, pose: np.ndarray, vel: np.ndarray, pos: np.ndarray, mvel: np.ndarray, rest: np.ndarray
+    def _act(self, pose: np.ndarray, vel: np.ndarray, pos: np.ndarray, mvel: np.ndarray, rest: np.ndarray,
+             facing: np.ndarray | None = None, facing_std: np.ndarray | None = None
              ) -> tuple[np.ndarray, dict[str, Any]]:
         """The policy's body command for a known group (odometry-frame inputs), and what it saw."""
         s, fr = self.s, self.s.frames
@@ -144,7 +145,7 @@ class DeployLoop:
             if hasattr(s.policy, "reset"):
                 s.policy.reset()
             self._policy_state, self._approaching = None, True
-        centre, radius, joining, slot = self.group.update(pos, pose[:2], rest)
+        centre, radius, joining, slot = self.group.update(pos, pose[:2], rest, facing, facing_std)
         s.perception.centre0 = self.group.centre
         room = fr.room_pose(pose)
         rot = fr.room_from_odom[2]
@@ -215,8 +216,8 @@ class DeployLoop:
             s.perception.centre0 = None
             state, cmd = self._search(odo.pose, pos)
         else:
-            rest = np.array([q if m.rest is None else m.rest for m, q in zip(members, pos, strict=True)])
-            cmd, info = self._act(odo.pose, odo.velocity, pos, mvel, rest)
+            _, rest, facing, facing_std = member_arrays(members)
+            cmd, info = self._act(odo.pose, odo.velocity, pos, mvel, rest, facing, facing_std)
             state = "joined" if info["success"] else "approach"
         t_send = self.now()
         sent = s.robot.send(clamp_command(cmd, self.limits))

@@ -242,7 +242,7 @@ class BatchedApproach:
         _, self.room[i, kernels.OBSTACLE] = kernels.static_clearance(self._tp, self.pose[i], self.room[i], self.fields)
         self.potential[i] = self.potential_of(i, 0.0)
         if self.perceived is not None:
-            self.perceived.reset(i, self.pose[i], g.pos[i, :n], self.dt)
+            self.perceived.reset(i, self.pose[i], g.pos[i, :n], g.yaw[i, :n], self.dt)
         return {"n_humans": n, "formation": formation, "start": start}
 
     def _plan(self, i: int) -> None:
@@ -287,7 +287,8 @@ class BatchedApproach:
         if self.perceived is not None:  # the camera's frame of the new state, for the copies that go on
             over = self.flags[:, kernels.TERMINATED] | self.flags[:, kernels.TRUNCATED]
             for i in np.flatnonzero(~over).tolist():
-                self.perceived.frame(i, self.pose[i], g.pos[i, :int(g.count[i])], self.dt)
+                n = int(g.count[i])
+                self.perceived.frame(i, self.pose[i], g.pos[i, :n], g.yaw[i, :n], self.dt)
         return self.rewards.copy(), self.flags[:, kernels.TERMINATED].copy(), self.flags[:, kernels.TRUNCATED].copy()
 
     def keep_out(self, i: int, margin: float) -> float:

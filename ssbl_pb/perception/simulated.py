@@ -7,8 +7,10 @@ slot from those estimates (``deploy.group``). This module runs that same pipelin
 with the camera replaced by a model of the detector: a member can be detected when it is in range with its whole
 body inside the image (deploy's own rule, ``GroupTracker.visible``) and no more than ``hidden_fraction`` of its
 torso's width is hidden behind nearer people; it is then missed with probability ``miss_prob`` and placed with
-range and bearing noise that grows with distance. Everything
-after the detections is deploy's code itself: ``GroupTracker.update`` (the Kalman tracker with deploy's
+range and bearing noise that grows with distance. Its facing (relative to its line of sight) is measured with
+``facing_std_deg`` of noise when its front is toward the camera (within ``facing_front_deg``: the virtual Pepper's
+people wear a marker on their chest), and with ``facing_back_std_deg`` from further round (the torso's outline).
+Everything after the detections is deploy's code itself: ``GroupTracker.update`` (the Kalman tracker with deploy's
 settings, ``deploy.perceive.TRACKER``, and its memory of people out of view) and ``GroupModel.update`` (centre,
 radius, joining weight, free slot), called as ``deploy.loop.DeployLoop`` calls them.
 
@@ -48,17 +50,24 @@ class PerceptionParams:
     # share of a torso's width that may be hidden behind nearer people with the person still detected: of the
     # members whose line of sight passes within a torso's half-width of a nearer one, 56 % were detected
     hidden_fraction: float = 0.75
+    facing_std_deg: float = 10.0  # deg: facing noise of a person whose front the camera sees ...
+    facing_front_deg: float = 80.0  # ... within this angle of looking at the robot; from further round ...
+    facing_back_std_deg: float = 30.0  # ... with this (inf: unknown)
     search_turn: float = 0.5  # rad/s in place while fewer than two people are known (DeployParams.search_turn)
     sidestep_s: float = 3.0  # s sideways after a full turn with one person known ... (DeployParams.sidestep_s)
     sidestep_speed: float = 0.2  # m/s ... (DeployParams.sidestep_speed)
 
     def __post_init__(self) -> None:
-        for name in ("range_std_m", "range_std_per_m", "bearing_std_deg"):
+        for name in ("range_std_m", "range_std_per_m", "bearing_std_deg", "facing_std_deg"):
             v = getattr(self, name)
             _check(isinstance(v, int | float) and math.isfinite(v) and v >= 0, "perception", name, v,
                    "a finite number >= 0")
         _check(isinstance(self.miss_prob, int | float) and 0 <= self.miss_prob < 1, "perception", "miss_prob",
                self.miss_prob, "a probability in [0, 1)")
+        _check(isinstance(self.facing_back_std_deg, int | float) and self.facing_back_std_deg >= 0, "perception",
+               "facing_back_std_deg", self.facing_back_std_deg, "a number >= 0 (inf: unknown)")
+        _check(isinstance(self.facing_front_deg, int | float) and 0 <= self.facing_front_deg <= 180, "perception",
+               "facing_front_deg", self.facing_front_deg, "degrees in [0, 180]")
         _check(isinstance(self.hidden_fraction, int | float) and 0 <= self.hidden_fraction <= 1, "perception",
                "hidden_fraction", self.hidden_fraction, "a fraction in [0, 1]")
         _check(isinstance(self.search_turn, int | float) and 0 < self.search_turn <= 2, "perception",
@@ -103,21 +112,33 @@ def hidden_share(xy: np.ndarray, halfwidth: float) -> np.ndarray:
     return out
 
 
-def detect(xy: np.ndarray, visible: np.ndarray, params: PerceptionParams, rng: np.random.Generator) -> np.ndarray:
-    """Detections (k, 2) of the robot-frame positions ``xy`` (n, 2) that are ``visible``: each missed with
-    probability ``miss_prob``, the rest moved by range noise ``range_std_m + range_std_per_m * r`` and bearing
-    noise ``bearing_std_deg`` (Gaussian). Draws the same numbers whatever is visible (one miss, range and bearing
-    draw per member), so one member's visibility does not change another's noise."""
+def detect(xy: np.ndarray, visible: np.ndarray, params: PerceptionParams, rng: np.random.Generator,
+           facing: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Detections of the robot-frame positions ``xy`` (n, 2) that are ``visible``: each missed with probability
+    ``miss_prob``, the rest moved by range noise ``range_std_m + range_std_per_m * r`` and bearing noise
+    ``bearing_std_deg`` (Gaussian). ``facing`` (n,): each person's true facing relative to their line of sight
+    (rad, 0: looking at the robot), measured with ``facing_std_deg`` within ``facing_front_deg`` of 0, else with
+    ``facing_back_std_deg`` (NaN where that is inf).
+    Returns the detections (k, 2), their measured facing (k,) and its std (k,) (NaN/inf: unknown). Draws the same
+    numbers whatever is visible (one miss, range, bearing and facing draw per person), so one person's visibility
+    does not change another's noise."""
     xy = np.asarray(xy, dtype=float).reshape(-1, 2)
     n = len(xy)
     miss = rng.random(n) < params.miss_prob
-    z_range, z_bearing = rng.standard_normal(n), rng.standard_normal(n)
+    z_range, z_bearing, z_facing = rng.standard_normal(n), rng.standard_normal(n), rng.standard_normal(n)
     r = np.hypot(xy[:, 0], xy[:, 1])
     b = np.arctan2(xy[:, 1], xy[:, 0])
     r = np.maximum(r + (params.range_std_m + params.range_std_per_m * r) * z_range, 0.05)
     b = b + math.radians(params.bearing_std_deg) * z_bearing
+    phi = np.full(n, np.nan) if facing is None else np.asarray(facing, dtype=float)
+    front = np.abs(np.remainder(phi + math.pi, 2 * math.pi) - math.pi) <= math.radians(params.facing_front_deg)
+    sd = np.where(front, max(math.radians(params.facing_std_deg), 1e-3),
+                  max(math.radians(params.facing_back_std_deg), 1e-3))
+    known = np.isfinite(phi) & np.isfinite(sd)
+    measured = np.where(known, phi + np.where(known, sd, 0.0) * z_facing, np.nan)
+    std = np.where(known, sd, np.inf)
     keep = np.asarray(visible, dtype=bool) & ~miss
-    return np.column_stack([r * np.cos(b), r * np.sin(b)])[keep]
+    return np.column_stack([r * np.cos(b), r * np.sin(b)])[keep], measured[keep], std[keep]
 
 
 class CopyPerception:
@@ -152,17 +173,21 @@ class CopyPerception:
         self.approaching, self.search_side, self.members, self.group = False, 0.0, [], None
         self.turned, self.last_yaw, self.sidestep_left = 0.0, None, 0
 
-    def frame(self, pose: np.ndarray, members: np.ndarray, dt: float) -> None:
+    def frame(self, pose: np.ndarray, members: np.ndarray, dt: float, yaw: np.ndarray | None = None) -> None:
         """One camera frame at the robot's ``pose`` (room frame, used as the odometry frame) with the true
-        ``members`` (n, 2): detect, track, and, with two or more people known, the group as deploy's loop
-        computes it (a new approach resets the model, as ``DeployLoop._act`` does)."""
+        ``members`` (n, 2) facing ``yaw`` (n,; None: facing unknown): detect, track, and, with two or more people
+        known, the group as deploy's loop computes it (a new approach resets the model, as ``DeployLoop._act``
+        does)."""
         c, s = math.cos(pose[2]), math.sin(pose[2])
         rel = np.asarray(members, dtype=float).reshape(-1, 2) - pose[:2]
         xy = np.column_stack([c * rel[:, 0] + s * rel[:, 1], -s * rel[:, 0] + c * rel[:, 1]])
         can = self.tracker.visible(xy, np.zeros((0, 2))) & (hidden_share(xy, self.torso_halfwidth)
                                                              <= self.params.hidden_fraction)
-        seen = detect(xy, can, self.params, self.rng)
-        self.members = self.tracker.update(seen, dt, np.asarray(pose, dtype=float))
+        phi = None
+        if yaw is not None:  # facing relative to the line of sight: 0 when looking at the robot
+            phi = np.asarray(yaw, dtype=float) - np.arctan2(-rel[:, 1], -rel[:, 0])
+        seen, facing, std = detect(xy, can, self.params, self.rng, phi)
+        self.members = self.tracker.update(seen, dt, np.asarray(pose, dtype=float), facing, std)
         if len(self.members) < 2:
             self.approaching, self.group = False, None
             self.tracker.centre0 = None
@@ -170,9 +195,10 @@ class CopyPerception:
         if not self.approaching:
             self.model.reset()
             self.approaching, self.search_side = True, 0.0  # the next search starts afresh
-        pos = np.array([m.pos for m in self.members])
-        rest = np.array([m.pos if m.rest is None else m.rest for m in self.members])
-        self.group = self.model.update(pos, np.asarray(pose[:2], dtype=float), rest)
+        from ..deploy.group import member_arrays
+
+        pos, rest, facing, facing_std = member_arrays(self.members)
+        self.group = self.model.update(pos, np.asarray(pose[:2], dtype=float), rest, facing, facing_std)
         self.tracker.centre0 = self.model.centre
 
     def search(self, pose: np.ndarray, heading_gain: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
@@ -224,17 +250,17 @@ class PerceivedGroups:
     def seed(self, i: int, seed: int | None) -> None:
         self.copies[i].seed(seed)
 
-    def reset(self, i: int, pose: np.ndarray, members: np.ndarray, dt: float) -> None:
+    def reset(self, i: int, pose: np.ndarray, members: np.ndarray, yaw: np.ndarray, dt: float) -> None:
         """Copy ``i``'s new episode and its first frame."""
         self.copies[i].reset()
-        self.frame(i, pose, members, dt)
+        self.frame(i, pose, members, yaw, dt)
 
-    def frame(self, i: int, pose: np.ndarray, members: np.ndarray, dt: float) -> None:
-        """Copy ``i``'s frame after a step, into the arrays."""
+    def frame(self, i: int, pose: np.ndarray, members: np.ndarray, yaw: np.ndarray, dt: float) -> None:
+        """Copy ``i``'s frame after a step (the true members (n, 2) facing ``yaw`` (n,)), into the arrays."""
         from ..env.humans import MAX_HUMANS, RADIUS
 
         cp = self.copies[i]
-        cp.frame(pose, members, dt)
+        cp.frame(pose, members, dt, yaw)
         people = cp.members
         if cp.group is not None and len(people) > MAX_HUMANS:  # the observation holds the nearest few anyway
             d = [float(np.hypot(*(m.pos - cp.group[0]))) for m in people]
