@@ -21,6 +21,7 @@ import numpy as np
 from ..errors import UserError
 from ..params import RobotParams, SocialParams
 from ..perception.camera import PinholeCamera
+from ..perception.facing import Facing
 from ..perception.sim_eval import ProxyGeometry, boxes_to_ground, sim_camera
 from ..perception.tracker import TrackerParams
 from .group import GroupTracker, Member
@@ -65,13 +66,15 @@ def one_per_colour(palette: list[Any]) -> Callable[[np.ndarray], np.ndarray]:
     from ..perception.detectors import ColourDetector
 
     class OnePerColour(ColourDetector):
+        last: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None  # frame, hsv, boxes, colours
+
         def __call__(self, frame: np.ndarray) -> np.ndarray:
             p = self.params
             hsv = cv2.cvtColor(np.ascontiguousarray(frame), cv2.COLOR_RGB2HSV)
             sat = (hsv[..., 1] >= p.min_saturation) & (hsv[..., 2] >= p.min_value)
             hue = hsv[..., 0].astype(int)
-            out = []
-            for h0 in self.hues:
+            out, colours = [], []
+            for c, h0 in enumerate(self.hues):
                 d = np.abs(hue - h0)
                 blobs: list = []
                 self._blobs(sat & (np.minimum(d, 180 - d) <= p.hue_tol), blobs)
@@ -79,14 +82,34 @@ def one_per_colour(palette: list[Any]) -> Callable[[np.ndarray], np.ndarray]:
                     b = np.array(blobs, dtype=float)
                     x0, y0 = b[:, 0].min(), b[:, 1].min()
                     out.append([x0, y0, (b[:, 0] + b[:, 2]).max() - x0, (b[:, 1] + b[:, 3]).max() - y0, b[:, 4].max()])
-            return np.array(out, dtype=float).reshape(-1, 5)
+                    colours.append(c)
+            boxes = np.array(out, dtype=float).reshape(-1, 5)
+            self.last = (frame, hsv, boxes, np.array(colours, dtype=int))
+            return boxes
+
+        @property
+        def last_colours(self) -> np.ndarray:
+            """The palette index of each box of the last frame."""
+            return self.last[3] if self.last is not None else np.zeros(0, dtype=int)
+
+        def facing(self, camera: PinholeCamera | None = None) -> Facing:
+            """Facing of each box of the last frame (rows as that call returned them: index them as its boxes;
+            ``perception.facing.estimate_facing``). ``camera``: the frame's, default the simulated CameraTop."""
+            from ..perception.facing import estimate_facing
+
+            if self.last is None:
+                raise RuntimeError("facing: no frame detected yet")
+            frame, hsv, boxes, colours = self.last
+            return estimate_facing(frame, boxes, camera, colours=colours, palette=palette, hsv=hsv,
+                                   colour_params=self.params)
 
     return OnePerColour(palette)
 
 
 def make_detector(name: str) -> tuple[Callable[[np.ndarray], np.ndarray], bool]:
     """A detector for RGB frames and whether its boxes are torsos (``colour``: the simulated people's
-    saturated torsos, for the virtual Pepper) or whole people (``hog``: OpenCV's people detector)."""
+    saturated torsos, for the virtual Pepper) or whole people (``hog``: OpenCV's people detector). The colour
+    detector also tells each box's facing: after a call, ``detector.facing()`` (``one_per_colour``)."""
     from ..perception.detectors import HogDetector, HogParams
 
     if name == "colour":
