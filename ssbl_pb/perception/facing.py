@@ -84,7 +84,8 @@ class Facing:
     phi_abs: np.ndarray  # (n,) |phi| in [0, pi] from the posterior folded about the line of sight; NaN: no estimate
     abs_std: np.ndarray  # (n,) its spread
     front: np.ndarray  # (n,) posterior probability that |phi| < 90 deg (the front faces the camera)
-    depth: np.ndarray  # (n,) m: body axis behind the torso's nearest corner, along the camera's axis (posterior mean)
+    depth: np.ndarray  # (n,) m: the body axis behind the box's ground point (deploy's), along the line of sight:
+    # deploy's ``perceive.torso_depth`` for the facing seen (posterior mean)
     marker: np.ndarray  # (n,) bool: the chest plate was seen
     posterior: np.ndarray  # (n, k) over ``grid``
     grid: np.ndarray  # (k,) phi hypotheses
@@ -283,7 +284,7 @@ def _hypotheses(cam: PinholeCamera, box: np.ndarray, grid: np.ndarray, body: Pro
     closest = np.linalg.norm(axis[:, None] + off[:, :4] - c[None, None, :2], axis=2).argmin(axis=1)
     crease = torso[np.arange(len(grid)), closest].mean(axis=1)
     return {"L": torso.min(axis=(1, 2)), "R": torso.max(axis=(1, 2)), "mL": mL, "mR": mR, "crease": crease,
-            "seen": seen, "depth": depth}
+            "seen": seen, "depth": depth / u[0]}
 
 
 def find_crease(rgb: np.ndarray, own: np.ndarray, box: np.ndarray, min_step: int = 2,

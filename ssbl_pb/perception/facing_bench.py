@@ -35,7 +35,7 @@ class Sample:
     detected: bool  # a whole box of the person's colour was found
 
 
-def _place(world: Any, heading: float, people: list[tuple[int, float, float, float]]) -> np.ndarray:
+def place(world: Any, heading: float, people: list[tuple[int, float, float, float]]) -> np.ndarray:
     """Robot at a random place facing ``heading``; ``people`` as (member, distance from the camera, bearing from
     the optical axis, phi). Other members stand behind the robot. Returns the camera's ground position."""
     back = -2.5 * np.array([math.cos(heading), math.sin(heading)])  # the scene stays inside the 10 m room
@@ -55,8 +55,11 @@ def _place(world: Any, heading: float, people: list[tuple[int, float, float, flo
 
 
 def run_bench(frames: int = 400, seed: int = 0, width: int = 320, height: int = 240,
-              progress: Any = None) -> list[Sample]:
-    """``frames`` single-person and ``frames`` occluded-pair frames; ``progress(n)`` is told of each frame."""
+              progress: Any = None) -> tuple[list[Sample], list[float]]:
+    """``frames`` single-person and ``frames`` occluded-pair frames; ``progress(n)`` is told of each frame.
+    Returns the samples and the seconds ``estimate_facing`` took on each frame."""
+    import time
+
     from ..deploy.perceive import make_detector
     from ..env.world import HUMAN_COLOURS, World
     from .facing import palette_hues
@@ -67,6 +70,7 @@ def run_bench(frames: int = 400, seed: int = 0, width: int = 320, height: int = 
     half_fov = math.radians(world.robot_params.camera_hfov_deg) / 2
     hues = palette_hues(HUMAN_COLOURS)
     out: list[Sample] = []
+    seconds: list[float] = []
     try:
         world.reset(np.random.default_rng(0), n_humans=len(HUMAN_COLOURS))
         for scene in ("single", "occluded"):
@@ -83,7 +87,7 @@ def run_bench(frames: int = 400, seed: int = 0, width: int = 320, height: int = 
                     side = near + far * (2 * rng.uniform(0.25, 0.9) - 1)
                     people.append((int(members[1]), d2, bearing + rng.choice([-1.0, 1.0]) * side,
                                    rng.uniform(-math.pi, math.pi)))
-                _place(world, heading, people)
+                place(world, heading, people)
                 rgb, _ = world.render_first_person(width, height)
                 boxes = detect(rgb)
                 colours = getattr(detect, "last_colours", None)
@@ -91,7 +95,9 @@ def run_bench(frames: int = 400, seed: int = 0, width: int = 320, height: int = 
                     keep = (boxes[:, 0] > 1) & (boxes[:, 0] + boxes[:, 2] < width - 1)
                     boxes = boxes[keep]
                     colours = None if colours is None else np.asarray(colours)[keep]
+                t0 = time.perf_counter()
                 fac = estimate_facing(rgb, boxes, colours=colours)
+                seconds.append(time.perf_counter() - t0)
                 box_hues = _box_hues(rgb, boxes) if colours is None else hues[np.asarray(colours, dtype=int)]
                 for k, (m, dist, _, phi) in enumerate(people):
                     name = "single" if scene == "single" else ("near", "far")[k]
@@ -106,7 +112,7 @@ def run_bench(frames: int = 400, seed: int = 0, width: int = 320, height: int = 
                     progress(1)
     finally:
         world.close()
-    return out
+    return out, seconds
 
 
 def _box_hues(rgb: np.ndarray, boxes: np.ndarray) -> np.ndarray:
