@@ -204,6 +204,19 @@ def test_a_partly_hidden_person(world):
             assert math.isnan(fac.phi[far]) or math.radians(err_deg(fac.phi[far], far_phi)) <= 2.5 * fac.std[far]
 
 
+def test_a_person_cut_by_the_image_side_beside_a_nearer_one(world):
+    # the farther one stands against the nearer one's right edge and is cut by the image's side; their plate
+    # touches the nearer one's box: it is not the nearer one's, whether or not the cut box is passed (deploy drops
+    # boxes cut by the side), and the cut one, with neither edge its own, gets no confident wrong answer
+    near_w = math.atan2(0.23, 2.9)
+    rgb, boxes, colours, fac = render(world, 0.5, [(0, 2.9, -0.36, -67), (2, 3.6, -0.36 - near_w - 0.04, -50)])
+    near, far = row_of(colours, 0), row_of(colours, 2)
+    assert boxes[far, 0] + boxes[far, 2] >= 319  # cut
+    alone = estimate_facing(rgb, boxes[near:near + 1], colours=colours[near:near + 1])
+    assert err_deg(fac.phi[near], -67) < 5.0 and err_deg(alone.phi[0], -67) < 5.0
+    assert math.isnan(fac.phi[far]) or math.radians(err_deg(fac.phi[far], -50)) <= 2.5 * fac.std[far]
+
+
 def test_the_detector_exposes_the_facing_of_its_boxes(world):
     detect, torso = make_detector("colour")
     with pytest.raises(RuntimeError):

@@ -1,10 +1,11 @@
 #!/usr/bin/env python
 """Accuracy of the facing read from the virtual Pepper's camera frames (``ssbl_pb/perception/facing.py``):
-rendered QVGA frames of one person 1-5 m away, and of an occluded pair, at facings uniform over 360 deg, through
-deploy's colour detector. Writes OUT.json (every sample and the summary) and OUT.md (tables of the error by
-true facing and distance) and prints the Markdown.
+rendered QVGA frames of one person 1-5 m away and of an occluded pair, at facings uniform over 360 deg, and of
+the env's groups, through deploy's colour detector (``ssbl_pb/perception/facing_bench.py``). Writes OUT.json
+(every sample and the summary) and OUT.md (tables of the error by true facing and distance) and prints the
+Markdown.
 
-    python tools/bench_facing.py                                # 400 + 400 frames (~1 min)
+    python tools/bench_facing.py                                # 3 x 400 frames (~40 s)
     python tools/bench_facing.py --frames 100 --out /tmp/facing
 """
 
@@ -23,7 +24,7 @@ ROOT = Path(__file__).resolve().parents[1]
 def main(argv: list[str] | None = None) -> int:
     ap = ArgumentParser(description=__doc__)
     ap.add_argument("--frames", type=int_at_least(1), default=400,
-                    help="frames of each scene, one person and an occluded pair (default 400)")
+                    help="frames of each scene: one person, an occluded pair, a group (default 400)")
     ap.add_argument("--seed", type=int, default=0, help="scene seed (default 0)")
     ap.add_argument("--out", type=Path, default=ROOT / "results" / "bench_facing",
                     help="results stem: OUT.json and OUT.md (default results/bench_facing)")
@@ -37,7 +38,7 @@ def main(argv: list[str] | None = None) -> int:
     from ssbl_pb.perception.facing import FacingParams
     from ssbl_pb.perception.facing_bench import markdown, run_bench, summarise
 
-    with progress_bar(2 * args.frames, "frames", "frame") as bar:
+    with progress_bar(3 * args.frames, "frames", "frame") as bar:
         samples, seconds = run_bench(args.frames, args.seed, progress=bar)
     command = "python tools/bench_facing.py " + " ".join(shlex.quote(a) for a in (sys.argv[1:] if argv is None
                                                                                  else argv))

@@ -2,19 +2,25 @@
 
 A proxy (urdf/human.urdf) is a torso box in the person's colour, 0.26 m deep (along the facing) x 0.46 m wide x
 0.60 m tall (0.84-1.44 m above the floor), with a yellow chest plate 0.22 m wide x 0.20 m tall x 0.02 m deep
-centred 0.135 m in front of the body axis, 1.19 m up. From a torso box (``x, y, w, h``) and the frame:
+centred 0.135 m in front of the body axis, 1.19 m up, and a yellow nose (0.05 x 0.04 x 0.04 m, its tip 0.145 m
+ahead of the head sphere's centre, 1.58 m up, radius 0.12 m). From a torso box (``x, y, w, h``) and the frame:
 
 - the box's rows give the depth of the torso's nearest corner (as ``sim_eval.boxes_to_ground``);
 - its width is the silhouette of the box turned by the facing, 2 (a |sin phi| + b |cos phi|) with a = 0.13, b =
-  0.23 m seen from afar: |phi| folded into [0, 90] deg;
-- the chest plate is seen iff the front faces the camera (|phi| < 90 deg), and its columns relative to the torso
-  box's give sin phi (0.135 m lever) and |cos phi| (its 0.22 m width).
+  0.23 m seen from afar: |phi| folded into [0, 90] deg (and not even that near a back: the width peaks 30 deg off);
+- the chest plate is seen iff the front faces the camera (|phi| < ~95 deg: it stands 0.015 m proud), and its
+  columns relative to the torso box's give sin phi (0.135 m lever) and |cos phi| (its 0.22 m width);
+- TinyRenderer shades each face flat by its angle to a light fixed in the world: a vertical colour step inside
+  the box is the crease between the two lateral faces seen (the vertical edge nearest the camera), which tells
+  how the box is turned, mirror images apart (none shows where both faces are lit alike);
+- the nose sticks out beside the head until the head hides it (~135 deg off the line of sight): its side of the
+  head tells a person turned left from one turned right, for side views and backs within ~45 deg of side-on.
 
 Each hypothesis phi on a grid (``FacingParams.step_deg``) is rendered with the pinhole camera (perspective,
 bearing, the nearest corner at the rows' depth, the axis placed so that the predicted silhouette lines up with
 the box), scored against these observations, and the posterior over phi is summarised as a circular mean and
-spread. Occlusion is handled: an edge of the box or of the plate next to a nearer person's colour (or the image's
-side) only bounds the true one, and a plate not seen where a nearer person covers it does not count against
+spread. Occlusion is handled: an edge of the box or of the plate next to a nearer person (or the image's side)
+only bounds the true one, and a plate not seen where a nearer person covers it does not count against
 front-facing hypotheses.
 
 Convention: phi (rad, in (-pi, pi]) is the angle from the direction "person -> camera" to the person's facing,
@@ -22,10 +28,11 @@ counter-clockwise seen from above. phi = 0: the person looks at the camera; +-pi
 they have turned to their own left (the chest plate moves to the image's right). A person's facing yaw in the
 robot frame is ``facing_yaw(xy, phi)``.
 
-A person seen from behind shows no plate: the width gives |phi| but not its sign (mirror images about the line
-of sight look alike), so the posterior has two modes and ``phi`` is their circular mean (pi) with a spread that
-covers both; ``phi_abs`` keeps the folded estimate. Where the spread exceeds ``FacingParams.max_std`` (a back
-seen within ~60 deg of side-on, or a person mostly hidden), ``phi`` is NaN.
+A back seen without a crease or a nose looks like its mirror image about the line of sight: the posterior has
+two modes and ``phi`` is their circular mean (pi) with a spread that covers both; ``phi_abs`` keeps the folded
+estimate. Where the spread exceeds ``FacingParams.max_std`` (such a back 20-60 deg off square-on, a person mostly
+hidden), ``phi`` is NaN; a box whose top or bottom row is out of the frame (a person nearer than ~1.05 m) gets
+no estimate at all. Accuracy on rendered frames: tools/bench_facing.py.
 """
 
 from __future__ import annotations
@@ -54,6 +61,12 @@ class ProxyBody:
     marker_x: tuple[float, float] = (0.13, 0.145)  # chest plate 0.02 deep at 0.135: its part in front of the torso
     marker_half_width: float = 0.11  # plate 0.22 wide
     marker_z: tuple[float, float] = (1.09, 1.29)  # plate 0.20 tall, centred 0.35 m above the torso joint
+    head_z: float = 1.58  # head sphere's centre (neck joint 0.74 m above the torso joint)
+    head_radius: float = 0.12
+    nose_x: float = 0.132  # nose box 0.05 deep centred 0.12 ahead of the head's centre: the middle of its part
+    # outside the sphere (0.118-0.145)
+    nose_tip: float = 0.145
+    nose_half: float = 0.02  # nose 0.04 wide and tall
 
 
 @dataclasses.dataclass(frozen=True)
@@ -65,8 +78,9 @@ class FacingParams:
     scale_rel: float = 0.015  # relative std of predicted sizes (the rows' depth is quantised to a pixel)
     marker_hue_tol: int = 4  # OpenCV hue units around MARKER_RGB's (26.5); orange torsos are at 15
     miss_cost: float = 30.0  # cost (-2 log likelihood) of a plate predicted >= 2 px wide but not seen, or vice versa
+    nose_cost: float = 12.0  # cost of a nose seen where the head would hide it (another's head may be there)
     floor_deg: float = 2.0  # model error added to the posterior's spread
-    max_std: float = 0.6  # rad: a wider posterior (two far apart modes) leaves phi NaN
+    max_std: float = 0.6  # rad (34 deg): a wider posterior (two modes far apart) leaves phi NaN
 
     def __post_init__(self) -> None:
         if not 0 < self.step_deg <= 10:
@@ -92,6 +106,7 @@ class Facing:
 
     @classmethod
     def empty(cls, n: int, grid: np.ndarray) -> Facing:
+        """``n`` rows with no estimate."""
         nan = np.full(n, np.nan)
         return cls(nan.copy(), nan.copy(), nan.copy(), nan.copy(), nan.copy(), nan.copy(), np.zeros(n, dtype=bool),
                    np.full((n, len(grid)), np.nan), grid)
@@ -173,9 +188,11 @@ class _Scene:
     """One frame's masks: the palette colours of the boxes and the chest plates' connected components."""
 
     def __init__(self, rgb: np.ndarray | None, masks: HueMasks, boxes: np.ndarray, colours: np.ndarray,
-                 palette: Sequence[Sequence[float]], p: FacingParams, cp: ColourParams) -> None:
+                 palette: Sequence[Sequence[float]], p: FacingParams, cp: ColourParams, body: ProxyBody,
+                 g: ProxyGeometry) -> None:
         hues = palette_hues(palette)
-        self.rgb = rgb
+        self.rgb, self.body, self.geometry = rgb, body, g
+        self.nose: list[float | None] = [None] * len(boxes)  # see assign_noses
         self.height, self.width = masks.hue.shape
         self.boxes, self.colours = boxes, colours
         self.masks = {int(c): masks(hues[c], cp.hue_tol) for c in set(colours.tolist()) if c >= 0}
@@ -184,6 +201,62 @@ class _Scene:
         self.owner = np.full(n, -1)  # box index of each marker component
         for k in range(1, n):
             self.owner[k] = self._owner(k)
+        # yellow no torso owns: noses, and plates of two people run together (a side-on plate standing proud of a
+        # nearer torso next to a farther one's): it may hide a plate or an edge, so it bounds, never counts
+        self.unowned = (self.owner < 0)[self.labels] & (self.labels > 0)
+
+    def assign_noses(self, cam: PinholeCamera) -> None:
+        """``self.nose[i]``: the column of box ``i``'s nose, a yellow component no torso owns, within a head's
+        radius (plus the nose) of the box's middle and at the head's height, or None."""
+        free = [k for k in range(1, len(self.owner)) if self.owner[k] < 0]
+        if not free:
+            return
+        body, c = self.body, cam.centre()[:2]
+        adj = self.boxes[:, :4].astype(float).copy()
+        adj[:, 1] -= 0.5
+        adj[:, 3] += 1.0
+        ground = boxes_to_ground(cam, adj, self.geometry, torso=True)
+        best: dict[int, tuple[float, int]] = {}
+        for i, xy in enumerate(ground):
+            if not np.isfinite(xy).all() or self.colours[i] < 0:
+                continue
+            rng = float(np.hypot(*(xy - c)))
+            axis = xy + 0.2 * (xy - c) / max(rng, 1e-6)  # the body axis: ~0.2 m behind the ground point
+            dist = rng + 0.2
+            head_v = cam.robot_to_pixel(np.array([[*axis, body.head_z]]))[0, 1]
+            # the head is above the torso's middle; where an edge is hidden, anywhere the silhouette's middle may be
+            # (its width is 0.26-0.53 m: 2a to the diagonal)
+            L, R = self.boxes[i, 0] - 0.5, self.boxes[i, 0] + self.boxes[i, 2] - 0.5
+            wmin = cam.fx * 2 * body.torso_half[0] / dist
+            wmax = cam.fx * 2 * math.hypot(*body.torso_half) / dist
+            left_ok, right_ok = self.edges(i, self.blocked(i))
+            if left_ok == right_ok:
+                span = (0.5 * (L + R), 0.5 * (L + R)) if left_ok else (L, R)
+            else:
+                span = (L + 0.5 * wmin, L + 0.5 * wmax) if left_ok else (R - 0.5 * wmax, R - 0.5 * wmin)
+            reach_u = cam.fx * (body.head_radius + 0.035) / dist + 2.0
+            reach_v = cam.fx * 0.06 / dist + 2.0
+            for k in free:
+                x, y, w, h, _ = self.stats[k]
+                cu = x + 0.5 * w - 0.5
+                du = max(span[0] - cu, cu - span[1], 0.0) / reach_u
+                dv = abs(y + 0.5 * h - 0.5 - head_v) / reach_v
+                if du <= 1.0 and dv <= 1.0 and du + dv < best.get(k, (math.inf, -1))[0]:
+                    best[k] = (du + dv, i)
+        for k, (_, i) in sorted(best.items(), key=lambda kv: kv[1][0]):  # the best match of each box
+            if self.nose[i] is None:
+                self.nose[i] = self.stats[k][0] + 0.5 * self.stats[k][2] - 0.5
+
+    def blocked(self, i: int) -> np.ndarray:
+        """What may hide part of box ``i``: nearer people (torsos and plates) and yellow no one owns."""
+        return self.nearer(i) | self.unowned
+
+    def edges(self, i: int, blocked: np.ndarray) -> tuple[bool, bool]:
+        """Whether box ``i``'s left and right edges are the torso's own: not next to ``blocked`` or the image's
+        side (else the torso may reach further)."""
+        x, y, w, h = (int(round(v)) for v in self.boxes[i, :4])
+        return (_side_free(blocked, (y, y + h), (x - 2, x)) and x > 1,
+                _side_free(blocked, (y, y + h), (x + w, x + w + 2)) and x + w < self.width - 1)
 
     def nearer(self, i: int) -> np.ndarray:
         """Mask of the people nearer than box ``i`` (taller boxes: the rows span the nearest corner's depth), their
@@ -196,11 +269,12 @@ class _Scene:
             out |= plates[self.labels]
         return out
 
-    def plate_rows(self, i: int, body: ProxyBody, g: ProxyGeometry) -> tuple[float, float]:
+    def plate_rows(self, i: int) -> tuple[float, float]:
         """Rows where box ``i``'s plate would be (fractions of the torso's height at its nearest corner)."""
         y, h = self.boxes[i, 1] - 0.5, self.boxes[i, 3]
-        span = g.torso[1] - g.torso[0]
-        return y + h * (g.torso[1] - body.marker_z[1]) / span, y + h * (g.torso[1] - body.marker_z[0]) / span
+        top, z = self.geometry.torso[1], self.body.marker_z
+        span = top - self.geometry.torso[0]
+        return y + h * (top - z[1]) / span, y + h * (top - z[0]) / span
 
     def _owner(self, k: int) -> int:
         """The box a plate component belongs to: one whose colour touches it and whose plate rows match it best."""
@@ -212,7 +286,11 @@ class _Scene:
         for i, c in enumerate(self.colours):
             if c < 0 or not (self.masks[int(c)][y0:y1, x0:x1] & ring).any():
                 continue
-            top, bottom = self.plate_rows(i, ProxyBody(), ProxyGeometry())
+            bx, bw, bh = self.boxes[i, 0], self.boxes[i, 2], self.boxes[i, 3]
+            proud = max(2.0, 0.03 * bh / 0.6)  # the plate stands 0.015 m proud of the torso: px at its scale
+            if x < bx - proud or x + w - 1 > bx + bw - 1 + proud:  # reaching out of the box: someone else's
+                continue
+            top, bottom = self.plate_rows(i)
             miss = abs(y - 0.5 - top) + abs(y + h - 0.5 - bottom)
             if miss < best and miss < 0.15 * self.boxes[i, 3] + 3:
                 best, owner = miss, i
@@ -283,8 +361,20 @@ def _hypotheses(cam: PinholeCamera, box: np.ndarray, grid: np.ndarray, body: Pro
     # depth along the optical axis, which sets the rows: off the axis they differ)
     closest = np.linalg.norm(axis[:, None] + off[:, :4] - c[None, None, :2], axis=2).argmin(axis=1)
     crease = torso[np.arange(len(grid)), closest].mean(axis=1)
+    # the nose shows unless the head hides it: its tip's corner nearest the camera (0.145 m ahead, 0.02 m aside
+    # and below) is out of the head sphere's shadow, P.v > -sqrt(|P|^2 - r^2) with v toward the camera: up to
+    # 132-138 deg off the line of sight (the camera looks up at the head)
+    head = np.concatenate([axis, np.full((len(grid), 1), body.head_z)], axis=1)
+    nose = _columns(cam, head + np.concatenate([body.nose_x * f, np.zeros((len(grid), 1))], axis=1))
+    v = c[None] - head
+    v /= np.linalg.norm(v, axis=1, keepdims=True)
+    tip, half = body.nose_tip, body.nose_half
+    aside = np.where(((v[:, :2] * left).sum(axis=1) > 0)[:, None], left, -left)
+    corner = np.concatenate([tip * f + half * aside, np.full((len(grid), 1), -half)], axis=1)
+    reach = math.sqrt(max(tip**2 + 2 * half**2 - body.head_radius**2, 0.0))
+    nose_seen = (corner * v).sum(axis=1) > -reach
     return {"L": torso.min(axis=(1, 2)), "R": torso.max(axis=(1, 2)), "mL": mL, "mR": mR, "crease": crease,
-            "seen": seen, "depth": depth / u[0]}
+            "seen": seen, "depth": depth / u[0], "nose": nose, "nose_seen": nose_seen}
 
 
 def find_crease(rgb: np.ndarray, own: np.ndarray, box: np.ndarray, min_step: int = 2,
@@ -326,11 +416,9 @@ def _one(scene: _Scene, i: int, cam: PinholeCamera, grid: np.ndarray, p: FacingP
     hyp = _hypotheses(cam, box, grid, body, g)
     if hyp is None or scene.colours[i] < 0:
         return None
-    x, y, w, h = (int(round(v)) for v in box[:4])
-    nearer = scene.nearer(i)
-    # an edge next to a nearer person's torso or the image's side only bounds the silhouette
-    left_ok = _side_free(nearer, (y, y + h), (x - 2, x)) and x > 1
-    right_ok = _side_free(nearer, (y, y + h), (x + w, x + w + 2)) and x + w < scene.width - 1
+    nearer = scene.blocked(i)
+    # an edge next to a nearer person (or yellow no one owns) or the image's side only bounds the silhouette
+    left_ok, right_ok = scene.edges(i, nearer)
     L, R = box[0] - 0.5, box[0] + box[2] - 0.5
     cost = np.zeros(len(grid))
     sig_w = math.hypot(p.edge_px * math.sqrt(2), p.scale_rel * box[2])
@@ -344,6 +432,15 @@ def _one(scene: _Scene, i: int, cam: PinholeCamera, grid: np.ndarray, p: FacingP
         cost += (np.maximum(0.0, box[2] - pw) / sig_w) ** 2
     else:
         anchor = None  # no edge to measure the plate from: only whether it is seen counts
+    nose = scene.nose[i]
+    if nose is not None:  # the head is above the axis: the nose's side of it tells left from right to ~135 deg
+        # (a nose not seen counts for nothing: small, and another's head may hide it)
+        dist = cam.fx * (g.torso[1] - g.torso[0]) / max(box[3], 1.0)
+        sig_n = math.hypot(p.edge_px * 2, cam.fx * 0.01 / dist)
+        if anchor is not None:
+            cost += np.where(hyp["nose_seen"], ((hyp["nose"] + anchor - nose) / sig_n) ** 2, p.nose_cost)
+        else:  # no edge to line the head up with: only that it shows
+            cost += np.where(hyp["nose_seen"], 0.0, p.nose_cost)
     mL, mR = hyp["mL"], hyp["mR"]
     if anchor is not None:
         mL, mR = mL + anchor, mR + anchor
@@ -370,9 +467,11 @@ def _one(scene: _Scene, i: int, cam: PinholeCamera, grid: np.ndarray, p: FacingP
                 else:  # hidden beyond this edge: the plate may reach further
                     cost += np.where(d * (1 if k == 0 else -1) > 0, d**2, 0.0)
     else:
-        # not seen: count it against hypotheses that show it, except where a nearer person covers it
-        top, bottom = scene.plate_rows(i, body, g)
-        band = nearer[max(int(top), 0):max(int(math.ceil(bottom)), 1)].any(axis=0)
+        # not seen: count it against hypotheses that show it, except where a nearer person covers it or yellow of
+        # someone else's lies (this one's plate may have run into it)
+        top, bottom = scene.plate_rows(i)
+        rows = slice(max(int(top), 0), max(int(math.ceil(bottom)), 1))
+        band = (nearer[rows] | (scene.labels[rows] > 0)).any(axis=0)
         cum = np.concatenate([[0], np.cumsum(band)])
         first, last = np.ceil(mL), np.floor(mR)  # the columns whose centres the plate would cover
         a0 = np.clip(first, 0, scene.width).astype(int)
@@ -418,8 +517,9 @@ def estimate_facing(frame: np.ndarray | None, boxes: np.ndarray, camera: Pinhole
     masks = HueMasks(hsv, cp)
     if colours is None:
         colours = box_colours([masks(hh, cp.hue_tol) for hh in palette_hues(palette)], boxes)
-    scene = _Scene(frame, masks, boxes, np.asarray(colours, dtype=int), palette, p, cp)
     body, g = ProxyBody(), ProxyGeometry()
+    scene = _Scene(frame, masks, boxes, np.asarray(colours, dtype=int), palette, p, cp, body, g)
+    scene.assign_noses(camera)
     floor = math.radians(p.floor_deg)
     for i in range(len(boxes)):
         res = _one(scene, i, camera, grid, p, body, g)

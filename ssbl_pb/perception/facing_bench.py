@@ -4,8 +4,10 @@ Scenes: the robot at a random heading (the renderer's light is fixed in the worl
 with it) and either one person (``single``) 1-5 m away at a bearing inside the view, or two (``occluded``): a
 nearer one 1-3.5 m away and a farther one 0.6-2 m behind it, offset sideways so that 25-90 % of its width shows
 (were both face-on). Every person's facing is uniform over 360 deg and each is drawn in a random palette
-colour (``world.HUMAN_COLOURS``). Boxes come from deploy's detector (``deploy.perceive.make_detector("colour")``),
-matched to people by colour; a box cut by the image's side is dropped, as deploy does.
+colour (``world.HUMAN_COLOURS``). Then the env's own scenes (``group``): ``World.reset`` spawns a group of 2-5
+(members on the o-space circle facing its centre) and the robot 2.5-5.5 m from the centre, which it faces (+-14
+deg). Boxes come from deploy's detector (``deploy.perceive.make_detector("colour")``) and its ``facing()``,
+matched to people by colour; a box cut by the image's side is dropped after, as deploy does.
 """
 
 from __future__ import annotations
@@ -16,15 +18,15 @@ from typing import Any
 
 import numpy as np
 
-from .facing import estimate_facing, wrap
+from .facing import phi_of, wrap
 
-BANDS = ((1.0, 2.0), (2.0, 3.0), (3.0, 4.0), (4.0, 5.0))  # m, distance from the camera to the body axis
+BANDS = ((1.0, 2.0), (2.0, 3.0), (3.0, 4.0), (4.0, 5.0), (5.0, 7.0))  # m, from the camera to the body axis
 CLASSES = (("front", 0.0, 80.0), ("side", 80.0, 100.0), ("back", 100.0, 180.01))  # |true phi|, deg
 
 
 @dataclasses.dataclass(frozen=True)
 class Sample:
-    scene: str  # "single", "near" or "far" (the partly hidden one of an occluded pair)
+    scene: str  # "single", "near" or "far" (the partly hidden one of an occluded pair), "group"
     distance: float  # m
     phi: float  # true, rad
     est: float  # rad, NaN: no estimate
@@ -36,8 +38,9 @@ class Sample:
 
 
 def place(world: Any, heading: float, people: list[tuple[int, float, float, float]]) -> np.ndarray:
-    """Robot at a random place facing ``heading``; ``people`` as (member, distance from the camera, bearing from
-    the optical axis, phi). Other members stand behind the robot. Returns the camera's ground position."""
+    """The robot 2.5 m from the room's centre facing ``heading`` across it; ``people`` as (member, distance from
+    the camera, bearing from the optical axis, phi). Other members stand behind the robot. Returns the camera's
+    ground position."""
     back = -2.5 * np.array([math.cos(heading), math.sin(heading)])  # the scene stays inside the 10 m room
     world.base.pose = np.array([back[0], back[1], heading])
     cam = back + world.robot_params.camera_forward * np.array([math.cos(heading), math.sin(heading)])
@@ -56,28 +59,46 @@ def place(world: Any, heading: float, people: list[tuple[int, float, float, floa
 
 def run_bench(frames: int = 400, seed: int = 0, width: int = 320, height: int = 240,
               progress: Any = None) -> tuple[list[Sample], list[float]]:
-    """``frames`` single-person and ``frames`` occluded-pair frames; ``progress(n)`` is told of each frame.
-    Returns the samples and the seconds ``estimate_facing`` took on each frame."""
+    """``frames`` frames of each scene (single, occluded, group); ``progress(n)`` is told of each frame. Returns
+    the samples and the seconds the detector's ``facing()`` took on each frame."""
     import time
 
     from ..deploy.perceive import make_detector
     from ..env.world import HUMAN_COLOURS, World
-    from .facing import palette_hues
 
     rng = np.random.default_rng(seed)
     world = World()
     detect, _ = make_detector("colour")
     half_fov = math.radians(world.robot_params.camera_hfov_deg) / 2
-    hues = palette_hues(HUMAN_COLOURS)
     out: list[Sample] = []
     seconds: list[float] = []
+
+    def measure(truth: list[tuple[str, int, float, float]]) -> None:
+        """Render, detect, read the facing and score ``truth``: (scene, member, distance, phi) rows."""
+        rgb, _ = world.render_first_person(width, height)
+        boxes = detect(rgb)
+        t0 = time.perf_counter()
+        fac = detect.facing()  # of every box: a person cut by the image's side can still hide another
+        seconds.append(time.perf_counter() - t0)
+        keep = (boxes[:, 0] > 1) & (boxes[:, 0] + boxes[:, 2] < width - 1)  # as deploy: whole boxes only
+        for name, m, dist, phi in truth:
+            j = np.flatnonzero((detect.last_colours == m) & keep)
+            if not len(j):
+                out.append(Sample(name, dist, phi, *([math.nan] * 5), False))
+                continue
+            i = int(j[0])
+            out.append(Sample(name, dist, phi, float(fac.phi[i]), float(fac.std[i]), float(fac.phi_abs[i]),
+                              float(fac.abs_std[i]), float(fac.front[i]), True))
+        if progress is not None:
+            progress(1)
+
     try:
-        world.reset(np.random.default_rng(0), n_humans=len(HUMAN_COLOURS))
         for scene in ("single", "occluded"):
+            world.reset(np.random.default_rng(0), n_humans=len(HUMAN_COLOURS))
             for _ in range(frames):
                 heading = rng.uniform(-math.pi, math.pi)
                 members = rng.permutation(len(HUMAN_COLOURS))[:2]
-                d = rng.uniform(BANDS[0][0], BANDS[-1][1]) if scene == "single" else rng.uniform(1.0, 3.5)
+                d = rng.uniform(1.0, 5.0) if scene == "single" else rng.uniform(1.0, 3.5)
                 room = half_fov - math.atan2(0.30, d) - 0.02  # the whole torso inside the view
                 bearing = rng.uniform(-room, room)
                 people = [(int(members[0]), d, bearing, rng.uniform(-math.pi, math.pi))]
@@ -88,44 +109,21 @@ def run_bench(frames: int = 400, seed: int = 0, width: int = 320, height: int = 
                     people.append((int(members[1]), d2, bearing + rng.choice([-1.0, 1.0]) * side,
                                    rng.uniform(-math.pi, math.pi)))
                 place(world, heading, people)
-                rgb, _ = world.render_first_person(width, height)
-                boxes = detect(rgb)
-                colours = getattr(detect, "last_colours", None)
-                if boxes.shape[0]:  # as deploy: a box cut by the image's side is dropped
-                    keep = (boxes[:, 0] > 1) & (boxes[:, 0] + boxes[:, 2] < width - 1)
-                    boxes = boxes[keep]
-                    colours = None if colours is None else np.asarray(colours)[keep]
-                t0 = time.perf_counter()
-                fac = estimate_facing(rgb, boxes, colours=colours)
-                seconds.append(time.perf_counter() - t0)
-                box_hues = _box_hues(rgb, boxes) if colours is None else hues[np.asarray(colours, dtype=int)]
-                for k, (m, dist, _, phi) in enumerate(people):
-                    name = "single" if scene == "single" else ("near", "far")[k]
-                    j = np.flatnonzero(np.abs(box_hues - hues[m]) <= 2) if len(boxes) else np.zeros(0, int)
-                    if not len(j):
-                        out.append(Sample(name, dist, float(wrap(phi)), *([math.nan] * 5), False))
-                        continue
-                    i = int(j[0])
-                    out.append(Sample(name, dist, float(wrap(phi)), float(fac.phi[i]), float(fac.std[i]),
-                                      float(fac.phi_abs[i]), float(fac.abs_std[i]), float(fac.front[i]), True))
-                if progress is not None:
-                    progress(1)
+                names = ["single"] if scene == "single" else ["near", "far"]
+                measure([(n, m, dist, float(wrap(phi))) for n, (m, dist, _, phi) in zip(names, people, strict=True)])
+        for _ in range(frames):  # the env's own groups: members face the o-space centre, the robot looks at it
+            world.reset(rng, n_humans=int(rng.integers(2, len(HUMAN_COLOURS) + 1)))
+            pose = world.base.pose.copy()
+            centre = world.group.centre0
+            pose[2] = math.atan2(centre[1] - pose[1], centre[0] - pose[0]) + rng.uniform(-0.25, 0.25)
+            world.base.pose = pose
+            world.invalidate()
+            cam = pose[:2] + world.robot_params.camera_forward * np.array([math.cos(pose[2]), math.sin(pose[2])])
+            measure([("group", m, float(np.hypot(*(world.group.pos[m] - cam))),
+                      phi_of(world.group.pos[m], float(world.group.yaw[m]), cam)) for m in range(world.group.n)])
     finally:
         world.close()
     return out, seconds
-
-
-def _box_hues(rgb: np.ndarray, boxes: np.ndarray) -> np.ndarray:
-    """The commonest saturated hue in each box (when the detector does not say which colour each box is)."""
-    import cv2
-
-    hsv = cv2.cvtColor(np.ascontiguousarray(rgb), cv2.COLOR_RGB2HSV)
-    out = []
-    for x, y, w, h in boxes[:, :4].astype(int):
-        patch = hsv[y:y + h, x:x + w].reshape(-1, 3)
-        patch = patch[patch[:, 1] >= 90]
-        out.append(np.bincount(patch[:, 0], minlength=180).argmax() if len(patch) else -99)
-    return np.array(out)
 
 
 def summarise(samples: list[Sample]) -> dict[str, Any]:
@@ -148,7 +146,7 @@ def summarise(samples: list[Sample]) -> dict[str, Any]:
                 "front_back_right": round(float(np.mean(front_ok)), 3) if front_ok else None}
 
     res: dict[str, Any] = {}
-    for scene in ("single", "near", "far"):
+    for scene in ("single", "near", "far", "group"):
         rows = [s for s in samples if s.scene == scene]
         if not rows:
             continue
@@ -168,7 +166,8 @@ def markdown(summary: dict[str, Any], command: str) -> str:
              "max_std); |phi|: the folded estimate ``phi_abs``; 2 std: share of errors within twice the reported "
              "std; front/back: ``front >= 0.5`` agrees with |phi| < 90 deg.", ""]
     titles = {"single": "One person", "near": "Occluded pair: the nearer person",
-              "far": "Occluded pair: the farther, partly hidden person"}
+              "far": "Occluded pair: the farther, partly hidden person",
+              "group": "The env's groups (2-5 members facing the o-space centre; undetected: out of view or hidden)"}
     for scene, classes in summary.items():
         lines += [f"## {titles[scene]}", "", "| true phi | distance | n | detected | NaN | median | p90 | "
                   "abs median | abs p90 | within 2 std | front/back right |", "|" + "---|" * 11]
