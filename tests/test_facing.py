@@ -169,6 +169,17 @@ def test_back_facing_is_told_from_front(world, phi_deg):
             assert math.radians(err_deg(fac.phi[i], phi_deg)) <= 2.5 * fac.std[i]
 
 
+@pytest.mark.parametrize("phi_deg", [115, -115, 128, -128])
+def test_a_back_near_side_on_keeps_its_sign(world, phi_deg):
+    # the nose beside the head (seen to ~135 deg off the line of sight) and the crease between the faces tell a
+    # back turned left from one turned right, whatever the faces' shading (the robot's heading)
+    for heading in (0.3, 2.2, -1.9, 1.0):
+        for distance in (2.0, 4.0):
+            _, _, colours, fac = render(world, heading, [(1, distance, 0.1, phi_deg)])
+            i = row_of(colours, 1)
+            assert err_deg(fac.phi[i], phi_deg) < 5.0, (heading, distance, math.degrees(fac.phi[i]))
+
+
 def test_sign_a_person_turned_to_their_left_vs_right(world):
     # robot at a known place; the person 3 m straight ahead; checked against the frame: the chest plate (yellow)
     # lies right of the torso box's middle when they turn to their own left (phi > 0), left when to their right

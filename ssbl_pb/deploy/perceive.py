@@ -21,7 +21,7 @@ import numpy as np
 from ..errors import UserError
 from ..params import RobotParams, SocialParams
 from ..perception.camera import PinholeCamera
-from ..perception.facing import Facing
+from ..perception.facing import Facing, estimate_facing
 from ..perception.sim_eval import ProxyGeometry, boxes_to_ground, sim_camera
 from ..perception.tracker import TrackerParams
 from .group import GroupTracker, Member
@@ -95,8 +95,6 @@ def one_per_colour(palette: list[Any]) -> Callable[[np.ndarray], np.ndarray]:
         def facing(self, camera: PinholeCamera | None = None) -> Facing:
             """Facing of each box of the last frame (rows as that call returned them: index them as its boxes;
             ``perception.facing.estimate_facing``). ``camera``: the frame's, default the simulated CameraTop."""
-            from ..perception.facing import estimate_facing
-
             if self.last is None:
                 raise RuntimeError("facing: no frame detected yet")
             frame, hsv, boxes, colours = self.last
