@@ -172,3 +172,20 @@ def test_with_facing_a_pair_seen_from_behind_is_joined_on_its_far_side():
         cp.frame(np.zeros(3), members, 0.1, yaw)
     centre, _, _, slot = cp.group
     assert centre[0] > 3.5 and slot[0] > 3.0  # not the midpoint (3, 0) nor a place on the robot's side
+
+
+def test_searching_adds_its_time_to_the_episode_up_to_one_episode_more():
+    from ssbl_pb.env import kernels
+
+    b = BatchedApproach(1, "default", perception=True)
+    b.seed(0, 11)
+    b.reset(0)
+    limit = b.room[0, kernels.STEP_LIMIT]
+    for _ in range(5):
+        b.perceived.known[0] = False  # nobody known: it searches
+        b.step(np.zeros((1, 2)))
+    assert b.room[0, kernels.STEP_LIMIT] == limit + 5 and b.search_steps[0] == 5
+    b.search_steps[0] = b.task.max_steps  # a whole episode searched already: no more
+    b.perceived.known[0] = False
+    b.step(np.zeros((1, 2)))
+    assert b.room[0, kernels.STEP_LIMIT] == limit + 5

@@ -203,14 +203,19 @@ class Perception:
             self._group = GroupTracker(cam, params, social=self.social, model=self.group_model)
         self._group.centre0 = self.centre0
         boxes = self.detect(frame.image)
+        # each person's facing, where the detector tells it (the virtual Pepper's colour detector), from every box:
+        # a person cut by the image's side still hides part of whoever stands behind them
+        seen = self.detect.facing(self._group.camera) if hasattr(self.detect, "facing") else None
         # a box cut by the image's side puts the person off by up to half a body: only whole ones count
-        boxes = boxes[(boxes[:, 0] > 1) & (boxes[:, 0] + boxes[:, 2] < w - 1)]
+        whole = (boxes[:, 0] > 1) & (boxes[:, 0] + boxes[:, 2] < w - 1)
+        boxes = boxes[whole]
         if self.torso:  # the torso's edges are the outer edges of the box's first and last rows, not their centres
             boxes = boxes.copy()  # (half a pixel: 0.1 m of range 5 m away; boxes_to_ground takes pixel centres)
             boxes[:, 1] -= 0.5
             boxes[:, 3] += 1.0
         xy = boxes_to_ground(self._group.camera, boxes, ProxyGeometry(), torso=self.torso)
-        xy = xy[np.isfinite(xy[:, 0])]
+        found = np.isfinite(xy[:, 0])
+        xy = xy[found]
         if self.torso and len(xy):
             centre = None
             if self.centre0 is not None:  # the group's centre in the robot frame at capture
@@ -220,7 +225,15 @@ class Perception:
             rng = np.hypot(xy[:, 0], xy[:, 1])[:, None]
             xy = xy * (1.0 + torso_depth(xy, centre)[:, None] / np.maximum(rng, 1e-6))
         dt = frame.stamp - prev if prev is not None and 0 < frame.stamp - prev < 1.0 else 0.1
-        members = self._group.update(xy, dt, pose)
+        facing = facing_std = None
+        if seen is not None:  # phi relative to the line of sight from the robot's origin, as the tracker takes it
+            from ..perception.facing import facing_yaw
+
+            phi, std = seen.phi[whole][found], seen.std[whole][found]
+            yaw = facing_yaw(xy, np.nan_to_num(phi), self._group.camera.centre()[:2])
+            facing = np.where(np.isfinite(phi), yaw - np.arctan2(-xy[:, 1], -xy[:, 0]), np.nan)
+            facing_std = np.where(np.isfinite(phi), std, np.inf)
+        members = self._group.update(xy, dt, pose, facing, facing_std)
         est = Estimate([dataclasses.replace(m) for m in members], capture, len(xy))
         with self._lock:
             self.latest = est

@@ -77,6 +77,7 @@ class BatchedApproach:
         self.bases, self.groups_state = BaseArrays(num, self._bparams), GroupArrays(num)
         m = MAX_HUMANS
         self.steps = np.zeros(num, dtype=np.int64)
+        self.search_steps = np.zeros(num, dtype=np.int64)  # steps searching (observation model), time added
         self.prev_accel = np.zeros((num, 2))
         self.clearance = np.zeros((num, m))
         self.slot = np.zeros((num, 2))
@@ -230,6 +231,7 @@ class BatchedApproach:
         g = self.groups_state
         g.spawn(i, self.social, centre, layout, self.keep, pose[:2])
         self.steps[i], self.prev_accel[i], self.sums[i], self.terms[i], self.flags[i] = 0, 0.0, 0.0, 0.0, False
+        self.search_steps[i] = 0
         self.slot[i] = free_slot(n, g.pos[i], *g.centre[i], g.scalars[i, RADIUS], g.scalars[i, KEEP], *pose[:2],
                                  True)
         self.clearance[i] = 0.0
@@ -280,6 +282,11 @@ class BatchedApproach:
             a, lost = a.copy(), ~self.perceived.known
             a[lost] = 0.0
             a[lost, :2] = search[lost] / self.robot_params.max_speed
+            # searching is not approaching: its time is added to the episode, up to one episode more (deploy's
+            # 60 s --duration is twice the simulated episode, for the search)
+            more = lost & (self.search_steps < self.task.max_steps)
+            self.search_steps[more] += 1
+            self.room[more, kernels.STEP_LIMIT] += 1
         kernels.step(self._tp, self._bp, self._sp, self._w, a, b.pose, b.vel, b.queue, g.count, g.pos, g.vel, g.yaw,
                      g.centre0, g.centre, g.scalars, g.ring_offset, g.comfort, g.force, g.repulsion, g.robot_force,
                      self.steps, self.prev_accel, self.clearance, self.slot, self.potential, self.sums, self.terms,
