@@ -189,3 +189,28 @@ def test_searching_adds_its_time_to_the_episode_up_to_one_episode_more():
     b.perceived.known[0] = False
     b.step(np.zeros((1, 2)))
     assert b.room[0, kernels.STEP_LIMIT] == limit + 5
+
+
+def test_the_sidestep_goes_to_the_side_with_room_or_not_at_all():
+    from ssbl_pb.deploy.group import Member
+
+    def full_turn(cp, clearance):
+        yaw, act = 0.0, np.zeros(2)
+        for _ in range(130):
+            _, act = cp.search(np.array([0.0, 0.0, yaw]), heading_gain=2.0, dt=0.1, clearance=clearance)
+            if act.any():
+                return act
+            yaw += 0.05
+        return act
+
+    person = [Member(1, np.array([2.0, 1.0]), np.zeros(2), np.eye(2))]  # to the left: it would step left
+    for wall_left, wall_right, expect in ((False, False, 0.2), (True, False, -0.2), (True, True, 0.0)):
+        cp = _copy()
+        cp.members = list(person)
+
+        def clearance(pose, wl=wall_left, wr=wall_right):  # a wall close on the robot's left (+y) / right side
+            # (after a full turn the robot at the origin faces +x again: its left is +y)
+            return 0.1 if (pose[1] > 0 and wl) or (pose[1] < 0 and wr) else 2.0
+
+        act = full_turn(cp, clearance)
+        assert act[1] == pytest.approx(expect), (wall_left, wall_right, act)

@@ -278,7 +278,7 @@ class BatchedApproach:
         b, g = self.bases, self.groups_state
         aim = g.centre
         if self.perceived is not None:  # the robot faces the centre it perceives; knowing too few, it searches
-            aim, search = self.perceived.steer(self.pose, self.task.heading_gain, self.dt)
+            aim, search = self.perceived.steer(self.pose, self.task.heading_gain, self.dt, self._static_clearance)
             a, lost = a.copy(), ~self.perceived.known
             a[lost] = 0.0
             a[lost, :2] = search[lost] / self.robot_params.max_speed
@@ -297,6 +297,10 @@ class BatchedApproach:
                 n = int(g.count[i])
                 self.perceived.frame(i, self.pose[i], g.pos[i, :n], g.yaw[i, :n], self.dt)
         return self.rewards.copy(), self.flags[:, kernels.TERMINATED].copy(), self.flags[:, kernels.TRUNCATED].copy()
+
+    def _static_clearance(self, i: int, pose: np.ndarray) -> float:
+        """Copy ``i``'s footprint's clearance (m) to walls and furniture at ``pose`` (x, y, yaw)."""
+        return float(min(kernels.static_clearance(self._tp, np.asarray(pose, dtype=float), self.room[i], self.fields)))
 
     def keep_out(self, i: int, margin: float) -> float:
         """Radius around copy ``i``'s conversation centre the shaping's way to the slot keeps out of: the

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -56,6 +57,7 @@ class PerceptionParams:
     search_turn: float = 0.5  # rad/s in place while fewer than two people are known (DeployParams.search_turn)
     sidestep_s: float = 3.0  # s sideways after a full turn with one person known ... (DeployParams.sidestep_s)
     sidestep_speed: float = 0.2  # m/s ... (DeployParams.sidestep_speed)
+    sidestep_clearance: float = 0.4  # m: a sidestep goes only where the footprint keeps this from walls and furniture
 
     def __post_init__(self) -> None:
         for name in ("range_std_m", "range_std_per_m", "bearing_std_deg", "facing_std_deg"):
@@ -76,6 +78,8 @@ class PerceptionParams:
                "sidestep_s", self.sidestep_s, "seconds in [0, 30]")
         _check(isinstance(self.sidestep_speed, int | float) and 0 <= self.sidestep_speed <= 0.55, "perception",
                "sidestep_speed", self.sidestep_speed, "m/s in [0, 0.55]")
+        _check(isinstance(self.sidestep_clearance, int | float) and self.sidestep_clearance >= 0, "perception",
+               "sidestep_clearance", self.sidestep_clearance, "metres >= 0")
 
     @classmethod
     def of(cls, value: Any) -> PerceptionParams | None:
@@ -201,11 +205,14 @@ class CopyPerception:
         self.group = self.model.update(pos, np.asarray(pose[:2], dtype=float), rest, facing, facing_std)
         self.tracker.centre0 = self.model.centre
 
-    def search(self, pose: np.ndarray, heading_gain: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    def search(self, pose: np.ndarray, heading_gain: float, dt: float,
+               clearance: Callable[[np.ndarray], float] | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Deploy's search (``DeployLoop._search``) as the engine's aim and body action: turn in place at
         ``search_turn`` rad/s under the env's proportional heading control, toward the one known person's side
         first; after a full turn with still one person known, ``sidestep_s`` sideways at ``sidestep_speed``
-        facing that person. Returns the aim (2,) and the action's (forward, left) in m/s."""
+        facing that person, to whichever side keeps ``sidestep_clearance`` from walls and furniture all the way
+        (``clearance``: the footprint's static clearance at a pose; none free: it keeps turning). Returns the aim
+        (2,) and the action's (forward, left) in m/s."""
         p = self.params
         if self.search_side == 0.0:  # a new search
             side = 1.0
@@ -219,6 +226,13 @@ class CopyPerception:
         one = len(self.members) == 1
         if self.turned >= 2 * math.pi and one:
             self.turned, self.sidestep_left = 0.0, int(round(p.sidestep_s / dt))
+            if clearance is not None:  # the side with room for the whole step (braking included), else none
+                step = p.sidestep_s * p.sidestep_speed + 0.2
+                free = [side for side in (self.search_side, -self.search_side) if clearance(
+                    np.array([pose[0] - side * step * math.sin(pose[2]), pose[1] + side * step * math.cos(pose[2]),
+                              pose[2]])) >= p.sidestep_clearance]
+                self.search_side = free[0] if free else self.search_side
+                self.sidestep_left = self.sidestep_left if free else 0
         if self.sidestep_left > 0 and one:
             self.sidestep_left -= 1
             return self.members[0].pos.copy(), np.array([0.0, self.search_side * p.sidestep_speed])
@@ -278,10 +292,13 @@ class PerceivedGroups:
             ahead = np.array([math.cos(pose[2]), math.sin(pose[2])])
             self.centre[i], self.scalars[i, RADIUS], self.slot[i] = pose[:2] + 1e-3 * ahead, 0.0, pose[:2]
 
-    def steer(self, pose: np.ndarray, heading_gain: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    def steer(self, pose: np.ndarray, heading_gain: float, dt: float,
+              clearance: Callable[[int, np.ndarray], float] | None = None) -> tuple[np.ndarray, np.ndarray]:
         """(N, 2) each robot's aim (``kernels.step``: the perceived centre, or its search's) and (N, 2) the body
-        action (forward, left; m/s) of the copies that search (the others' rows are unused)."""
+        action (forward, left; m/s) of the copies that search (the others' rows are unused); ``clearance(i,
+        pose)``: copy i's footprint's static clearance at a pose (for the sidestep)."""
         aim, act = self.centre.copy(), np.zeros((len(self.known), 2))
         for i in np.flatnonzero(~self.known).tolist():
-            aim[i], act[i] = self.copies[i].search(pose[i], heading_gain, dt)
+            free = None if clearance is None else (lambda q, i=i: clearance(i, q))
+            aim[i], act[i] = self.copies[i].search(pose[i], heading_gain, dt, free)
         return aim, act
