@@ -214,3 +214,16 @@ def test_the_sidestep_goes_to_the_side_with_room_or_not_at_all():
 
         act = full_turn(cp, clearance)
         assert act[1] == pytest.approx(expect), (wall_left, wall_right, act)
+
+
+def test_a_turn_that_would_swing_a_corner_into_the_wall_is_held():
+    b = BatchedApproach(1, "default", perception=True)
+    b.seed(0, 3)
+    b.reset(0)
+    half = b.world_params.room_size[0] / 2
+    b.pose[0] = [half - b.robot_params.width / 2 - 0.03, 0.0, math.pi / 2]  # facing along the wall, 3 cm off it
+    aim = np.array([[half, 1.0]])  # any turn swings a corner (0.32 m from the centre) past the side's 0.215 m
+    held = b._turn_guard(aim)
+    assert held[0] == pytest.approx(b.pose[0, :2] + np.array([0.0, 1.0]))  # straight ahead: no turn
+    b.pose[0, 0] = half - b.robot_params.width / 2 - 0.15  # 15 cm off: one period's turn keeps 5 cm
+    assert np.array_equal(b._turn_guard(aim), aim)

@@ -279,6 +279,7 @@ class BatchedApproach:
         aim = g.centre
         if self.perceived is not None:  # the robot faces the centre it perceives; knowing too few, it searches
             aim, search = self.perceived.steer(self.pose, self.task.heading_gain, self.dt, self._static_clearance)
+            aim = self._turn_guard(aim)
             a, lost = a.copy(), ~self.perceived.known
             a[lost] = 0.0
             a[lost, :2] = search[lost] / self.robot_params.max_speed
@@ -297,6 +298,27 @@ class BatchedApproach:
                 n = int(g.count[i])
                 self.perceived.frame(i, self.pose[i], g.pos[i, :n], g.yaw[i, :n], self.dt)
         return self.rewards.copy(), self.flags[:, kernels.TERMINATED].copy(), self.flags[:, kernels.TRUNCATED].copy()
+
+    TURN_CLEARANCE = 0.05  # m: a turn that would bring the footprint's corner nearer furniture than this is held
+
+    def _turn_guard(self, aim: np.ndarray) -> np.ndarray:
+        """``aim`` with the turn held (aim straight ahead) for copies whose next period's turn would swing the
+        footprint's corner into a wall or furniture: with the observation model the aim jumps (the search's turn,
+        the centre found at last) and the robot turns up to 1 rad/s in place, where, beside furniture, its 0.32 m
+        corner hit what the 0.23 m side cleared (1.5-3 % of map-room starts). The turn waits for the policy to
+        move off."""
+        out = aim.copy()
+        for i in range(self.num):
+            pose = self.pose[i]
+            turn = self.task.heading_gain * kernels.heading_error(pose, aim[i])
+            turn = max(-self.robot_params.max_yaw_rate, min(self.robot_params.max_yaw_rate, turn)) * self.dt
+            if abs(turn) < 1e-6:
+                continue
+            now = self._static_clearance(i, pose)
+            then = self._static_clearance(i, np.array([pose[0], pose[1], pose[2] + turn]))
+            if then < self.TURN_CLEARANCE and then < now:
+                out[i] = pose[:2] + np.array([math.cos(pose[2]), math.sin(pose[2])])
+        return out
 
     def _static_clearance(self, i: int, pose: np.ndarray) -> float:
         """Copy ``i``'s footprint's clearance (m) to walls and furniture at ``pose`` (x, y, yaw)."""

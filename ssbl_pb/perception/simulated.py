@@ -224,15 +224,22 @@ class CopyPerception:
             self.turned += abs(math.remainder(pose[2] - self.last_yaw, 2 * math.pi))
         self.last_yaw = float(pose[2])
         one = len(self.members) == 1
+        if one:  # a sidestep moves across the line to that person: the action's frame faces them
+            d = self.members[0].pos - pose[:2]
+            across = np.array([-d[1], d[0]]) / max(float(np.hypot(*d)), 1e-6)
+
+            def free_at(side: float, length: float) -> float:
+                q = np.asarray(pose[:2], dtype=float) + side * length * across
+                return clearance(np.array([q[0], q[1], pose[2]])) if clearance is not None else math.inf
         if self.turned >= 2 * math.pi and one:
             self.turned, self.sidestep_left = 0.0, int(round(p.sidestep_s / dt))
-            if clearance is not None:  # the side with room for the whole step (braking included), else none
-                step = p.sidestep_s * p.sidestep_speed + 0.2
-                free = [side for side in (self.search_side, -self.search_side) if clearance(
-                    np.array([pose[0] - side * step * math.sin(pose[2]), pose[1] + side * step * math.cos(pose[2]),
-                              pose[2]])) >= p.sidestep_clearance]
-                self.search_side = free[0] if free else self.search_side
-                self.sidestep_left = self.sidestep_left if free else 0
+            step = p.sidestep_s * p.sidestep_speed + 0.2  # the whole step and the base's braking
+            free = [side for side in (self.search_side, -self.search_side)
+                    if free_at(side, step) >= p.sidestep_clearance]
+            self.search_side = free[0] if free else self.search_side
+            self.sidestep_left = self.sidestep_left if free else 0
+        if self.sidestep_left > 0 and one and free_at(self.search_side, 0.3) < p.sidestep_clearance / 2:
+            self.sidestep_left = 0  # it turns as it goes: what is across changes; looked at again each step
         if self.sidestep_left > 0 and one:
             self.sidestep_left -= 1
             return self.members[0].pos.copy(), np.array([0.0, self.search_side * p.sidestep_speed])
