@@ -168,6 +168,8 @@ CASES = [
     C("bench_deploy.py", "--policy", "nosuch", "--out", "{out}", expect="--policy 'nosuch'"),
     C("bench_deploy.py", "--groups", "round", "--out", "{out}", expect="argument --groups"),
     # issue 37: the observation model
+    C("bench_facing.py", "--frames", "0", "--out", "{out}", expect="argument --frames"),
+    C("bench_facing.py", "--out", "{file}/facing", expect="is a file"),
     C("evaluate.py", "--policy", "sffm", "--perception", "maybe", "--out", "{out}", expect="argument --perception"),
     C("train_pb.py", "--set", "env.perception.miss_prob=2", "--out", "{out}", expect="perception.miss_prob"),
     # issue 39: a calibration file's own checks name the file
