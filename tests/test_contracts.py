@@ -168,6 +168,7 @@ CASES = [
     C("bench_deploy.py", "--policy", "nosuch", "--out", "{out}", expect="--policy 'nosuch'"),
     C("bench_deploy.py", "--groups", "round", "--out", "{out}", expect="argument --groups"),
     # issue 37: the observation model
+    C("bench_policies.py", "--perception", "maybe", "--out", "{out}", expect="--perception maybe"),
     C("bench_facing.py", "--frames", "0", "--out", "{out}", expect="argument --frames"),
     C("bench_facing.py", "--out", "{file}/facing", expect="is a file"),
     C("evaluate.py", "--policy", "sffm", "--perception", "maybe", "--out", "{out}", expect="argument --perception"),

@@ -4,6 +4,8 @@
 Writes results/bench_policies.json and a Markdown table (results/bench_policies.md) for docs/benchmarks.md.
     python tools/bench_policies.py --policies sffm,straight,random --episodes 200
     python tools/bench_policies.py --policies vector --scenarios default,mixed --episodes 200
+    python tools/bench_policies.py --policies vector --scenarios mixed,default@map:results/rooms/lab.yaml \
+        --perception off,on      # a map room (SCENARIO:ROOM_YAML); the observation model off and on
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from ssbl_pb.cli import ArgumentParser, int_at_least, progress_bar, run
+from ssbl_pb.errors import UserError
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -22,7 +25,10 @@ SCENARIOS = "default,vis_a_vis,l_shape,side_by_side,circular,behind,mixed"
 def main(argv: list[str] | None = None) -> int:
     ap = ArgumentParser(description=__doc__)
     ap.add_argument("--policies", default="sffm,straight,random")
-    ap.add_argument("--scenarios", default=SCENARIOS)
+    ap.add_argument("--scenarios", default=SCENARIOS, help="comma list of scenarios; SCENARIO:ROOM_YAML plays it "
+                    "with that room YAML (e.g. default@map:results/rooms/lab.yaml)")
+    ap.add_argument("--perception", default="off", help="comma list of off (the true state) and on (the group as "
+                    "deploy's perception sees it: the observation model); default off")
     ap.add_argument("--episodes", type=int_at_least(1), default=200, help="episodes per scenario (default 200)")
     ap.add_argument("--seed", type=int, default=500_000, help="first held-out seed")
     ap.add_argument("--out", type=Path, default=ROOT / "results" / "bench_policies",
@@ -35,21 +41,35 @@ def main(argv: list[str] | None = None) -> int:
     from ssbl_pb.files import check_output_path, output_dir, write_text
 
     pols, scs = args.policies.split(","), args.scenarios.split(",")
+    percs = args.perception.split(",")
+    bad = sorted(set(percs) - {"off", "on"})
+    if bad:
+        raise UserError(f"--perception {','.join(bad)}: expected a comma list of off, on")
     check_output_path(args.out.with_suffix(".json"), is_dir=False)
+
+    def setup(pol: str, sc: str, perc: str) -> Setup:
+        name, _, room = sc.partition(":")
+        kwargs = (("room_yaml", room),) if room else ()
+        return Setup(pol, scenario=name, env_kwargs=kwargs + ((("perception", True),) if perc == "on" else ()))
+
     for pol in pols:
         check_policy_spec(pol, "--policies")
         for sc in scs:
-            Setup(pol, scenario=sc)()[0].close()  # every pair is checked before the first episode
+            setup(pol, sc, percs[-1])()[0].close()  # every pair is checked before the first episode
     table: dict[str, dict[str, dict]] = {}
     for pol in pols:
-        for sc in scs:
-            with progress_bar(args.episodes, f"{pol} {sc}") as bar:
-                res = run_episodes(Setup(pol, scenario=sc), range(args.seed, args.seed + args.episodes),
-                                   os.cpu_count() or 1, progress=bar)
-            s = summarize([r.metrics for r in res])
-            table.setdefault(pol, {})[sc] = {k: s[k] for k in ("success_rate", "collision_rate", "violation_rate",
-                                                               "personal_zone_time_s", "mean_jerk", "arrival_speed")}
-            table[pol][sc]["success_ci"] = [s["metrics"]["success"]["ci_low"], s["metrics"]["success"]["ci_high"]]
+        for perc in percs:
+            row = pol if percs == ["off"] else f"{pol} (perception {perc})"
+            for sc in scs:
+                with progress_bar(args.episodes, f"{row} {sc}") as bar:
+                    res = run_episodes(setup(pol, sc, perc), range(args.seed, args.seed + args.episodes),
+                                       os.cpu_count() or 1, progress=bar)
+                s = summarize([r.metrics for r in res])
+                table.setdefault(row, {})[sc] = {k: s[k] for k in (
+                    "success_rate", "collision_rate", "violation_rate", "personal_zone_time_s", "mean_jerk",
+                    "arrival_speed")}
+                table[row][sc]["obstacle_collision_rate"] = s["metrics"]["obstacle_collision"]["mean"]
+                table[row][sc]["success_ci"] = [s["metrics"]["success"]["ci_low"], s["metrics"]["success"]["ci_high"]]
     with output_dir(args.out.parent):
         write_results(args, table, scs, write_json, write_text)
     return 0
