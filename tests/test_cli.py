@@ -135,17 +135,23 @@ def test_no_pybullet_banner_on_stderr(tmp_path):
     assert res.returncode == 0 and "pybullet build time" not in res.stderr + res.stdout
 
 
-def test_sigterm_in_a_tool_exits_143(tmp_path):
-    script = tmp_path / "tool.py"
-    script.write_text(textwrap.dedent("""
+def _sleeping_tool(folder: Path, seconds: float) -> Path:
+    """A tool under ``cli.run`` that says ``ready`` and sleeps ``seconds``."""
+    script = folder / "tool.py"
+    script.write_text(textwrap.dedent(f"""
         import time
         from ssbl_pb.cli import run
         def main(argv):
             print("ready", flush=True)
-            time.sleep(30)
+            time.sleep({seconds})
             return 0
         run(main)
     """))
+    return script
+
+
+def test_sigterm_in_a_tool_exits_143(tmp_path):
+    script = _sleeping_tool(tmp_path, 30)
     proc = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     assert proc.stdout.readline().strip() == "ready"
     proc.send_signal(signal.SIGTERM)
@@ -167,16 +173,7 @@ def test_a_tool_started_with_sigint_ignored_still_stops_on_ctrl_c(tmp_path):
         assert _exit_code(lambda argv: 0 if signal.getsignal(signal.SIGINT) is signal.default_int_handler else 1) == 0
     finally:
         signal.signal(signal.SIGINT, old)
-    script = tmp_path / "tool.py"
-    script.write_text(textwrap.dedent("""
-        import time
-        from ssbl_pb.cli import run
-        def main(argv):
-            print("ready", flush=True)
-            time.sleep(5)
-            return 0
-        run(main)
-    """))
+    script = _sleeping_tool(tmp_path, 5)
     proc = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
     assert proc.stdout.readline().strip() == "ready"
