@@ -233,7 +233,8 @@ def test_the_shield_s_interventions_are_logged_and_summarised(tmp_path):
     for r in acted:
         assert r["shield"]["rules"] and set(r["shield"]["rules"]) <= {"members", "obstacles", "slide", "velocity",
                                                                       "ospace", "place"}
-        assert math.hypot(*r["shield"]["cmd_before"][:2]) > math.hypot(*r["cmd_policy"][:2]) - 1e-6
+        # what it replaced (slower toward what it braked for; backing off a member who walks at the robot, faster)
+        assert not np.allclose(r["shield"]["cmd_before"], r["cmd_policy"], atol=1e-6)
     summary = log.summary("duration", 3, "", {})
     assert summary["policy_ticks"] == len(policy_rows) and summary["shield_interventions"] == len(acted)
     assert summary["shield_intervention_rate"] == pytest.approx(len(acted) / len(policy_rows))

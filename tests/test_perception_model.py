@@ -227,3 +227,28 @@ def test_a_turn_that_would_swing_a_corner_into_the_wall_is_held():
     assert held[0] == pytest.approx(b.pose[0, :2] + np.array([0.0, 1.0]))  # straight ahead: no turn
     b.pose[0, 0] = half - b.robot_params.width / 2 - 0.15  # 15 cm off: one period's turn keeps 5 cm
     assert np.array_equal(b._turn_guard(aim), aim)
+
+
+def test_a_torso_cut_by_the_image_side_is_completed_beyond_it():
+    from ssbl_pb.deploy.perceive import MIN_VISIBLE, TORSO_HALF, TORSO_HEIGHT, complete_cut_torsos
+
+    full = 60.0 * (4.0 * sum(TORSO_HALF) / math.pi) / TORSO_HEIGHT  # a 60 px tall torso is ~45.8 px wide
+    boxes = np.array([[100.0, 80, 40, 60, 1], [0.0, 80, 30, 60, 1], [300.0, 80, 20, 60, 1], [0.0, 80, 10, 60, 1]])
+    out, keep = complete_cut_torsos(boxes, 320)
+    assert keep.tolist() == [True, True, True, False]  # the last shows 10 / 45.8 < MIN_VISIBLE of its width
+    assert 10 < MIN_VISIBLE * full < 30
+    assert out[0].tolist() == boxes[0].tolist()  # whole: as it was
+    assert out[1, 0] + out[1, 2] == pytest.approx(30.0) and out[1, 2] == pytest.approx(full)  # its inner edge kept
+    assert out[2, 0] == 300.0 and out[2, 2] == pytest.approx(full)
+
+
+def test_the_share_of_a_torso_inside_the_image_by_hand():
+    from ssbl_pb.perception.sim_eval import sim_camera
+    from ssbl_pb.perception.simulated import image_share
+
+    cam = sim_camera(RobotParams(), 320, 240)
+    half = math.radians(RobotParams().camera_hfov_deg) / 2
+    edge = (3.0 - cam.centre()[0]) * math.tan(half)  # 3 m ahead of the robot, on the image's left side
+    share = image_share(np.array([[3.0, 0.0], [3.0, edge], [3.0, edge + 1.0], [-1.0, 0.0]]), cam, 0.23, 1.14, 6.0)
+    assert share[0] == 1.0 and share[2] == 0.0 and share[3] == 0.0
+    assert share[1] == pytest.approx(0.5, abs=0.05)  # centred on the side: half of it shows

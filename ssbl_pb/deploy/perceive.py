@@ -104,6 +104,28 @@ def one_per_colour(palette: list[Any]) -> Callable[[np.ndarray], np.ndarray]:
     return OnePerColour(palette)
 
 
+TORSO_HEIGHT = 0.60  # m: the proxy's torso box (urdf/human.urdf)
+MIN_VISIBLE = 0.35  # share of a torso's width that must show inside the image for a cut box to count
+
+
+def complete_cut_torsos(boxes: np.ndarray, width: int) -> tuple[np.ndarray, np.ndarray]:
+    """Torso boxes cut by the image's side, completed beyond it: the box's inner edge is the torso's, its height
+    (the torso's 0.60 m, whole: the camera sees its top and bottom) gives the torso's apparent width, the mean
+    over facings of 2 (a |sin phi| + b |cos phi|) = 4 (a + b) / pi (``TORSO_HALF``; off by at most 0.07 m either
+    side). Returns the boxes and which count: whole ones, and cut ones showing at least ``MIN_VISIBLE`` of their
+    width. Near the group, members 20-45 deg to the side are cut by the image's side; dropped, they were never
+    detected and the robot came into their intimate zone (4-5 % of `mixed` starts with the observation model)."""
+    b = np.array(boxes, dtype=float, copy=True)
+    left, right = b[:, 0] <= 1, b[:, 0] + b[:, 2] >= width - 1
+    full = b[:, 3] * (4.0 * sum(TORSO_HALF) / math.pi) / TORSO_HEIGHT
+    cut = left ^ right  # cut on both sides: too close to tell
+    keep = (~left & ~right) | (cut & (b[:, 2] >= MIN_VISIBLE * full))
+    grow = cut & (b[:, 2] < full)
+    b[grow & left, 0] = b[grow & left, 0] + b[grow & left, 2] - full[grow & left]
+    b[grow, 2] = full[grow]
+    return b, keep
+
+
 def make_detector(name: str) -> tuple[Callable[[np.ndarray], np.ndarray], bool]:
     """A detector for RGB frames and whether its boxes are torsos (``colour``: the simulated people's
     saturated torsos, for the virtual Pepper) or whole people (``hog``: OpenCV's people detector). The colour
@@ -206,8 +228,10 @@ class Perception:
         # each person's facing, where the detector tells it (the virtual Pepper's colour detector), from every box:
         # a person cut by the image's side still hides part of whoever stands behind them
         seen = self.detect.facing(self._group.camera) if hasattr(self.detect, "facing") else None
-        # a box cut by the image's side puts the person off by up to half a body: only whole ones count
-        whole = (boxes[:, 0] > 1) & (boxes[:, 0] + boxes[:, 2] < w - 1)
+        # a box cut by the image's side: a torso completed beyond the side (``complete_cut_torsos``), a whole person
+        # (HOG) is off by up to half a body and dropped
+        boxes, whole = complete_cut_torsos(boxes, w) if self.torso else (boxes, (boxes[:, 0] > 1)
+                                                                          & (boxes[:, 0] + boxes[:, 2] < w - 1))
         boxes = boxes[whole]
         if self.torso:  # the torso's edges are the outer edges of the box's first and last rows, not their centres
             boxes = boxes.copy()  # (half a pixel: 0.1 m of range 5 m away; boxes_to_ground takes pixel centres)

@@ -4,12 +4,14 @@ On the robot the policy does not read the true state: deploy's perception detect
 camera, projects them to the ground, tracks them (``perception.tracker``, ego-motion compensated), remembers the
 ones out of view and moves them by the group's model, and computes the group's centre, o-space radius and free
 slot from those estimates (``deploy.group``). This module runs that same pipeline from the simulator's state,
-with the camera replaced by a model of the detector: a member can be detected when it is in range with its whole
-body inside the image (deploy's own rule, ``GroupTracker.visible``) and no more than ``hidden_fraction`` of its
-torso's width is hidden behind nearer people; it is then missed with probability ``miss_prob`` and placed with
-range and bearing noise that grows with distance. Its facing (relative to its line of sight) is measured with
-``facing_std_deg`` of noise when its front is toward the camera (within ``facing_front_deg``: the virtual Pepper's
-people wear a marker on their chest), and with ``facing_back_std_deg`` from further round (the torso's outline).
+with the camera replaced by a model of the detector: a member can be detected when it is in range with at least
+``deploy.perceive.MIN_VISIBLE`` of its torso's width inside the image (deploy completes torsos cut by the image's
+side, ``deploy.perceive.complete_cut_torsos``; such a detection gets ``partial_std_m`` more noise across the line
+of sight) and no more than ``hidden_fraction`` of it hidden behind nearer people; it is then missed with
+probability ``miss_prob`` and placed with range and bearing noise that grows with distance. Its facing (relative to
+its line of sight) is measured with ``facing_std_deg`` of noise when its front is toward the camera (within
+``facing_front_deg``: the virtual Pepper's people wear a marker on their chest), and with ``facing_back_std_deg``
+from further round (the torso's outline).
 Everything after the detections is deploy's code itself: ``GroupTracker.update`` (the Kalman tracker with deploy's
 settings, ``deploy.perceive.TRACKER``, and its memory of people out of view) and ``GroupModel.update`` (centre,
 radius, joining weight, free slot), called as ``deploy.loop.DeployLoop`` calls them.
@@ -51,6 +53,8 @@ class PerceptionParams:
     # share of a torso's width that may be hidden behind nearer people with the person still detected: of the
     # members whose line of sight passes within a torso's half-width of a nearer one, 56 % were detected
     hidden_fraction: float = 0.75
+    partial_std_m: float = 0.04  # m across the line of sight for a torso completed beyond the image's side (its
+    #   apparent width taken as the mean over facings: off by at most 0.07 m)
     facing_std_deg: float = 10.0  # deg: facing noise of a person whose front the camera sees ...
     facing_front_deg: float = 80.0  # ... within this angle of looking at the robot; from further round ...
     facing_back_std_deg: float = 30.0  # ... with this (inf: unknown)
@@ -60,7 +64,7 @@ class PerceptionParams:
     sidestep_clearance: float = 0.4  # m: a sidestep goes only where the footprint keeps this from walls and furniture
 
     def __post_init__(self) -> None:
-        for name in ("range_std_m", "range_std_per_m", "bearing_std_deg", "facing_std_deg"):
+        for name in ("range_std_m", "range_std_per_m", "bearing_std_deg", "facing_std_deg", "partial_std_m"):
             v = getattr(self, name)
             _check(isinstance(v, int | float) and math.isfinite(v) and v >= 0, "perception", name, v,
                    "a finite number >= 0")
@@ -116,13 +120,30 @@ def hidden_share(xy: np.ndarray, halfwidth: float) -> np.ndarray:
     return out
 
 
+def image_share(xy: np.ndarray, camera: Any, halfwidth: float, height: float, max_range: float) -> np.ndarray:
+    """Per robot-frame point (n, 2), the share of a torso's width (``halfwidth`` either side across the line of
+    sight, at ``height``) inside ``camera``'s image; 0 behind the camera or beyond ``max_range``."""
+    xy = np.asarray(xy, dtype=float).reshape(-1, 2)
+    rng = np.hypot(xy[:, 0], xy[:, 1])
+    across = np.column_stack([-xy[:, 1], xy[:, 0]]) / np.maximum(rng, 1e-6)[:, None] * halfwidth
+    u = [camera.robot_to_pixel(np.column_stack([side, np.full(len(xy), height)]))[:, 0]
+         for side in (xy - across, xy + across)]
+    lo, hi = np.minimum(u[0], u[1]), np.maximum(u[0], u[1])
+    inside = np.minimum(hi, camera.width - 1) - np.maximum(lo, 1)
+    share = np.clip(inside / np.maximum(hi - lo, 1e-6), 0.0, 1.0)
+    ok = np.isfinite(share) & (xy[:, 0] - halfwidth > 0) & (rng <= max_range)
+    return np.where(ok, share, 0.0)
+
+
 def detect(xy: np.ndarray, visible: np.ndarray, params: PerceptionParams, rng: np.random.Generator,
-           facing: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+           facing: np.ndarray | None = None, partial: np.ndarray | None = None
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Detections of the robot-frame positions ``xy`` (n, 2) that are ``visible``: each missed with probability
     ``miss_prob``, the rest moved by range noise ``range_std_m + range_std_per_m * r`` and bearing noise
     ``bearing_std_deg`` (Gaussian). ``facing`` (n,): each person's true facing relative to their line of sight
     (rad, 0: looking at the robot), measured with ``facing_std_deg`` within ``facing_front_deg`` of 0, else with
-    ``facing_back_std_deg`` (NaN where that is inf).
+    ``facing_back_std_deg`` (NaN where that is inf). ``partial`` (n,): completed beyond the image's side, with
+    ``partial_std_m`` more noise across the line of sight.
     Returns the detections (k, 2), their measured facing (k,) and its std (k,) (NaN/inf: unknown). Draws the same
     numbers whatever is visible (one miss, range, bearing and facing draw per person), so one person's visibility
     does not change another's noise."""
@@ -130,10 +151,12 @@ def detect(xy: np.ndarray, visible: np.ndarray, params: PerceptionParams, rng: n
     n = len(xy)
     miss = rng.random(n) < params.miss_prob
     z_range, z_bearing, z_facing = rng.standard_normal(n), rng.standard_normal(n), rng.standard_normal(n)
+    z_across = rng.standard_normal(n)
     r = np.hypot(xy[:, 0], xy[:, 1])
     b = np.arctan2(xy[:, 1], xy[:, 0])
+    across = 0.0 if partial is None else np.where(partial, params.partial_std_m, 0.0) / np.maximum(r, 0.1)
     r = np.maximum(r + (params.range_std_m + params.range_std_per_m * r) * z_range, 0.05)
-    b = b + math.radians(params.bearing_std_deg) * z_bearing
+    b = b + math.radians(params.bearing_std_deg) * z_bearing + across * z_across
     phi = np.full(n, np.nan) if facing is None else np.asarray(facing, dtype=float)
     front = np.abs(np.remainder(phi + math.pi, 2 * math.pi) - math.pi) <= math.radians(params.facing_front_deg)
     sd = np.where(front, max(math.radians(params.facing_std_deg), 1e-3),
@@ -150,11 +173,13 @@ class CopyPerception:
 
     def __init__(self, robot: RobotParams, social: SocialParams, keep: float, paper: bool,
                  params: PerceptionParams) -> None:
-        from ..deploy.group import GroupModel, GroupTracker
-        from ..deploy.perceive import TORSO_HALF, TRACKER
+        from ..deploy.group import BODY_HEIGHT, GroupModel, GroupTracker
+        from ..deploy.perceive import MIN_VISIBLE, TORSO_HALF, TRACKER
         from .sim_eval import sim_camera
 
         self.torso_halfwidth = TORSO_HALF[1]
+        self.apparent_halfwidth = 2.0 * sum(TORSO_HALF) / math.pi  # the mean over facings
+        self.body_height, self.min_visible = BODY_HEIGHT, MIN_VISIBLE  # deploy's: the torso's middle, cut boxes
         self.params, self.paper = params, paper
         self.model = GroupModel(social, keep, paper=paper)
         self.tracker = GroupTracker(sim_camera(robot, *IMAGE_SIZE), TRACKER, social=social, model=self.model)
@@ -185,12 +210,13 @@ class CopyPerception:
         c, s = math.cos(pose[2]), math.sin(pose[2])
         rel = np.asarray(members, dtype=float).reshape(-1, 2) - pose[:2]
         xy = np.column_stack([c * rel[:, 0] + s * rel[:, 1], -s * rel[:, 0] + c * rel[:, 1]])
-        can = self.tracker.visible(xy, np.zeros((0, 2))) & (hidden_share(xy, self.torso_halfwidth)
-                                                             <= self.params.hidden_fraction)
+        share = image_share(xy, self.tracker.camera, self.apparent_halfwidth, self.body_height,
+                            self.tracker.p.max_range_m)
+        can = (share >= self.min_visible) & (hidden_share(xy, self.torso_halfwidth) <= self.params.hidden_fraction)
         phi = None
         if yaw is not None:  # facing relative to the line of sight: 0 when looking at the robot
             phi = np.asarray(yaw, dtype=float) - np.arctan2(-rel[:, 1], -rel[:, 0])
-        seen, facing, std = detect(xy, can, self.params, self.rng, phi)
+        seen, facing, std = detect(xy, can, self.params, self.rng, phi, share < 1.0)
         self.members = self.tracker.update(seen, dt, np.asarray(pose, dtype=float), facing, std)
         if len(self.members) < 2:
             self.approaching, self.group = False, None
