@@ -252,3 +252,59 @@ def test_the_share_of_a_torso_inside_the_image_by_hand():
     share = image_share(np.array([[3.0, 0.0], [3.0, edge], [3.0, edge + 1.0], [-1.0, 0.0]]), cam, 0.23, 1.14, 6.0)
     assert share[0] == 1.0 and share[2] == 0.0 and share[3] == 0.0
     assert share[1] == pytest.approx(0.5, abs=0.05)  # centred on the side: half of it shows
+
+
+def _one_known(cp):
+    from ssbl_pb.deploy.group import Member
+
+    cp.members = [Member(1, np.array([2.0, 1.0]), np.zeros(2), np.eye(2))]  # to the left: it would step left
+
+
+def test_without_room_for_the_whole_sidestep_it_takes_a_shorter_one_across_and_back():
+    cp = _copy()
+    _one_known(cp)
+    across = np.array([-1.0, 2.0]) / math.sqrt(5.0)  # left of the line to the person at (2, 1)
+
+    def clearance(pose):  # furniture 0.45 m to either side of that line, none behind
+        return 2.0 if abs(float(pose[:2] @ across)) <= 0.45 else 0.1
+
+    yaw, acts = 0.0, []
+    for _ in range(140):
+        _, act = cp.search(np.array([0.0, 0.0, yaw]), heading_gain=2.0, dt=0.1, clearance=clearance)
+        acts.append(act)
+        yaw += 0.0 if act.any() else 0.05
+    first = next(k for k, a in enumerate(acts) if a.any())
+    # across: 0.8 m (the whole 3 s and 0.2 m braking) and 0.6 m (2 s) both reach the furniture; across and back
+    # at 135 deg, 2 s: 0.6 m * sin(135 deg) = 0.42 m across, clear
+    assert acts[first] == pytest.approx(0.2 * np.array([math.cos(3 * math.pi / 4), math.sin(3 * math.pi / 4)]))
+    assert first == 126 and cp.sidestep_left == 20 - (140 - first)  # a 2 s step under way
+
+
+def test_sidesteps_repeat_while_one_person_stays_the_only_one_known_then_it_turns_again():
+    cp = _copy()
+    _one_known(cp)
+    yaw, moving = 0.0, []
+    for _ in range(126 + 3 * 30 + 20):
+        _, act = cp.search(np.array([0.0, 0.0, yaw]), heading_gain=2.0, dt=0.1)
+        moving.append(bool(act.any()))
+        yaw += 0.0 if act.any() else 0.05
+    assert moving[:126] == [False] * 126  # a full turn first
+    assert moving[126:216] == [True] * 90  # three 3 s sidesteps in a row (sidestep_repeats)
+    assert moving[216:] == [False] * 20  # then it turns again
+
+
+def test_deploys_search_repeats_its_sidesteps_as_the_observation_model_does():
+    from ssbl_pb.deploy.loop import DeployLoop, DeployParams
+
+    loop = DeployLoop.__new__(DeployLoop)  # only the search's state: no robot, camera or policy needed
+    loop.p = DeployParams(rate_hz=10.0, sidestep_repeats=2)
+    loop.s = type("S", (), {"task": type("T", (), {"heading_gain": 2.0})()})()
+    loop._approaching, loop._search_side = False, 0.0
+    person, yaw, states = np.array([[2.0, 1.0]]), 0.0, []
+    for _ in range(126 + 2 * 30 + 10):
+        state, cmd = loop._search(np.array([0.0, 0.0, yaw]), person)
+        states.append(state)
+        yaw += 0.0 if state == "sidestep" else cmd[2] * 0.1
+    first = states.index("sidestep")
+    assert first == 126  # a full turn at 0.5 rad/s, 0.05 rad a tick
+    assert states[first:first + 60] == ["sidestep"] * 60 and states[first + 60:] == ["search"] * 10

@@ -51,6 +51,10 @@ class DeployParams:
     search_turn: float = 0.5  # rad/s in place while fewer than two people are known (half NAOqi's default)
     sidestep_s: float = 3.0  # s stepping sideways when one person hides the others (after a full turn) ...
     sidestep_speed: float = 0.2  # m/s ... 0.6 m: at 3-5 m that opens a person's width between the lines of sight
+    # ... up to this many in a row while that person stays the only one known: a pair in line 3-3.5 m ahead, one
+    # sidestep opened too little (the observation model in the small map room: 9 % of 200 starts searched the whole
+    # episode); the camera faces that person, and so the one behind, all the way
+    sidestep_repeats: int = 3
     first_frame_s: float = 5.0  # s allowed for the camera's first frame
     continue_after_success: bool = False  # hold the slot (policy running) until --duration instead of ending
     status_s: float = 1.0  # seconds between status lines (0: none)
@@ -62,6 +66,8 @@ class DeployParams:
         _check(self.max_speed <= 0.55, "deploy", "max_speed", self.max_speed, "<= 0.55 m/s (Pepper's hardware max)")
         _check(self.settle_s >= 0, "deploy", "settle_s", self.settle_s, ">= 0")
         _check(self.status_s >= 0, "deploy", "status_s", self.status_s, ">= 0")
+        _check(isinstance(self.sidestep_repeats, int) and self.sidestep_repeats >= 1, "deploy", "sidestep_repeats",
+               self.sidestep_repeats, "an integer >= 1")
 
 
 ESTIMATE_MARGIN = 0.1  # m the policy's shield keeps beyond --stop-distance: the tracked people's error near the
@@ -119,7 +125,7 @@ class DeployLoop:
         self._policy_state: Any = None
         self._approaching = False
         self._search_side = 0.0
-        self._turned, self._last_yaw, self._sidestep_left = 0.0, None, 0
+        self._turned, self._last_yaw, self._sidestep_left, self._sidesteps = 0.0, None, 0, 0
         self.group = GroupModel(setup.social, slot_keep(setup.social, setup.robot_params.reach,
                                                         setup.task.intimate_zone, setup.task.route_margin),
                                 paper=setup.groups == "paper")
@@ -262,17 +268,20 @@ class DeployLoop:
     def _search(self, pose: np.ndarray, pos: np.ndarray) -> tuple[str, np.ndarray]:
         """Fewer than two people known: turn in place (toward the one known person's side first); after a full
         turn with still one person known (the others hidden behind them), step sideways for ``sidestep_s``
-        while facing that person, for another line of sight, and turn again."""
+        while facing that person, for another line of sight, up to ``sidestep_repeats`` times in a row while they
+        stay the only one, and turn again."""
         p = self.p
         if self._approaching or self._search_side == 0.0:  # a new search
             d = pos.mean(axis=0) - pose[:2] if len(pos) else np.array([1.0, 1.0])
             self._search_side = 1.0 if math.remainder(math.atan2(d[1], d[0]) - pose[2], 2 * math.pi) >= 0 else -1.0
-            self._turned, self._last_yaw, self._sidestep_left = 0.0, None, 0
+            self._turned, self._last_yaw, self._sidestep_left, self._sidesteps = 0.0, None, 0, 0
         self._approaching = False
         if self._last_yaw is not None:
             self._turned += abs(math.remainder(pose[2] - self._last_yaw, 2 * math.pi))
         self._last_yaw = float(pose[2])
-        if self._turned >= 2 * math.pi and len(pos) == 1:
+        again = self._sidestep_left == 0 and 0 < self._sidesteps < p.sidestep_repeats
+        if len(pos) == 1 and (self._turned >= 2 * math.pi or again):
+            self._sidesteps = self._sidesteps + 1 if again else 1
             self._turned, self._sidestep_left = 0.0, int(round(p.sidestep_s * p.rate_hz))
         if self._sidestep_left > 0 and len(pos) == 1:
             self._sidestep_left -= 1

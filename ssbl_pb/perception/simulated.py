@@ -61,6 +61,7 @@ class PerceptionParams:
     search_turn: float = 0.5  # rad/s in place while fewer than two people are known (DeployParams.search_turn)
     sidestep_s: float = 3.0  # s sideways after a full turn with one person known ... (DeployParams.sidestep_s)
     sidestep_speed: float = 0.2  # m/s ... (DeployParams.sidestep_speed)
+    sidestep_repeats: int = 3  # ... up to this many in a row (DeployParams.sidestep_repeats)
     sidestep_clearance: float = 0.4  # m: a sidestep goes only where the footprint keeps this from walls and furniture
 
     def __post_init__(self) -> None:
@@ -82,6 +83,8 @@ class PerceptionParams:
                "sidestep_s", self.sidestep_s, "seconds in [0, 30]")
         _check(isinstance(self.sidestep_speed, int | float) and 0 <= self.sidestep_speed <= 0.55, "perception",
                "sidestep_speed", self.sidestep_speed, "m/s in [0, 0.55]")
+        _check(isinstance(self.sidestep_repeats, int) and self.sidestep_repeats >= 1, "perception",
+               "sidestep_repeats", self.sidestep_repeats, "an integer >= 1")
         _check(isinstance(self.sidestep_clearance, int | float) and self.sidestep_clearance >= 0, "perception",
                "sidestep_clearance", self.sidestep_clearance, "metres >= 0")
 
@@ -168,6 +171,16 @@ def detect(xy: np.ndarray, visible: np.ndarray, params: PerceptionParams, rng: n
     return np.column_stack([r * np.cos(b), r * np.sin(b)])[keep], measured[keep], std[keep]
 
 
+# (share of ``sidestep_s``, share of ``sidestep_clearance``) tried in turn where walls or furniture leave no room
+# for the whole step: in a map room, a robot whose 0.8 m step had no room either side turned on the spot for the
+# whole episode, one member hidden behind the other (small room, 13 % of 200 starts); the last keeps the clearance
+# at which a step under way stops
+SIDESTEP_SHARES = ((1.0, 1.0), (2 / 3, 1.0), (1 / 3, 0.5))
+# ... and directions (rad from the line to the person, left positive): across it, else across and back (never
+# toward the person)
+SIDESTEP_ANGLES = (math.pi / 2, 3 * math.pi / 4)
+
+
 class CopyPerception:
     """One copy's pipeline: its generator, deploy's tracker with its memory, and deploy's group model."""
 
@@ -187,6 +200,7 @@ class CopyPerception:
         self.approaching = False
         self.search_side = 0.0
         self.turned, self.last_yaw, self.sidestep_left = 0.0, None, 0  # the search's progress
+        self.sidestep_angle, self.sidesteps = math.pi / 2, 0  # the sidestep's direction, sidesteps in a row
         self.members: list[Any] = []
         self.group: tuple[np.ndarray, float, float, np.ndarray] | None = None  # centre, radius, joining, slot
 
@@ -200,7 +214,7 @@ class CopyPerception:
         self.tracker.centre0 = None
         self.model.reset()
         self.approaching, self.search_side, self.members, self.group = False, 0.0, [], None
-        self.turned, self.last_yaw, self.sidestep_left = 0.0, None, 0
+        self.turned, self.last_yaw, self.sidestep_left, self.sidesteps = 0.0, None, 0, 0
 
     def frame(self, pose: np.ndarray, members: np.ndarray, dt: float, yaw: np.ndarray | None = None) -> None:
         """One camera frame at the robot's ``pose`` (room frame, used as the odometry frame) with the true
@@ -236,8 +250,11 @@ class CopyPerception:
         """Deploy's search (``DeployLoop._search``) as the engine's aim and body action: turn in place at
         ``search_turn`` rad/s under the env's proportional heading control, toward the one known person's side
         first; after a full turn with still one person known, ``sidestep_s`` sideways at ``sidestep_speed``
+        (``sidestep_repeats`` times in a row while that person stays the only one)
         facing that person, to whichever side keeps ``sidestep_clearance`` from walls and furniture all the way
-        (``clearance``: the footprint's static clearance at a pose; none free: it keeps turning). Returns the aim
+        (``clearance``: the footprint's static clearance at a pose), or a shorter step (``SIDESTEP_SHARES``) where
+        neither side has room for the whole one, or across and back (``SIDESTEP_ANGLES``); none free: it keeps
+        turning. Returns the aim
         (2,) and the action's (forward, left) in m/s."""
         p = self.params
         if self.search_side == 0.0:  # a new search
@@ -245,30 +262,36 @@ class CopyPerception:
             if self.members:
                 d = self.members[0].pos - pose[:2]
                 side = 1.0 if math.remainder(math.atan2(d[1], d[0]) - pose[2], 2 * math.pi) >= 0 else -1.0
-            self.search_side, self.turned, self.last_yaw, self.sidestep_left = side, 0.0, None, 0
+            self.search_side, self.turned, self.last_yaw, self.sidestep_left, self.sidesteps = side, 0.0, None, 0, 0
         if self.last_yaw is not None:
             self.turned += abs(math.remainder(pose[2] - self.last_yaw, 2 * math.pi))
         self.last_yaw = float(pose[2])
         one = len(self.members) == 1
         if one:  # a sidestep moves across the line to that person: the action's frame faces them
             d = self.members[0].pos - pose[:2]
-            across = np.array([-d[1], d[0]]) / max(float(np.hypot(*d)), 1e-6)
+            toward = d / max(float(np.hypot(*d)), 1e-6)
+            across = np.array([-toward[1], toward[0]])
 
-            def free_at(side: float, length: float) -> float:
-                q = np.asarray(pose[:2], dtype=float) + side * length * across
+            def free_at(angle: float, length: float) -> float:
+                q = np.asarray(pose[:2], dtype=float) + length * (math.cos(angle) * toward + math.sin(angle) * across)
                 return clearance(np.array([q[0], q[1], pose[2]])) if clearance is not None else math.inf
-        if self.turned >= 2 * math.pi and one:
-            self.turned, self.sidestep_left = 0.0, int(round(p.sidestep_s / dt))
-            step = p.sidestep_s * p.sidestep_speed + 0.2  # the whole step and the base's braking
-            free = [side for side in (self.search_side, -self.search_side)
-                    if free_at(side, step) >= p.sidestep_clearance]
-            self.search_side = free[0] if free else self.search_side
-            self.sidestep_left = self.sidestep_left if free else 0
-        if self.sidestep_left > 0 and one and free_at(self.search_side, 0.3) < p.sidestep_clearance / 2:
+        again = self.sidestep_left == 0 and 0 < self.sidesteps < p.sidestep_repeats
+        if one and (self.turned >= 2 * math.pi or again):  # the whole step where there is room, else a shorter one
+            self.turned, self.sidestep_left, self.sidesteps = 0.0, 0, self.sidesteps + 1 if again else 1
+            tries = [(share, room, side * angle) for share, room in SIDESTEP_SHARES for angle in SIDESTEP_ANGLES
+                     for side in (self.search_side, -self.search_side)]
+            for share, room, angle in tries:
+                step = share * p.sidestep_s * p.sidestep_speed + 0.2  # the step and the base's braking
+                if free_at(angle, step) >= room * p.sidestep_clearance:
+                    self.search_side = 1.0 if angle > 0 else -1.0
+                    self.sidestep_angle, self.sidestep_left = angle, int(round(share * p.sidestep_s / dt))
+                    break
+        if self.sidestep_left > 0 and one and free_at(self.sidestep_angle, 0.3) < p.sidestep_clearance / 2:
             self.sidestep_left = 0  # it turns as it goes: what is across changes; looked at again each step
         if self.sidestep_left > 0 and one:
             self.sidestep_left -= 1
-            return self.members[0].pos.copy(), np.array([0.0, self.search_side * p.sidestep_speed])
+            a = self.sidestep_angle
+            return self.members[0].pos.copy(), p.sidestep_speed * np.array([math.cos(a), math.sin(a)])
         turn = self.search_side * p.search_turn / heading_gain
         aim = np.asarray(pose[:2], dtype=float) + np.array([math.cos(pose[2] + turn), math.sin(pose[2] + turn)])
         return aim, np.zeros(2)
