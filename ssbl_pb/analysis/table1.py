@@ -8,7 +8,7 @@ seeds. Every row uses the same task (scenario ``default``, the paper's two-perso
 smoothing and no safety shield (the paper had none; camera modes could not use it). The frozen encoders'
 features reach the policy raw (``normalize_obs`` off; the vector rows keep VecNormalize's standardisation):
 standardising divides each feature by its running spread and blows up near-constant ones, and every camera row
-piloted trained far better raw (docs/benchmarks.md, "Features fed raw train far better").
+piloted trained far better raw (docs/decisions.md, "Camera state representations", ``normalize_obs``).
 
 Every row trains with the default config's reward and its jerk-cost ramp (configs/vector_ff.yaml: without the
 ramp PPO learns nothing, docs/decisions.md "Smoothness"). Because the ramp changes the reward during training,

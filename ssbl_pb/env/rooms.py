@@ -43,7 +43,7 @@ class FurnitureParams:
     clutter_max: float = 0.0  # [clutter_min, clutter_max]; none by default. Rooms cut from a SLAM map are 30-50 %
     #                          not free (occupied, unknown or speckle, much of it the walls' ragged outline:
     #                          docs/benchmarks.md), so the shipped policy trained with up to 0.25, then 0.35
-    #                          (configs/vector_rooms_finetune2.yaml, vector_rooms_finetune3.yaml)
+    #                          (configs/shipped/vector_stage4.yaml, vector_stage5.yaml)
 
     def __post_init__(self) -> None:
         _positive("furniture", self, "size_min", "size_max")

@@ -40,7 +40,7 @@ IMAGE_SIZE = (320, 240)
 
 @dataclasses.dataclass(frozen=True)
 class PerceptionParams:
-    """The detector's model (ours; docs/benchmarks.md, "Perception against the virtual Pepper", says where each
+    """The detector's model (ours; docs/benchmarks.md, "Deploy against the virtual Pepper", says where each
     number comes from) and the search turn (``deploy.loop.DeployParams.search_turn``)."""
 
     # the colour detector against the virtual Pepper (tools/bench_deploy.py --lockstep, mixed, 10 runs): detected
