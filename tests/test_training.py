@@ -207,6 +207,19 @@ def test_build_model_bounded_by_default_plain_on_request(tmp_path):
         load_config(None, {"ppo": {"bounded_mean": "yes"}})
 
 
+def test_learning_rate_anneals_linearly_to_its_end_value(tmp_path):
+    from ssbl_pb.training.run import build_model, make_vec_env
+
+    cfg = load_config(None, {"n_envs": 1, "ppo": {"learning_rate": 3e-4, "learning_rate_end": 3e-5}})
+    model = build_model(cfg, make_vec_env(cfg, 0), tmp_path / "tb")
+    # SB3's schedules take the progress remaining: 1 at the start, 0 at the end
+    assert [model.lr_schedule(x) for x in (1.0, 0.5, 0.0)] == pytest.approx([3e-4, 1.65e-4, 3e-5])
+    constant = build_model(load_config(None, {"n_envs": 1}), make_vec_env(cfg, 0), tmp_path / "tb")
+    assert constant.lr_schedule(0.0) == pytest.approx(3e-4)
+    with pytest.raises(ConfigError, match="learning_rate_end"):
+        load_config(None, {"ppo": {"learning_rate_end": 2}})
+
+
 def test_fine_tuning_across_plain_and_bounded_heads_keeps_the_weights():
     import torch
 

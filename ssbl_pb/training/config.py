@@ -38,6 +38,9 @@ VEC_ENVS = ("auto", "batched", "dummy", "subproc")
 @dataclasses.dataclass(frozen=True)
 class PPOConfig:
     learning_rate: float = 3e-4
+    # anneal linearly to this by the end of the run (None: constant); a short run's last updates then stop
+    # undoing what it learned (configs/demo.yaml)
+    learning_rate_end: float | None = None
     n_steps: int = 256  # per env
     batch_size: int = 256
     n_epochs: int = 5
@@ -56,6 +59,9 @@ class PPOConfig:
         for name in ("learning_rate", "gamma", "gae_lambda", "clip_range"):
             v = getattr(self, name)
             _check(isinstance(v, int | float) and 0 < v <= 1, "ppo", name, v, "a number in (0, 1]")
+        end = self.learning_rate_end
+        _check(end is None or (isinstance(end, int | float) and 0 < end <= 1), "ppo", "learning_rate_end", end,
+               "a number in (0, 1] or null (constant)")
         for name in ("n_steps", "batch_size", "n_epochs", "lstm_hidden_size"):
             v = getattr(self, name)
             _check(isinstance(v, int) and v >= 1, "ppo", name, v, "an integer >= 1")
@@ -101,7 +107,7 @@ class TrainConfig:
     #                             Vector observation, so camera modes train without it
     # VecNormalize's running standardisation of the observation (the original's "normalize: true"); false feeds
     # it raw (reward normalisation stays); unset (auto): on, except for a frozen encoder's features, which train
-    # far better raw (docs/benchmarks.md, "Features fed raw"; Table I's camera rows)
+    # far better raw (docs/decisions.md, "Camera state representations"; Table I's camera rows)
     normalize_obs: bool | None = None
     shield_at_place: bool = False  # near its place the shield keeps the place's clearance from the members and
     #                                slows the arrival (ShieldParams.place_clearance, place_arrival_speed; on for

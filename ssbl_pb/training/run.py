@@ -175,7 +175,12 @@ def build_model(cfg: TrainConfig, venv: Any, tb_dir: Path) -> Any:
         from .policies import bounded_policy
 
         policy = bounded_policy(cfg.policy_obs_mode, cfg.policy == "lstm")
-    return _algo(cfg)(policy, venv, learning_rate=p.learning_rate, n_steps=p.n_steps,
+    lr: Any = p.learning_rate
+    if p.learning_rate_end is not None:
+        from stable_baselines3.common.utils import LinearSchedule
+
+        lr = LinearSchedule(p.learning_rate, p.learning_rate_end, 1.0)
+    return _algo(cfg)(policy, venv, learning_rate=lr, n_steps=p.n_steps,
                       batch_size=p.batch_size, n_epochs=p.n_epochs, gamma=p.gamma, gae_lambda=p.gae_lambda,
                       clip_range=p.clip_range, ent_coef=p.ent_coef, vf_coef=p.vf_coef,
                       max_grad_norm=p.max_grad_norm, policy_kwargs=kwargs, seed=cfg.seed, device=cfg.device,
