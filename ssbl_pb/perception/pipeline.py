@@ -17,6 +17,7 @@ import numpy as np
 
 from ..errors import UserError
 from .detectors import HogDetector, HogParams, box_fractions, nms, shrink_windows
+from .ranging import FEET, HEAD, RangingParams, TsaiGeometry, range_boxes
 from .tracker import Tracker, TrackerParams
 from .tsai import TsaiCamera
 
@@ -123,16 +124,20 @@ class BoxParams:
     det_weight: float = 0.0  # weight of the matched detection's own box against the drawn one (0 = drawn)
     pixel_noise: float = 0.0  # foot-point noise as a fraction of box height; > 0 gives each detection a
     #                           covariance through the projection's Jacobian (depth error grows with range)
+    head_ranging: bool = False  # boxes cut above the feet (or by the image's bottom) ranged from the head row and
+    #                             the box's width (``ranging.range_boxes``), with that cue's covariance
 
 
 class GroundTracker:
     """Tracker on the ground plane of a calibrated static camera; ``step`` takes one frame's image boxes."""
 
     def __init__(self, camera: TsaiCamera, params: TrackerParams | None = None,
-                 box: BoxParams | None = None) -> None:
+                 box: BoxParams | None = None, ranging: RangingParams | None = None) -> None:
         self.camera = camera
         self.tracker = Tracker(params)
         self.box = box or BoxParams()
+        self.ranging = ranging or RangingParams()
+        self.cues = np.zeros(0, dtype=int)  # the last step's cue per box (``ranging.FEET`` / ``HEAD``)
         self.heights: dict[int, float] = {}
         self.aspects: dict[int, float] = {}
 
@@ -149,19 +154,31 @@ class GroundTracker:
         feet = np.column_stack([boxes[:, 0] + boxes[:, 2] / 2, boxes[:, 1] + boxes[:, 3]])
         ground = self.camera.image_to_ground(feet) if len(boxes) else np.zeros((0, 2))
         heights = self.body_height(ground, boxes[:, 1]) if len(boxes) else np.zeros(0)
-        payloads = [(float(heights[i]), boxes[i, :4].copy()) for i in range(len(boxes))]
         b = self.box
         cov = None
         if b.pixel_noise > 0 and len(boxes):
             cov = ground_covariance(self.camera, feet, b.pixel_noise * boxes[:, 3])
             cov += np.eye(2) * self.tracker.params.meas_std ** 2
+        self.cues = np.full(len(boxes), FEET, dtype=int)
+        if b.head_ranging and len(boxes):
+            h_img = self.camera.height * self.camera.scale
+            rp = dataclasses.replace(self.ranging, pixel_noise=b.pixel_noise or self.ranging.pixel_noise)
+            xy, rcov, self.cues = range_boxes(TsaiGeometry(self.camera), boxes, h_img, rp)
+            head = self.cues == HEAD
+            ground = np.where(head[:, None], xy, ground)
+            heights = np.where(head, np.nan, heights)  # the prior, not a measurement: no height update
+            rcov += np.eye(2) * self.tracker.params.meas_std ** 2
+            cov = np.where(head[:, None, None], rcov, rcov if cov is None else cov)
+        # a head-ranged box is cut above the feet: it never stands in for the drawn box
+        payloads = [(float(heights[i]), boxes[i, :4].copy() if self.cues[i] == FEET else None)
+                    for i in range(len(boxes))]
         scores = boxes[:, 4] if boxes.shape[1] > 4 else None
         states = self.tracker.update(ground, dt=dt, payloads=payloads, meas_cov=cov, scores=scores)
         out = []
         alive = set()
         for st in states:
             alive.add(st.id)
-            if st.payload is not None:
+            if st.payload is not None and np.isfinite(st.payload[0]):
                 h_m = float(np.clip(st.payload[0], *b.height_range))
                 old = self.heights.get(st.id)
                 self.heights[st.id] = h_m if old is None else old + b.height_gain * (h_m - old)
@@ -179,7 +196,7 @@ class GroundTracker:
                 inside = box[0] >= 0 and box[1] >= 0 and box[0] + box[2] <= w_img and box[1] + box[3] <= h_img
                 if not (inside and st.hits >= 10):
                     continue
-            if st.payload is not None and b.det_weight > 0:
+            if st.payload is not None and st.payload[1] is not None and b.det_weight > 0:
                 box = (1 - b.det_weight) * box + b.det_weight * st.payload[1]
             out.append((st.id, box, st.position.copy(), st.velocity.copy()))
         for k in list(self.heights):

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -14,22 +15,27 @@ import numpy as np
 from ..errors import UserError
 from .pets import GroundTruthError, load_ground_truth, load_mot
 from .pipeline import GroundTracker, HogFgDetector, VideoError, open_video, read_frames
+from .ranging import HEAD
 from .tsai import CalibrationError, TsaiCamera
-from .tuning import PipelineParams
+from .tuning import PipelineParams, default_params
 
 
 class InputError(UserError):
     """Bad input file or parameter; the message names the file and what was expected."""
 
 
-def _params(data: dict[str, Any] | None) -> PipelineParams:
+def _params(data: dict[str, Any] | None, detector: str | None = None) -> PipelineParams:
     if data is None:
-        return PipelineParams()
+        return default_params(detector or "hog")
     try:
-        return PipelineParams.from_dict(data)
+        pp = PipelineParams.from_dict(data)
     except (KeyError, TypeError, ValueError) as exc:
-        raise InputError(f"pipeline parameters: {exc}; expected keys hog, trk, box as written by "
-                         f"tools/bench_tracking.py") from exc
+        raise InputError(f"pipeline parameters: {exc}; expected keys hog, trk, box (and detector, ssd) as written "
+                         f"by tools/bench_tracking.py") from exc
+    if detector is not None and detector != pp.detector:
+        raise InputError(f"pipeline parameters are for detector {pp.detector!r}, not {detector!r}: leave --detector "
+                         f"out or give parameters written for it")
+    return pp
 
 
 def load_inputs(video: str | Path, calib: str | Path) -> tuple[tuple[int, float, tuple[int, int]], TsaiCamera]:
@@ -81,22 +87,44 @@ def colour(tid: int) -> tuple[int, int, int]:
     return tuple(int(v) for v in rng.integers(60, 256, 3))  # type: ignore[return-value]
 
 
+def make_detector(pp: PipelineParams, scale: float = 1.0) -> Callable[[np.ndarray], np.ndarray]:
+    """The detector ``pp.detector`` names, for BGR frames resized by ``scale`` (same person sizes searched)."""
+    if pp.detector == "ssd":
+        from .learned import SsdDetector
+
+        return SsdDetector(dataclasses.replace(pp.ssd, min_height=pp.ssd.min_height * scale))
+    hog = pp.hog
+    if scale != 1.0:  # search the same person sizes on the resized frame
+        hog = dataclasses.replace(hog, scales=tuple(s / scale for s in hog.scales),
+                                  min_height=hog.min_height * scale)
+    return HogFgDetector(hog)
+
+
 def track_video(video: str | Path, calib: str | Path, out_dir: str | Path, start: int = 0,
                 stop: int | None = None, scale: float = 1.0, params: dict[str, Any] | None = None,
-                fps: float | None = None, overlay: bool = True, progress: bool = True) -> dict[str, Any]:
-    """Run detector + tracker over ``video`` and write the three outputs into ``out_dir`` (must exist)."""
+                fps: float | None = None, overlay: bool = True, progress: bool = True,
+                detector: str | None = None, hide_feet: str | Path | None = None) -> dict[str, Any]:
+    """Run detector + tracker over ``video`` and write the three outputs into ``out_dir`` (must exist).
+
+    ``detector``: "hog" (default) or "ssd", with that detector's built-in thresholds unless ``params`` are given.
+    ``hide_feet``: a ground-truth file; each of its boxes is painted from 55 % of its height down with the
+    video's median background before detection (``occlusion.FeetHidden``)."""
     (n, vfps, size), cam = load_inputs(video, calib)
-    pp = _params(params)
+    pp = _params(params, detector)
+    painter = None
+    if hide_feet is not None:
+        from .occlusion import FeetHidden, median_background
+
+        try:
+            painter = FeetHidden(load_ground_truth(hide_feet), median_background(video))
+        except GroundTruthError as exc:
+            raise InputError(str(exc)) from exc
     if not scale > 0:
         raise InputError(f"--scale = {scale}: expected > 0")
     if start < 0 or (stop is not None and stop <= start):
         raise InputError(f"frame range [{start}, {stop}): expected 0 <= start < stop")
     dt = 1.0 / (fps or vfps)
-    hog = pp.hog
-    if scale != 1.0:  # search the same person sizes on the resized frame
-        hog = dataclasses.replace(hog, scales=tuple(s / scale for s in hog.scales),
-                                  min_height=hog.min_height * scale)
-    det = HogFgDetector(hog)
+    det = make_detector(pp, scale)
     gt = GroundTracker(cam, pp.trk, pp.box)
     out = Path(out_dir)
     mot, world = [], []
@@ -108,9 +136,11 @@ def track_video(video: str | Path, calib: str | Path, out_dir: str | Path, start
         from ..cli import make_bar
 
         bar = make_bar(max(total, 0), Path(video).name, "frame")
-    t_proc, count = 0.0, 0
+    t_proc, count, n_boxes, n_head = 0.0, 0, 0, 0
     try:
         for i, frame in read_frames(video, start, stop):
+            if painter is not None:
+                frame = painter(i, frame)
             t0 = time.perf_counter()
             small = frame if scale == 1.0 else cv2.resize(frame, None, fx=scale, fy=scale,
                                                           interpolation=cv2.INTER_AREA)
@@ -118,6 +148,8 @@ def track_video(video: str | Path, calib: str | Path, out_dir: str | Path, start
             boxes[:, :4] /= scale
             tracks = gt.step(boxes, dt)
             t_proc += time.perf_counter() - t0
+            n_boxes += len(boxes)
+            n_head += int((gt.cues == HEAD).sum())
             count += 1
             for tid, bb, xy, v in tracks:
                 mot.append((i + 1, tid, *bb, 1, -1, -1, -1))
@@ -142,7 +174,8 @@ def track_video(video: str | Path, calib: str | Path, out_dir: str | Path, start
     np.savetxt(out / "tracks_world.csv", np.array(world).reshape(-1, 6), fmt=["%d", "%d"] + ["%.4f"] * 4,
                delimiter=",", header="frame,id,x_m,y_m,vx,vy", comments="")
     return {"frames": count, "tracks": len({r[1] for r in mot}), "ms_per_frame": 1000 * t_proc / count,
-            "start": start, "stop": start + count, "scale": scale, "dt": dt}
+            "start": start, "stop": start + count, "scale": scale, "dt": dt, "detector": pp.detector,
+            "feet_hidden": hide_feet is not None, "head_ranged": int(n_head), "boxes": int(n_boxes)}
 
 
 def draw(frame: np.ndarray, tracks: list[tuple[int, np.ndarray, np.ndarray, np.ndarray]], inset: Inset) -> None:

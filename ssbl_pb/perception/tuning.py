@@ -11,8 +11,10 @@ from typing import Any
 
 import numpy as np
 
+from ..errors import UserError
 from .detectors import HogParams
 from .evaluation import evaluate
+from .learned import SsdParams, select_ssd
 from .pipeline import BoxParams, select, track_detections
 from .tracker import TrackerParams
 from .tsai import TsaiCamera
@@ -41,6 +43,16 @@ GRID: dict[str, list[Any]] = {
     "box.max_coast_inside": [0, 5, 8],
 }
 
+# the same search for the learned detector (``learned.SsdDetector``): its score and box thresholds instead of HOG's
+SSD_GRID: dict[str, list[Any]] = {
+    "ssd.score_threshold": [0.1, 0.15, 0.2, 0.25, 0.3, 0.4],
+    "trk.birth_score": [0.2, 0.3, 0.4, 0.5, 0.6],
+    "ssd.nms_iou": [0.3, 0.45, 0.6],
+    "ssd.min_height": [0.0, 40.0, 55.0],
+    **{k: v for k, v in GRID.items() if k.startswith(("trk.", "box."))},
+}
+DETECTORS = ("hog", "ssd")
+
 
 @dataclasses.dataclass(frozen=True)
 class PipelineParams:
@@ -55,20 +67,35 @@ class PipelineParams:
                                        tentative_misses=2, min_new_dist=0.0, birth_score=1.2)
     box: BoxParams = BoxParams(height_gain=0.1, aspect=0.48, max_coast=1, max_coast_inside=8, det_weight=0.5,
                                pixel_noise=0.05)
+    detector: str = "hog"  # "hog" (``hog`` params) or "ssd" (the learned detector, ``ssd`` params)
+    ssd: SsdParams = SsdParams()
+
+    def __post_init__(self) -> None:
+        if self.detector not in DETECTORS:
+            raise UserError(f"detector = {self.detector!r}: expected one of {list(DETECTORS)}")
 
     def with_value(self, key: str, value: Any) -> PipelineParams:
         part, name = key.split(".")
         return dataclasses.replace(self, **{part: dataclasses.replace(getattr(self, part), **{name: value})})
 
-    def to_dict(self) -> dict[str, dict[str, Any]]:
-        return {k: dataclasses.asdict(getattr(self, k)) for k in ("hog", "trk", "box")}
+    def to_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = {k: dataclasses.asdict(getattr(self, k)) for k in ("hog", "trk", "box", "ssd")}
+        out["detector"] = self.detector
+        return out
 
     @classmethod
-    def from_dict(cls, data: dict[str, dict[str, Any]]) -> PipelineParams:
+    def from_dict(cls, data: dict[str, Any]) -> PipelineParams:
+        """Inverse of ``to_dict``; ``detector`` and ``ssd`` may be absent (HOG-only files)."""
         def fix(d: dict[str, Any]) -> dict[str, Any]:
             return {k: tuple(v) if isinstance(v, list) else v for k, v in d.items()}
         return cls(hog=HogParams(**fix(data["hog"])), trk=TrackerParams(**fix(data["trk"])),
-                   box=BoxParams(**fix(data["box"])))
+                   box=BoxParams(**fix(data["box"])), detector=data.get("detector", "hog"),
+                   ssd=SsdParams(**fix(data.get("ssd", {}))))
+
+    @property
+    def grid(self) -> dict[str, list[Any]]:
+        """The threshold search's grid for this detector."""
+        return SSD_GRID if self.detector == "ssd" else GRID
 
 
 # Where the search starts: box shrink measured on frames 0-399 (median HOG window -> GT box offsets), the rest
@@ -80,6 +107,21 @@ UNTUNED = PipelineParams(
     box=BoxParams(pixel_noise=0.06))
 
 
+# the learned detector's pipeline: thresholds chosen on frames 0-399 by tools/bench_tracking.py (coordinate descent
+# over ``SSD_GRID`` from these values; see docs/tracking.md)
+SSD_UNTUNED = PipelineParams(detector="ssd", ssd=SsdParams(score_threshold=0.25),
+                             trk=dataclasses.replace(UNTUNED.trk, birth_score=0.4),
+                             box=dataclasses.replace(UNTUNED.box, head_ranging=True))
+SSD_DEFAULT = SSD_UNTUNED
+
+
+def default_params(detector: str) -> PipelineParams:
+    """The built-in (tuned) pipeline for ``detector`` ("hog" or "ssd")."""
+    if detector not in DETECTORS:
+        raise UserError(f"detector {detector!r}: expected one of {list(DETECTORS)}")
+    return SSD_DEFAULT if detector == "ssd" else PipelineParams()
+
+
 def keep_scales(raw: np.ndarray, scales: tuple[float, ...]) -> np.ndarray:
     """Rows of ``detect_raw`` output whose window came from one of ``scales`` (window width = 64 / scale)."""
     s = 64.0 / raw[:, 2]
@@ -89,10 +131,17 @@ def keep_scales(raw: np.ndarray, scales: tuple[float, ...]) -> np.ndarray:
     return raw[ok]
 
 
+def select_cached(raw: np.ndarray, params: PipelineParams) -> np.ndarray:
+    """One frame's cached raw rows (``detect_raw`` windows or ``SsdDetector.raw`` boxes) -> detections."""
+    if params.detector == "ssd":
+        return select_ssd(raw, params.ssd)
+    return select(keep_scales(raw, params.hog.scales), params.hog)
+
+
 def run_pipeline(raw: dict[int, np.ndarray], camera: TsaiCamera, params: PipelineParams, dt: float,
                  start: int, stop: int) -> np.ndarray:
-    """Track rows (``track_detections`` layout) for frames ``start <= f < stop`` from cached windows."""
-    dets = {f: select(keep_scales(raw[f], params.hog.scales), params.hog) for f in range(start, stop) if f in raw}
+    """Track rows (``track_detections`` layout) for frames ``start <= f < stop`` from cached detections."""
+    dets = {f: select_cached(raw[f], params) for f in range(start, stop) if f in raw}
     return track_detections(dets, camera, dt, params.trk, params.box)
 
 
@@ -109,7 +158,7 @@ def tune(raw: dict[int, np.ndarray], gt: np.ndarray, camera: TsaiCamera, dt: flo
     log = [{"key": "init", "value": None, "score": score(best_res)}]
     for _ in range(rounds):
         improved = False
-        for key, values in (grid or GRID).items():
+        for key, values in (grid or best.grid).items():
             for v in values:
                 cand = best.with_value(key, v)
                 if cand == best:
