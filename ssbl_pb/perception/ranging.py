@@ -3,12 +3,12 @@
 Two cues, chosen per box:
 
 - **feet**: the box's bottom centre on the ground plane (z = 0), used when the bottom edge is inside the image
-  and the body height the box then implies (head row against the foot point) is plausible;
+  and the body height the box then implies (head row against the foot point) is plausible (1.3-2.1 m);
 - **head**: otherwise (the feet below the image, hidden behind something, or cut off by the detector). The
   box's top centre is the head top: its ray meets the plane at the prior person height (``person_height``);
-  the box's width (``box_width`` m, the same detector's boxes around a whole person) gives the range
-  along the same ray a second time; the two are averaged by their variances (height prior ``height_std``,
-  width prior ``width_rel_std``).
+  the box's width (``box_width`` m across the line of sight at half that height, the same detector's boxes
+  around a whole person) gives the range along the same ray a second time; the two are averaged by their
+  variances (height prior ``height_std``, width prior ``width_rel_std``).
 
 Each position carries a covariance (m^2): the pixel noise pushed through the projection's Jacobian (as
 ``pipeline.ground_covariance``) plus, for the head cue, the fused prior's variance along the line of sight, so
@@ -89,7 +89,8 @@ class RangingParams:
     height_std: float = 0.08  # m
     box_width: float = 0.61  # m, the width of the detector's box around a whole person
     width_rel_std: float = 0.25  # relative spread of that width (arms, pose, facing)
-    min_body_height: float = 1.3  # m; a foot-ranged box implying less is taken as cut above the feet
+    min_body_height: float = 1.3  # m; a foot-ranged box implying a body outside these heights is taken as cut
+    max_body_height: float = 2.1  # above the feet (the camera above heads: shorter; near head height: taller)
     edge_margin: float = 2.0  # px; a bottom edge this close to the image's is taken as cut by it
     pixel_noise: float = 0.05  # px noise as a fraction of the box height (feet) or width (head)
 
@@ -161,8 +162,8 @@ def range_boxes(geom: Geometry, boxes: np.ndarray, image_height: float,
                 p: RangingParams | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per box: ground position (n, 2), covariance (n, 2, 2) and cue (``FEET`` or ``HEAD``).
 
-    Feet where the bottom edge is inside the image (``edge_margin``) and the foot point implies a body of at
-    least ``min_body_height``; the head and the box's width elsewhere."""
+    Feet where the bottom edge is inside the image (``edge_margin``) and the foot point implies a body between
+    ``min_body_height`` and ``max_body_height``; the head and the box's width elsewhere."""
     p = p or RangingParams()
     boxes = np.asarray(boxes, dtype=float)
     boxes = boxes.reshape(-1, boxes.shape[-1] if boxes.ndim == 2 else 4)
@@ -172,8 +173,9 @@ def range_boxes(geom: Geometry, boxes: np.ndarray, image_height: float,
     if n == 0:
         return xy, cov, cue
     cut = boxes[:, 1] + boxes[:, 3] >= image_height - p.edge_margin
-    short = implied_height(geom, xy, boxes[:, 1]) < p.min_body_height
-    head = cut | short | ~np.isfinite(xy).all(axis=1)
+    body = implied_height(geom, xy, boxes[:, 1])
+    odd = ~((body >= p.min_body_height) & (body <= p.max_body_height))
+    head = cut | odd | ~np.isfinite(xy).all(axis=1)
     if head.any():
         hxy, hcov = head_ground(geom, boxes[head], p)
         xy[head], cov[head], cue[head] = hxy, hcov, HEAD
