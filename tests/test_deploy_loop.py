@@ -269,3 +269,21 @@ def test_deploy_params_name_the_field_that_is_wrong():
         DeployParams(status_s=-1.0)
     with pytest.raises(ConfigError, match="settle_s"):
         DeployParams(settle_s=-1.0)
+
+
+def test_a_success_is_claimed_only_when_every_member_was_seen_lately_else_it_looks_first():
+    from types import SimpleNamespace
+
+    loop = DeployLoop.__new__(DeployLoop)  # only the claim's state: no robot, camera or policy needed
+    loop.p = DeployParams(confirm_s=4.0, search_turn=0.5)
+    loop.s = SimpleNamespace(task=SimpleNamespace(heading_gain=2.0))
+    members = [SimpleNamespace(id=1, seen=True), SimpleNamespace(id=2, seen=False)]
+    pos = np.array([[2.0, 0.0], [0.0, 1.5]])  # member 2 to the robot's left (+90 deg), out of view
+    loop._seen_at = {1: 10.0, 2: 7.0}
+    assert loop._confirm(members, pos, np.zeros(3), now=10.0) is None  # member 2 seen 3 s ago: within 4 s
+    look = loop._confirm(members, pos, np.zeros(3), now=11.5)  # 4.5 s: it turns toward member 2 first
+    assert look == pytest.approx([0.0, 0.0, 0.5])  # 2.0 * 90 deg, capped at search_turn
+    loop._seen_at[2] = 11.4  # seen again as it turned
+    assert loop._confirm(members, pos, np.zeros(3), now=11.5) is None
+    del loop._seen_at[2]  # a member never detected under this id cannot back a claim
+    assert loop._confirm(members, pos, np.array([0.0, 0.0, math.pi]), now=11.5) == pytest.approx([0, 0, -0.5])
