@@ -10,7 +10,7 @@ import torch
 
 from ssbl_pb.errors import UserError
 from ssbl_pb.perception import autoencoders as A
-from ssbl_pb.perception.ae_losses import LossWeights
+from ssbl_pb.perception.ae_losses import LossWeights, triplet_centres
 from ssbl_pb.perception.ae_train import (
     AETrainParams,
     CheckpointError,
@@ -25,7 +25,6 @@ from ssbl_pb.perception.frames import (
     frames_hfov,
     load_frames,
     save_frames,
-    triplet_centres,
 )
 
 TINY = A.AESize("tiny", 24, (4, 6, 5), (3, 3, 3), 2, 12, (4, 4), 8, 6)

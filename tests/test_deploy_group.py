@@ -195,7 +195,7 @@ def test_someone_hidden_behind_a_remembered_person_is_not_forgotten():
 
 def test_one_box_per_colour_spans_a_torso_split_by_a_nearer_person():
     from ssbl_pb.deploy.perceive import make_detector
-    from ssbl_pb.deploy.robot import SimRobot
+    from ssbl_pb.deploy.sim_robot import SimRobot
 
     robot = SimRobot("default", 11)  # a pair: one 2 m ahead seen side-on, one 3 m ahead facing the camera
     try:
@@ -223,7 +223,7 @@ def test_lockstep_members_keep_one_id_through_leaving_and_reentering_the_view():
     # pair, turns 100 deg away for 4 s and back; each person is one id throughout
     from ssbl_pb.deploy.perceive import Perception
     from ssbl_pb.deploy.perception_errors import assign, room_to_odom
-    from ssbl_pb.deploy.robot import SimClock, SimRobot
+    from ssbl_pb.deploy.sim_robot import SimClock, SimRobot
 
     robot = SimRobot("default", 11)
     clock = SimClock(robot)
@@ -261,7 +261,7 @@ def test_lockstep_members_carry_the_facing_the_colour_detector_reads():
     # one, and their facing stays unknown)
     from ssbl_pb.deploy.perceive import Perception
     from ssbl_pb.deploy.perception_errors import assign, room_to_odom
-    from ssbl_pb.deploy.robot import SimClock, SimRobot
+    from ssbl_pb.deploy.sim_robot import SimClock, SimRobot
 
     robot = SimRobot("default", 11)
     clock = SimClock(robot)

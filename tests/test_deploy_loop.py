@@ -16,7 +16,7 @@ from ssbl_pb.deploy.frames import Frames
 from ssbl_pb.deploy.log import RunLog, read_log
 from ssbl_pb.deploy.loop import DeployLoop, DeployParams, Setup, deploy_shield
 from ssbl_pb.deploy.perceive import Perception
-from ssbl_pb.deploy.robot import SimClock, SimRobot
+from ssbl_pb.deploy.sim_robot import SimClock, SimRobot
 from ssbl_pb.env.policies import make_policy
 from ssbl_pb.params import RobotParams, SocialParams
 

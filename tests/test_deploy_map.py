@@ -12,7 +12,7 @@ from ssbl_pb.deploy.log import RunLog, read_log
 from ssbl_pb.deploy.loop import DeployLoop, DeployParams, Setup
 from ssbl_pb.deploy.perceive import Perception
 from ssbl_pb.deploy.plot import draw
-from ssbl_pb.deploy.robot import SimClock, SimRobot
+from ssbl_pb.deploy.sim_robot import SimClock, SimRobot
 from ssbl_pb.deploy.virtual_robot import write_room_map
 from ssbl_pb.env.policies import make_policy
 from ssbl_pb.errors import UserError

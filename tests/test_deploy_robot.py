@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from ssbl_pb.deploy.frames import Frames, inverse, transform_points
-from ssbl_pb.deploy.robot import SimClock, SimRobot, clamp_command, compose, relative
+from ssbl_pb.deploy.robot import clamp_command, compose, relative
+from ssbl_pb.deploy.sim_robot import SimClock, SimRobot
 from ssbl_pb.params import RobotParams
 
 

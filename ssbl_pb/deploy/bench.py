@@ -154,7 +154,7 @@ def lockstep_approach(folder: Path, seed: int, policy: Any = "vector", scenario:
     from .log import RunLog, write_summary
     from .loop import DeployLoop, DeployParams, Setup
     from .perceive import Perception
-    from .robot import SimClock, SimRobot
+    from .sim_robot import SimClock, SimRobot
     from .virtual_robot import state_row
 
     spec = isinstance(policy, str)

@@ -40,7 +40,8 @@ from ..env.layouts import GROUP_MODELS
 from ..errors import UserError
 from ..files import check_output_path
 from .naoqi import BGR, IDENTITY, RESOLUTIONS, RGB, import_qi
-from .robot import Frame, SimRobot, compose, relative
+from .robot import Frame, compose, relative
+from .sim_robot import SimRobot
 
 LOOPBACK = ("127.0.0.1", "localhost", "[::1]")
 MAX_SUBSCRIPTIONS = 6  # NAOqi's limit per subscriber name

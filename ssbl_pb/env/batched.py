@@ -22,8 +22,8 @@ from ..errors import UserError
 from ..params import RobotParams, SocialParams, WorldParams, from_dict
 from . import kernels
 from . import observation as ob
-from .approach import parse_env_params
 from .base import BaseArrays, BaseParams
+from .env_params import parse_env_params
 from .humans import KEEP, MAX_HUMANS, RADIUS, GroupArrays, free_slot, sffm_params
 from .layouts import GroupModel, slot_keep
 from .obstacles import CAP, CELL

@@ -29,11 +29,10 @@ import math
 import numpy as np
 from numba import njit
 
-from ..errors import UserError
-from ..params import FORMATIONS, SocialParams
+from ..params import SocialParams
 from .base import clip, wrap_angle
 from .forces import EPS, cohesion_on, equality_on, repulsion_on
-from .layouts import Layout
+from .layouts import Layout, formation_angles  # noqa: F401 (formation_angles: re-exported)
 
 MAX_HUMANS = 5
 TWO_PI = 2.0 * math.pi
@@ -42,30 +41,6 @@ TWO_PI = 2.0 * math.pi
  JOIN_MARGIN, DT, N_SFFM) = range(15)
 # per-group scalars, columns of ``GroupArrays.scalars``
 (BASE_RADIUS, JOINED_RADIUS, JOIN_RADIUS, KEEP, SHIFT, RADIUS, JOIN_WEIGHT, N_SCALARS) = range(8)
-
-
-def formation_angles(formation: str, n: int, social: SocialParams) -> np.ndarray:
-    """Members' angles (rad) around the o-space centre, before a random rotation.
-
-    circular: evenly spaced; vis_a_vis: two facing clusters; l_shape: each member 90 deg further along
-    (2 members make an L, 3 a U); side_by_side: adjacent members at the closest comfortable spacing.
-    """
-    if formation not in FORMATIONS:
-        raise UserError(f"formation {formation!r}: expected one of {FORMATIONS}")
-    if not 2 <= n <= 5:
-        raise UserError(f"group size {n}: expected 2 to 5 members")
-    radius = social.ospace_radius_for(n)
-    delta = 2.0 * math.asin(min(1.0, social.min_member_gap / (2.0 * radius)))  # neighbours min_member_gap apart
-    if formation == "circular":
-        return 2.0 * math.pi * np.arange(n) / n
-    if formation == "side_by_side":
-        return delta * np.arange(n)
-    if formation == "l_shape":
-        return min(max(math.pi / 2, delta), 2.0 * math.pi / n) * np.arange(n)
-    a, b = (n + 1) // 2, n // 2  # vis_a_vis
-    side_a = (np.arange(a) - (a - 1) / 2.0) * delta
-    side_b = math.pi + (np.arange(b) - (b - 1) / 2.0) * delta
-    return np.concatenate([side_a, side_b])
 
 
 def sffm_params(social: SocialParams, dt: float) -> np.ndarray:

@@ -2,7 +2,7 @@
 
 Two models (``GROUP_MODELS``), chosen with the env's ``groups`` argument:
 
-* ``calibrated`` (default): the paper's formations (``humans.formation_angles``) with the size and the
+* ``calibrated`` (default): the paper's formations (``formation_angles``) with the size and the
   irregularity of real groups. Per group: an irregularity ``c`` and a mean member-to-centroid distance ``r`` are
   drawn from the real groups of that size (``GroupData``, inverse-CDF sampling of stored quantiles); each
   member's radius and angle are jittered by ``c`` (radius x (1 + c z), angle + c (2 pi / n) z', z standardised
@@ -36,6 +36,30 @@ LAYOUTS = (*FORMATIONS, "real")
 SHIPPED_GROUPS = Path(__file__).resolve().parents[1] / "data" / "groups.yaml"
 DISTANCES = ("centroid_distance_m", "nearest_neighbour_m")
 ROBOT_ROOM = 0.5  # share of a person's room a robot newcomer gets (CongreG8; docs/decisions.md)
+
+
+def formation_angles(formation: str, n: int, social: SocialParams) -> np.ndarray:
+    """Members' angles (rad) around the o-space centre, before a random rotation.
+
+    circular: evenly spaced; vis_a_vis: two facing clusters; l_shape: each member 90 deg further along
+    (2 members make an L, 3 a U); side_by_side: adjacent members at the closest comfortable spacing.
+    """
+    if formation not in FORMATIONS:
+        raise UserError(f"formation {formation!r}: expected one of {FORMATIONS}")
+    if not 2 <= n <= 5:
+        raise UserError(f"group size {n}: expected 2 to 5 members")
+    radius = social.ospace_radius_for(n)
+    delta = 2.0 * math.asin(min(1.0, social.min_member_gap / (2.0 * radius)))  # neighbours min_member_gap apart
+    if formation == "circular":
+        return 2.0 * math.pi * np.arange(n) / n
+    if formation == "side_by_side":
+        return delta * np.arange(n)
+    if formation == "l_shape":
+        return min(max(math.pi / 2, delta), 2.0 * math.pi / n) * np.arange(n)
+    a, b = (n + 1) // 2, n // 2  # vis_a_vis
+    side_a = (np.arange(a) - (a - 1) / 2.0) * delta
+    side_b = math.pi + (np.arange(b) - (b - 1) / 2.0) * delta
+    return np.concatenate([side_a, side_b])
 
 
 @dataclasses.dataclass(frozen=True)
@@ -189,7 +213,6 @@ def _free_layout(offsets: np.ndarray) -> Layout:
 
 def paper_layout(formation: str, n: int, social: SocialParams, rotation: float) -> Layout:
     """The original's layout: members on the o-space circle of ``social.ospace_radius_for(n)``."""
-    from .humans import formation_angles
 
     angles = formation_angles(formation, n, social) + rotation
     radius = social.ospace_radius_for(n)
@@ -206,7 +229,6 @@ def _standard(rng: np.random.Generator, n: int) -> np.ndarray:
 def calibrated_layout(formation: str, n: int, social: SocialParams, data: GroupData,
                       rng: np.random.Generator) -> Layout:
     """A formation with the size and irregularity of real groups of ``n`` (see the module docstring)."""
-    from .humans import formation_angles
 
     sd = data.size(n)
     base = formation_angles(formation, n, social) + rng.uniform(0, 2 * math.pi)

@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 import math
 
+import numpy as np
 import torch
 from torch.nn import functional as F
 
@@ -54,3 +55,10 @@ def triplet_loss(model: Autoencoder, triplet: torch.Tensor, weights: LossWeights
         parts["presence"] = (code[:, 1, :, 2] - 1.0).pow(2).mean()
         total = total + w.presence * parts["presence"]
     return total, {k: float(v.detach()) for k, v in parts.items()} | {"total": float(total.detach())}
+
+
+def triplet_centres(episode: np.ndarray) -> np.ndarray:
+    """Indices t whose frames t-1, t, t+1 belong to one episode (the smoothness loss needs all three)."""
+    e = np.asarray(episode)
+    t = np.arange(1, len(e) - 1)
+    return t[(e[t - 1] == e[t]) & (e[t + 1] == e[t])]

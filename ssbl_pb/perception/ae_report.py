@@ -12,10 +12,11 @@ import numpy as np
 from ..analysis.video import save_png
 from ..errors import UserError
 from ..files import write_json, write_text
+from .ae_losses import triplet_centres
 from .ae_plots import keypoint_overlay, plot_losses, reconstructions
 from .ae_train import save_checkpoint, split_centres
 from .autoencoders import SAEV, Autoencoder
-from .frames import frames_hfov, triplet_centres
+from .frames import frames_hfov
 
 
 def example_frames(data: dict[str, np.ndarray], n: int = 6) -> np.ndarray:

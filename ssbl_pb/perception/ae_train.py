@@ -19,9 +19,8 @@ import torch
 
 from ..errors import UserError
 from ..files import atomic_write
-from .ae_losses import LossWeights, triplet_loss
+from .ae_losses import LossWeights, triplet_centres, triplet_loss
 from .autoencoders import ARCHS, AESize, Autoencoder, build, get_size, to_input
-from .frames import triplet_centres
 
 FORMAT = 1
 

@@ -161,10 +161,3 @@ def frames_hfov(data: dict[str, np.ndarray]) -> float:
     from ..params import RobotParams
 
     return float(data["camera_hfov"]) if "camera_hfov" in data else RobotParams().camera_hfov_deg
-
-
-def triplet_centres(episode: np.ndarray) -> np.ndarray:
-    """Indices t whose frames t-1, t, t+1 belong to one episode (the smoothness loss needs all three)."""
-    e = np.asarray(episode)
-    t = np.arange(1, len(e) - 1)
-    return t[(e[t - 1] == e[t]) & (e[t + 1] == e[t])]

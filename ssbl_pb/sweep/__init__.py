@@ -8,7 +8,8 @@ pool or (given an address) as Ray Tune trials on a cluster; resumable; summarise
 - ``summary``: summary.csv / summary.md / summary.png / trials.csv.
 """
 
-from .runner import Outcome, Trial, TrialsFailed, finished, run_trials
+from .dispatch import run_trials
+from .runner import Outcome, Trial, TrialsFailed, finished
 from .spec import SpecError, SweepSpec, load_spec
 from .trial import METRICS, EvalSpec, TrainEvalTrial, trials_for
 

@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from ..files import make_stage_dir
-from .runner import run_trials
+from .dispatch import run_trials
 from .spec import SweepSpec
 
 

@@ -10,7 +10,8 @@ from typing import Any
 
 from ..cli import int_at_least, make_bar
 from ..errors import UserError
-from .runner import Outcome, Trial, finished, run_trials
+from .dispatch import run_trials
+from .runner import Outcome, Trial, finished
 
 
 def add_run_options(ap: argparse.ArgumentParser) -> None:

@@ -8,7 +8,7 @@ when a run was interrupted. Each attempt's output goes to ``ROOT/logs/NAME.log``
 keys may have ``upgrade(stored, record, trial_dir) -> dict``: an older stored definition completed from what its
 run left, so results that still hold are kept.
 
-    from ssbl_pb.sweep import run_trials
+    from ssbl_pb.sweep import run_trials                                       # (sweep.dispatch)
     outcome = run_trials(trials, Path("results/table1"), workers=2)            # local pool
     outcome = run_trials(trials, Path("/shared/table1"), address="head:6379")  # Ray Tune trials on a cluster
 """
@@ -23,7 +23,7 @@ import re
 import socket
 import time
 import traceback
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, Protocol
 
@@ -125,38 +125,4 @@ def run_task(task: Trial, root: Path, node_id: str | None = None) -> dict[str, A
     return record
 
 
-def run_trials(trials: Sequence[Trial], root: Path, workers: int | None = None, address: str | None = None,
-               on_done: Callable[[str, dict[str, Any] | None], None] | None = None) -> Outcome:
-    """Run the unfinished ``trials`` into ``root`` and return every finished one's record (see the module doc).
-
-    Without ``address``, ``workers`` processes (spawned, one trial at a time each; default: one per core) run them
-    here; with it (host:port or ``auto``), each trial is a Ray Tune trial of one CPU on that cluster, and ``root``
-    must be a path every node sees; ``workers`` then caps the trials running at once (default: no cap).
-    ``on_done(name, record or None)`` is called as each trial finishes (None: it failed). A trial that raises
-    does not stop the others; see ``Outcome.failed``."""
-    check_trials(trials)
-    root = root.resolve()
-    records = finished(root, trials)
-    pending = [t for t in trials if t.name not in records]
-    if not pending:
-        return Outcome(records, {})
-
-    def done(name: str, record: dict[str, Any] | None) -> None:
-        if record is not None:
-            records[name] = record
-        if on_done is not None:
-            on_done(name, record)
-
-    if address is None:
-        from .pool import run_local
-
-        failed = run_local(pending, root, workers or os.cpu_count() or 1, done)
-    else:
-        from .ray_runner import run_on_ray
-
-        failed = run_on_ray(pending, trials, root, address, workers, done)
-    return Outcome(records, failed)
-
-
-__all__ = ["RESULT", "Outcome", "Trial", "TrialsFailed", "check_trials", "finished", "run_task", "run_trials",
-           "trial_dir"]
+__all__ = ["RESULT", "Outcome", "Trial", "TrialsFailed", "check_trials", "finished", "run_task", "trial_dir"]

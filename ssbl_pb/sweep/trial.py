@@ -103,7 +103,7 @@ def trial_name(config: str, seed: int) -> str:
 def trials_for(configs: dict[str, Any], seeds: Sequence[int], evaluation: EvalSpec | None = None
                ) -> list[TrainEvalTrial]:
     """One trial per named training config (``TrainConfig``) and seed, named as a sweep names them: a list for
-    ``runner.run_trials`` (e.g. Table I's rows x seeds)."""
+    ``dispatch.run_trials`` (e.g. Table I's rows x seeds)."""
     from ..training.config import config_to_dict
 
     return [TrainEvalTrial(trial_name(name, seed), name, {**config_to_dict(cfg), "seed": seed},

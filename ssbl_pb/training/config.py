@@ -303,7 +303,7 @@ def _from_dict(data: dict[str, Any], where: str) -> TrainConfig:
 def check_env(cfg: TrainConfig) -> None:
     """The config's env parameters as the env will check them (room size for its groups, group data, room
     YAMLs), before anything is built."""
-    from ..env.approach import parse_env_params
+    from ..env.env_params import parse_env_params
 
     env = cfg.env
     parse_env_params(cfg.scenario, env.get("world"), env.get("robot"), env.get("social"), cfg.reward,
