@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 
 from ..env import observation as ob
-from ..env.layouts import slot_keep
+from ..env.layouts import member_keep_out, slot_keep
 from ..env.shield import ShieldParams, footprint_clearance
 from ..env.task import TaskParams
 from ..errors import Terminated
@@ -174,7 +174,7 @@ class DeployLoop:
         if s.waypoints:
             reach = s.robot_params.reach
             slot_room = fr.way_to(room, members_room, centre_room, slot_room, reach,
-                                  s.social.human_radius + reach + s.task.intimate_zone, s.waypoints_near_group)
+                                  member_keep_out(s.social, reach, s.task.intimate_zone), s.waypoints_near_group)
         frame = ob.approach_yaw(room, centre_room)
         obs = ob.vector_observation(room, vel_room, members_room, mvel_room, centre_room, radius, slot_room,
                                     fr.walls(room), s.robot_params.max_speed, s.robot_params.max_yaw_rate, frame,

@@ -320,6 +320,7 @@ def _copy_frames(fr: Frames) -> Frames:
 def analyse_folder(folder: Path, policy: Any = None, p: ErrorParams | None = None,
                    waypoints: tuple[bool, bool] = (False, False)) -> Samples:
     """``analyse`` of a benchmark run's folder (``deploy/`` and ``virtual_pepper.jsonl``, as ``bench`` writes)."""
+    from ..env.layouts import member_keep_out
     from ..env.task import TaskParams
     from ..params import SocialParams
     from .virtual_robot import load_log
@@ -329,7 +330,7 @@ def analyse_folder(folder: Path, policy: Any = None, p: ErrorParams | None = Non
     start, states, _ = load_log(folder / "virtual_pepper.jsonl")
     info = json.loads((folder / "deploy" / RUN).read_text()) if (folder / "deploy" / RUN).is_file() else {}
     robot = RobotParams(**info["robot"]) if isinstance(info.get("robot"), dict) else RobotParams()
-    margin = SocialParams().human_radius + robot.reach + TaskParams().intimate_zone  # as deploy's way_to is given
+    margin = member_keep_out(SocialParams(), robot.reach, TaskParams().intimate_zone)  # as deploy's way_to is given
     frames = deploy_frames(folder / "deploy", rows) if policy is not None else None
     return analyse(rows, start, states, p, policy, frames, robot, waypoints, margin)
 

@@ -25,7 +25,7 @@ from . import observation as ob
 from .base import BaseArrays, BaseParams
 from .env_params import parse_env_params
 from .humans import KEEP, MAX_HUMANS, RADIUS, GroupArrays, free_slot, sffm_params
-from .layouts import GroupModel, slot_keep
+from .layouts import GroupModel, member_keep_out, slot_keep
 from .obstacles import CAP, CELL
 from .planner import way_in_for_group
 from .reward import TERMS, RewardWeights, weight_vector
@@ -254,7 +254,7 @@ class BatchedApproach:
         g, n, row = self.groups_state, int(self.groups_state.count[i]), self.room[i]
         keep_out, row[kernels.WAY_X], row[kernels.WAY_Y], show = way_in_for_group(
             g.pos[i, :n], g.centre[i], self.slot[i],
-            self.social.human_radius + self.robot_params.reach + self.task.intimate_zone, self.waypoints_near_group)
+            member_keep_out(self.social, self.robot_params.reach, self.task.intimate_zone), self.waypoints_near_group)
         row[kernels.KEEP_OUT], (row[kernels.PLAN_CX], row[kernels.PLAN_CY]) = keep_out, g.centre[i]
         row[kernels.PLAN] = show if self.waypoints else 0.0
         row[kernels.PLANNED] = 0.0
@@ -327,8 +327,8 @@ class BatchedApproach:
     def keep_out(self, i: int, margin: float) -> float:
         """Radius around copy ``i``'s conversation centre the shaping's way to the slot keeps out of: the
         footprint's corners, not its mean radius, must stay out of the intimate zone (plus ``margin``)."""
-        return (float(self.radius[i]) + self.social.human_radius + self.robot_params.reach + self.task.intimate_zone
-                + margin)
+        return float(self.radius[i]) + member_keep_out(self.social, self.robot_params.reach, self.task.intimate_zone) \
+            + margin
 
     def snapshot(self, i: int, t: float) -> dict[str, Any]:
         """Copy ``i``'s state at time ``t`` as recorded in trajectories (metrics, plots, videos): copies."""

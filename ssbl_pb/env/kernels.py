@@ -23,6 +23,7 @@ from numba import njit
 from ..params import RobotParams, SocialParams, WorldParams
 from .base import base_step, footprint_distance, wall_clearance, wrap_angle
 from .humans import KEEP, RADIUS, free_slot, group_step
+from .layouts import slot_keep
 from .observation import BASE_SIZE, POS_SCALE, SCAN_RANGE, action_command, fill_observation
 from .obstacles import CAP, fill_scan, footprint_clearance
 from .planner import in_sight, plan_distance, plan_map, way_clearances, way_length, waypoint
@@ -54,7 +55,7 @@ def task_params(world: WorldParams, robot: RobotParams, social: SocialParams, ta
                  HEADING_GAIN: task.heading_gain, SLOT_TOL: task.slot_tolerance, STOP_SPEED: task.stop_speed,
                  HEADING_TOL: math.radians(task.heading_tolerance_deg), INTIMATE: task.intimate_zone,
                  BAND: task.proximity_band, MAX_STEPS: task.max_steps,
-                 KEEP_OUT_EXTRA: social.human_radius + robot.reach + task.intimate_zone + task.route_margin,
+                 KEEP_OUT_EXTRA: slot_keep(social, robot.reach, task.intimate_zone, task.route_margin),
                  TURN: float(task.turn), PLAN_CLEARANCE: way_clearances(robot.reach)[0],
                  SIGHT_CLEARANCE: way_clearances(robot.reach)[1], GEODESIC: float(task.geodesic_route)}.items():
         p[k] = v

@@ -182,11 +182,16 @@ class Layout:
     #                      toward a joining robot as toward a member (``humans.Group``)
 
 
+def member_keep_out(social: SocialParams, reach: float, intimate_zone: float) -> float:
+    """Centre distance from a member at which the footprint's farthest corner (``reach``), whatever the robot's
+    heading, touches the member's intimate zone: their body radius + ``reach`` + the zone (0.95 m)."""
+    return social.human_radius + reach + intimate_zone
+
+
 def slot_keep(social: SocialParams, reach: float, intimate_zone: float, margin: float) -> float:
-    """Centre distance the robot's place keeps from every member of a non-paper layout: the intimate zone plus
-    ``margin`` (``TaskParams.route_margin``, the room to correct the shaping's route keeps too) between the
-    member's body and the footprint's farthest corner (``reach``), whatever the robot's heading: 1.2 m."""
-    return social.human_radius + reach + intimate_zone + margin
+    """Centre distance the robot's place keeps from every member of a non-paper layout: ``member_keep_out`` plus
+    ``margin`` (``TaskParams.route_margin``, the room to correct the shaping's route keeps too): 1.2 m."""
+    return member_keep_out(social, reach, intimate_zone) + margin
 
 
 def facing_centre(offsets: np.ndarray) -> np.ndarray:

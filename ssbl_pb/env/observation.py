@@ -45,7 +45,18 @@ from .base import wrap_angle
 
 MAX_MEMBERS = 5
 MEMBER_FIELDS = 5
-BASE_SIZE = 14 + MAX_MEMBERS * MEMBER_FIELDS + 1
+# the layout's entries by name (the table above): the one place every reader (the env, the shield, the baselines,
+# the camera wrappers, frame collection) takes them from
+SLOT_X, SLOT_Y = 0, 1
+CENTRE_X, CENTRE_Y = 2, 3
+OSPACE_RADIUS = 4
+VEL_FORWARD, VEL_LEFT, TURN_RATE = 5, 6, 7
+FRAME_COS, FRAME_SIN = 8, 9
+WALLS = 10  # four entries: +x, -x, +y, -y
+MEMBERS = 14  # MAX_MEMBERS blocks of MEMBER_FIELDS, nearest first
+MEMBER_X, MEMBER_Y, MEMBER_VX, MEMBER_VY, MEMBER_PRESENT = range(MEMBER_FIELDS)  # offsets within a block
+HEADING = MEMBERS + MAX_MEMBERS * MEMBER_FIELDS
+BASE_SIZE = HEADING + 1
 SCAN_RAYS = 24
 SCAN_RANGE = 3.0  # m
 OBS_SIZE = BASE_SIZE + SCAN_RAYS
@@ -63,14 +74,14 @@ def fill_observation(o: np.ndarray, x: float, y: float, yaw: float, vx: float, v
     (sx, sy), the distances to the walls, in the frame turned by ``frame_yaw``."""
     c, s = math.cos(frame_yaw), math.sin(frame_yaw)
     o[:] = 0.0
-    o[0], o[1] = (c * (sx - x) + s * (sy - y)) / POS_SCALE, (c * (sy - y) - s * (sx - x)) / POS_SCALE
-    o[2], o[3] = (c * (cx - x) + s * (cy - y)) / POS_SCALE, (c * (cy - y) - s * (cx - x)) / POS_SCALE
-    o[4] = radius / POS_SCALE
-    o[5], o[6] = (c * vx + s * vy) / max_speed, (c * vy - s * vx) / max_speed
-    o[7] = wz / max_yaw_rate
-    o[8], o[9] = c, s
+    o[SLOT_X], o[SLOT_Y] = (c * (sx - x) + s * (sy - y)) / POS_SCALE, (c * (sy - y) - s * (sx - x)) / POS_SCALE
+    o[CENTRE_X], o[CENTRE_Y] = (c * (cx - x) + s * (cy - y)) / POS_SCALE, (c * (cy - y) - s * (cx - x)) / POS_SCALE
+    o[OSPACE_RADIUS] = radius / POS_SCALE
+    o[VEL_FORWARD], o[VEL_LEFT] = (c * vx + s * vy) / max_speed, (c * vy - s * vx) / max_speed
+    o[TURN_RATE] = wz / max_yaw_rate
+    o[FRAME_COS], o[FRAME_SIN] = c, s
     for w in range(4):
-        o[10 + w] = walls[w] / POS_SCALE
+        o[WALLS + w] = walls[w] / POS_SCALE
     k = members_pos.shape[0]
     d2 = np.empty(k)
     for j in range(k):
@@ -79,12 +90,13 @@ def fill_observation(o: np.ndarray, x: float, y: float, yaw: float, vx: float, v
     for r in range(min(k, MAX_MEMBERS)):
         j = order[r]
         dx, dy = members_pos[j, 0] - x, members_pos[j, 1] - y
-        b = 14 + MEMBER_FIELDS * r
-        o[b], o[b + 1] = (dx * c + dy * s) * (1.0 / POS_SCALE), (dx * -s + dy * c) * (1.0 / POS_SCALE)
-        o[b + 2] = members_vel[j, 0] * c + members_vel[j, 1] * s
-        o[b + 3] = members_vel[j, 0] * -s + members_vel[j, 1] * c
-        o[b + 4] = 1.0
-    o[39] = wrap_angle(yaw - frame_yaw) / math.pi
+        b = MEMBERS + MEMBER_FIELDS * r
+        o[b + MEMBER_X] = (dx * c + dy * s) * (1.0 / POS_SCALE)
+        o[b + MEMBER_Y] = (dx * -s + dy * c) * (1.0 / POS_SCALE)
+        o[b + MEMBER_VX] = members_vel[j, 0] * c + members_vel[j, 1] * s
+        o[b + MEMBER_VY] = members_vel[j, 0] * -s + members_vel[j, 1] * c
+        o[b + MEMBER_PRESENT] = 1.0
+    o[HEADING] = wrap_angle(yaw - frame_yaw) / math.pi
     for t in range(o.shape[0]):
         o[t] = min(max(o[t], -OBS_LIMIT), OBS_LIMIT)
 
@@ -134,9 +146,9 @@ def approach_yaw(robot_pose: np.ndarray, centre: np.ndarray) -> float:
 
 def decode_members(obs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Present members' positions (m) and velocities (m/s), in the observation's frame."""
-    block = np.asarray(obs[14:39], dtype=float).reshape(MAX_MEMBERS, MEMBER_FIELDS)
-    present = block[:, 4] > 0.5
-    return block[present, 0:2] * POS_SCALE, block[present, 2:4]
+    block = np.asarray(obs[MEMBERS:HEADING], dtype=float).reshape(MAX_MEMBERS, MEMBER_FIELDS)
+    present = block[:, MEMBER_PRESENT] > 0.5
+    return block[present, MEMBER_X:MEMBER_Y + 1] * POS_SCALE, block[present, MEMBER_VX:MEMBER_VY + 1]
 
 
 @njit(cache=True)

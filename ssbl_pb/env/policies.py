@@ -99,9 +99,9 @@ class SFFMPolicy(Policy):
         members, _ = ob.decode_members(obs)
         if len(members) == 0:  # nobody seen: no field
             return np.zeros(2)
-        centre = obs[2:4].astype(float) * ob.POS_SCALE
-        slot = obs[0:2].astype(float) * ob.POS_SCALE
-        radius = max(float(obs[4]) * ob.POS_SCALE, math.hypot(*(slot - centre)))
+        centre = obs[ob.CENTRE_X:ob.CENTRE_Y + 1].astype(float) * ob.POS_SCALE
+        slot = obs[ob.SLOT_X:ob.SLOT_Y + 1].astype(float) * ob.POS_SCALE
+        radius = max(float(obs[ob.OSPACE_RADIUS]) * ob.POS_SCALE, math.hypot(*(slot - centre)))
         agents = np.vstack([members, np.zeros((1, 2))])
         me, everyone = len(members), np.ones((len(agents), len(agents)), dtype=np.bool_)
         d_p = self.personal_zone(members, slot)
@@ -140,7 +140,7 @@ class StraightPolicy(Policy):
         self.brake_margin = brake_margin
 
     def act(self, obs: np.ndarray) -> np.ndarray:
-        rel = obs[0:2].astype(float) * ob.POS_SCALE
+        rel = obs[ob.SLOT_X:ob.SLOT_Y + 1].astype(float) * ob.POS_SCALE
         d = math.hypot(*rel)
         if d < 1e-6:
             return np.zeros(2, dtype=np.float32)

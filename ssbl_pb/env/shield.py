@@ -23,7 +23,26 @@ from numba import njit
 
 from ..params import RobotParams, SocialParams, _check, _positive
 from .layouts import slot_keep
-from .observation import BASE_SIZE, MAX_MEMBERS, MEMBER_FIELDS, POS_SCALE, SCAN_RANGE
+from .observation import (
+    BASE_SIZE,
+    CENTRE_X,
+    CENTRE_Y,
+    MAX_MEMBERS,
+    MEMBER_FIELDS,
+    MEMBER_PRESENT,
+    MEMBER_VX,
+    MEMBER_VY,
+    MEMBER_X,
+    MEMBER_Y,
+    MEMBERS,
+    OSPACE_RADIUS,
+    POS_SCALE,
+    SCAN_RANGE,
+    SLOT_X,
+    SLOT_Y,
+    VEL_FORWARD,
+    VEL_LEFT,
+)
 from .task import TaskParams
 
 # m from the place shown in the observation within which the place's clearance holds fully, and beyond which
@@ -154,9 +173,9 @@ def _scale_to_limits(obs: np.ndarray, vx: float, vy: float, clear: np.ndarray, t
     for j in range(clear.shape[0]):
         if clear[j] == np.inf:
             continue
-        b = 14 + MEMBER_FIELDS * j
+        b = MEMBERS + MEMBER_FIELDS * j
         ux, uy = toward[j, 0], toward[j, 1]
-        closing, theirs = vx * ux + vy * uy, float(obs[b + 2]) * ux + float(obs[b + 3]) * uy
+        closing, theirs = vx * ux + vy * uy, float(obs[b + MEMBER_VX]) * ux + float(obs[b + MEMBER_VY]) * uy
         allow = math.sqrt(2.0 * brake_accel * max(clear[j] - clearance_min, 0.0))
         if closing - theirs > allow and closing > 0.0 and max(allow + theirs, 0.0) / closing < scale:
             scale, rule = max(allow + theirs, 0.0) / closing, RULE_MEMBERS
@@ -179,8 +198,9 @@ def _shielded(obs: np.ndarray, vx: float, vy: float, clear: np.ndarray, toward: 
         for j in order:
             if clear[j] == np.inf:
                 break
-            b = 14 + MEMBER_FIELDS * j
-            nx, ny = _brake(vx, vy, toward[j, 0], toward[j, 1], float(obs[b + 2]), float(obs[b + 3]), clear[j],
+            b = MEMBERS + MEMBER_FIELDS * j
+            nx, ny = _brake(vx, vy, toward[j, 0], toward[j, 1], float(obs[b + MEMBER_VX]), float(obs[b + MEMBER_VY]),
+                            clear[j],
                             clearance_min, brake_accel)
             if nx != vx or ny != vy:
                 rules |= RULE_MEMBERS
@@ -246,17 +266,17 @@ def shield_row(obs: np.ndarray, action: np.ndarray, out: np.ndarray, clearance_m
     ``ospace_keep_out`` the closing speed on the conversation centre (entries 2-3) is braked, like a member's, to
     keep the robot's centre ``OSPACE_MARGIN`` inside the o-space radius (entry 4) at most."""
     out[:] = action
-    to_place = math.hypot(float(obs[0]), float(obs[1])) * POS_SCALE
+    to_place = math.hypot(float(obs[SLOT_X]), float(obs[SLOT_Y])) * POS_SCALE
     near = (PLACE_FAR - to_place) / (PLACE_FAR - PLACE_NEAR)
     clearance_min += max(place_clearance - clearance_min, 0.0) * min(max(near, 0.0), 1.0)
     reach = math.hypot(half_length, half_width)
     clear = np.full(MAX_MEMBERS, np.inf)
     toward = np.zeros((MAX_MEMBERS, 2))
     for j in range(MAX_MEMBERS):
-        b = 14 + MEMBER_FIELDS * j
-        if float(obs[b + 4]) > 0.5:
-            clear[j], toward[j, 0], toward[j, 1] = circle_clearance(float(obs[b]) * POS_SCALE,
-                                                                    float(obs[b + 1]) * POS_SCALE, reach,
+        b = MEMBERS + MEMBER_FIELDS * j
+        if float(obs[b + MEMBER_PRESENT]) > 0.5:
+            clear[j], toward[j, 0], toward[j, 1] = circle_clearance(float(obs[b + MEMBER_X]) * POS_SCALE,
+                                                                    float(obs[b + MEMBER_Y]) * POS_SCALE, reach,
                                                                     human_radius)
     vx, vy = float(action[0]) * max_speed, float(action[1]) * max_speed
     speed = math.hypot(vx, vy)
@@ -284,7 +304,7 @@ def shield_row(obs: np.ndarray, action: np.ndarray, out: np.ndarray, clearance_m
         # closing on (a desk's corner in 1 of 1,000 lab episodes). When one period toward the command would not
         # bring the velocity within the limits, the velocity itself is shielded: the command then differs from
         # it only by braking, and all of the acceleration goes to that.
-        cx, cy = float(obs[5]) * max_speed, float(obs[6]) * max_speed
+        cx, cy = float(obs[VEL_FORWARD]) * max_speed, float(obs[VEL_LEFT]) * max_speed
         if _over_limits(obs, cx, cy, clear, toward, reach, clearance_min, brake_accel, obstacle_clearance_min):
             dx, dy = sx - cx, sy - cy
             change = math.hypot(dx, dy)
@@ -298,12 +318,12 @@ def shield_row(obs: np.ndarray, action: np.ndarray, out: np.ndarray, clearance_m
         out[0] = min(max(sx / max_speed, -1.0), 1.0)
         out[1] = min(max(sy / max_speed, -1.0), 1.0)
     if ospace_keep_out > 0.0:
-        cx, cy = float(obs[2]) * POS_SCALE, float(obs[3]) * POS_SCALE
+        cx, cy = float(obs[CENTRE_X]) * POS_SCALE, float(obs[CENTRE_Y]) * POS_SCALE
         to_centre = math.hypot(cx, cy)
         if to_centre > 1e-6:
             ox, oy = float(out[0]) * max_speed, float(out[1]) * max_speed
             bx, by = _brake(ox, oy, cx / to_centre, cy / to_centre, 0.0, 0.0,
-                            to_centre - (float(obs[4]) * POS_SCALE - OSPACE_MARGIN), 0.0, brake_accel)
+                            to_centre - (float(obs[OSPACE_RADIUS]) * POS_SCALE - OSPACE_MARGIN), 0.0, brake_accel)
             if bx != ox or by != oy:
                 rules |= RULE_OSPACE
             out[0], out[1] = bx / max_speed, by / max_speed

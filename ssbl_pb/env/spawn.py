@@ -16,7 +16,7 @@ from numba import njit
 
 from ..params import ConfigError, RobotParams, SocialParams, WorldParams
 from .humans import MAX_HUMANS, free_slot
-from .layouts import GroupModel, Layout
+from .layouts import GroupModel, Layout, member_keep_out
 from .obstacles import CELL, boxes_distance, field_at
 from .planner import ENTRY_BEYOND
 from .rooms import Room
@@ -95,7 +95,7 @@ class Approach:
         self.members = float(ring.max()) + social.human_radius + GROUP_CLEARANCE
         self.radius, self.keep = layout.radius, 0.0 if layout.paper else keep
         self.joined = layout.joined_radius
-        self.keep_out = float(ring.max()) + social.human_radius + robot.reach + intimate_zone
+        self.keep_out = float(ring.max()) + member_keep_out(social, robot.reach, intimate_zone)
 
     def fits(self, centre: np.ndarray, xy: np.ndarray) -> bool:
         room = self.room

@@ -7,6 +7,7 @@ import gymnasium as gym
 import numpy as np
 
 from ..errors import UserError
+from . import observation as ob
 from .shield import SafetyShield, ShieldParams
 
 OBS_MODES = ("vector", "camera", "camera_speed")
@@ -41,8 +42,9 @@ class CameraSpeedObservation(CameraObservation):
         })
 
     def observation(self, observation: np.ndarray) -> dict[str, np.ndarray]:
-        # indices 5-7 of the Vector layout hold the normalised body velocity (see env.observation)
-        return {"image": self.image(), "speed": np.clip(observation[5:8], -1.5, 1.5).astype(np.float32)}
+        # the Vector layout's normalised body velocity and turn rate (env.observation)
+        speed = observation[ob.VEL_FORWARD:ob.TURN_RATE + 1]
+        return {"image": self.image(), "speed": np.clip(speed, -1.5, 1.5).astype(np.float32)}
 
 
 class ActionSmoothing(gym.ActionWrapper):

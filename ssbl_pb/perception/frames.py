@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..env.observation import MAX_MEMBERS
+from ..env.observation import MAX_MEMBERS, VEL_FORWARD, VEL_LEFT
 from ..errors import UserError
 from ..files import atomic_write
 
@@ -88,7 +88,7 @@ def collect(episodes: int, size: int, seed: int = 0, policies: tuple[str, ...] =
         rgb, seg = world.render_first_person(size, size, segmentation=True)
         rel, px = _member_pixels(world, cam, seg)
         obs = e.unwrapped.observe()
-        for key, v in (("frames", rgb), ("episode", ep), ("speed", obs[5:7]), ("members_rel", rel),
+        for key, v in (("frames", rgb), ("episode", ep), ("speed", obs[VEL_FORWARD:VEL_LEFT + 1]), ("members_rel", rel),
                        ("members_px", px), ("policy", k)):
             cols[key].append(v)
 
