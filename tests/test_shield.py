@@ -7,9 +7,10 @@ import numpy as np
 import pytest
 
 from ssbl_pb.env.approach import ApproachGroupEnv
-from ssbl_pb.env.observation import OBS_SIZE, POS_SCALE
-from ssbl_pb.env.shield import SafetyShield, ShieldParams, footprint_clearance, shield_action
+from ssbl_pb.env.observation import MEMBER_X, MEMBER_Y, MEMBERS, OBS_SIZE, POS_SCALE
+from ssbl_pb.env.shield import SafetyShield, ShieldParams, footprint_clearance, shield_action, shield_actions
 from ssbl_pb.env.world import box_circle_distance
+from ssbl_pb.errors import UserError
 from ssbl_pb.params import ConfigError
 
 P = ShieldParams()
@@ -475,3 +476,26 @@ def test_evaluation_reports_the_shield_intervention_rate_the_same_played_alone_o
     assert all(0.0 <= x < 1.0 for x in rates) and max(rates) > 0.0
     off = run_episodes(Setup("vector", scenario="mixed", shield=False), seeds[:2], workers=1)
     assert [r.metrics["shield_intervention_rate"] for r in off] == [0.0, 0.0]
+
+
+def test_action_stages_smooth_then_shield_and_reset_rows():
+    from ssbl_pb.env.wrappers import ActionFilter, ActionStages
+
+    core = ApproachGroupEnv()
+    obs, _ = core.reset(seed=3)
+    params = ShieldParams.from_env(core.robot_params, core.social, core.task)
+    stages, ref = ActionStages(0.4, params), ActionFilter(0.4)
+    obs = obs.copy()
+    obs[MEMBERS + MEMBER_X], obs[MEMBERS + MEMBER_Y] = 0.9 / POS_SCALE, 0.0  # the nearest member 0.9 m ahead
+    rows = np.stack([obs, obs])
+    for a in (np.array([[1.0, 0.0], [0.5, 0.5]]), np.array([[1.0, 1.0], [-1.0, 0.2]])):
+        smoothed = ref(a)
+        expected = shield_actions(rows, smoothed, params)  # the filter first, the shield last
+        assert not np.array_equal(expected, smoothed)  # the shield brakes toward the member
+        assert np.array_equal(stages(rows, a), expected)
+    stages.reset(rows=[1])  # row 1's episode starts again: its next action passes the filter unsmoothed
+    out = stages(rows, np.array([[0.0, 0.0], [0.3, -0.3]]))
+    assert np.allclose(out[1], shield_actions(rows[1:], np.array([[0.3, -0.3]], np.float32), params)[0])
+    assert ActionStages(1.0, None)(rows, np.array([[2.0, 0.0]])).tolist() == [[2.0, 0.0]]  # both off: unchanged
+    with pytest.raises(UserError, match="action smoothing alpha 0"):
+        ActionStages(0.0)

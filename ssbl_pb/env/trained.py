@@ -178,26 +178,25 @@ class TrainedPolicy(Policy):
         """``smoothing`` and ``shield`` are the agent's action stages as in training (config ``action_smoothing``,
         ``safety_shield``); the shield needs Vector observations and uses ``shield_params`` (a ``ShieldParams``;
         default: Pepper's default limits)."""
-        from .shield import SafetyShield
-        from .wrappers import ActionFilter
+        from .shield import ShieldParams
+        from .wrappers import ActionStages
 
         self.model = model
         self.normalizer = normalizer
         self.recurrent = recurrent
         self.observation_space = model.observation_space
-        self.filter = ActionFilter(smoothing) if smoothing < 1.0 else None
         vector = (isinstance(model.observation_space, gym.spaces.Box)
                   and model.observation_space.shape in ((OBS_SIZE,), (BASE_SIZE,)))
         # a model trained before the range scan reads (and is shielded on) the first 40 entries only
         self.base_only = vector and model.observation_space.shape == (BASE_SIZE,)
         if shield and not vector:
             raise ModelError("the safety shield needs a Vector-observation model")
-        self.shield = SafetyShield(shield_params) if shield else None
+        self.stages = ActionStages(smoothing, (shield_params or ShieldParams()) if shield else None)
+        self.filter, self.shield = self.stages.filter, self.stages.shield  # what each did last: the logs read them
 
     def reset(self) -> None:
         """Start of an episode: clears the action filter."""
-        if self.filter is not None:
-            self.filter.reset()
+        self.stages.reset()
 
     def normalize(self, obs: Any) -> Any:
         return obs if self.normalizer is None else self.normalizer.normalize_obs(obs)
@@ -212,8 +211,7 @@ class TrainedPolicy(Policy):
                                                deterministic=deterministic)
         else:
             action, state = self.model.predict(obs, deterministic=deterministic)[0], None
-        action = action if self.filter is None else self.filter(action)
-        return (action if self.shield is None else self.shield(observation, action)), state
+        return self.stages(observation, action), state
 
 
 def _channel_first(space: gym.Space) -> gym.Space:

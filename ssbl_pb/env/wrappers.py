@@ -47,54 +47,6 @@ class CameraSpeedObservation(CameraObservation):
         return {"image": self.image(), "speed": np.clip(speed, -1.5, 1.5).astype(np.float32)}
 
 
-class ActionSmoothing(gym.ActionWrapper):
-    """Exponential smoothing of the agent's actions, ``u_t = u_{t-1} + alpha (a_t - u_{t-1})``.
-
-    Part of the learned agent, not of the robot (the paper: "a smoothing algorithm can also be applied to the
-    learned policy"): training wraps the env with it and ``TrainedPolicy`` applies the same filter when it acts,
-    so the closed loop is the same in training, evaluation and deploy. ``alpha = 1`` is no smoothing.
-    """
-
-    def __init__(self, env: gym.Env, alpha: float) -> None:
-        super().__init__(env)
-        if not 0.0 < alpha <= 1.0:
-            raise UserError(f"action smoothing alpha {alpha!r}: expected a number in (0, 1]")
-        self.filter = ActionFilter(alpha)
-
-    def reset(self, **kwargs):  # type: ignore[override]
-        self.filter.reset()
-        return self.env.reset(**kwargs)
-
-    def action(self, action: np.ndarray) -> np.ndarray:
-        return self.filter(action)
-
-
-class ShieldWrapper(gym.Wrapper):
-    """Applies the safety shield (``env.shield``) to every action, from the latest Vector observation; each
-    step's ``info["shield"]`` says what it changed (``ShieldRecord.row``: before, after, rules), None if nothing.
-
-    Wraps the Vector-mode env directly (the agent's smoothing goes outside it, so the shield acts last)."""
-
-    def __init__(self, env: gym.Env, params: ShieldParams | None = None) -> None:
-        super().__init__(env)
-        core = env.unwrapped
-        self.shield = SafetyShield(params or ShieldParams.from_env(core.robot_params, core.social, core.task))
-        self.params = self.shield.params
-        self._obs: np.ndarray | None = None
-
-    def reset(self, **kwargs):  # type: ignore[override]
-        obs, info = self.env.reset(**kwargs)
-        self._obs = obs
-        return obs, info
-
-    def step(self, action: np.ndarray):  # type: ignore[override]
-        if self._obs is None:
-            raise RuntimeError("ShieldWrapper.step called before reset")
-        obs, r, terminated, truncated, info = self.env.step(self.shield(self._obs, action))
-        self._obs = obs
-        return obs, r, terminated, truncated, {**info, "shield": self.shield.last.row()}
-
-
 class ExponentialFilter:
     """``y_t = y_{t-1} + alpha (x_t - y_{t-1})`` per row of a batch (or of one vector), started at the first
     input; ``alpha = 1`` passes the input through. The stateful filter behind the action smoothing and the
@@ -129,8 +81,8 @@ class ExponentialFilter:
 
 
 class ActionFilter(ExponentialFilter):
-    """The action smoothing's filter (``ActionSmoothing``; also used by trained policies at inference and, one
-    row per copy, by the batched training env): actions clipped to [-1, 1], then filtered."""
+    """The action smoothing's filter (``ActionStages``; one row per copy in the batched training env): actions
+    clipped to [-1, 1], then filtered."""
 
     def __call__(self, action: np.ndarray) -> np.ndarray:
         return super().__call__(np.clip(np.asarray(action, dtype=np.float32), -1.0, 1.0))
@@ -146,3 +98,63 @@ def wrap_obs_mode(env: gym.Env, obs_mode: str, width: int = 84, height: int = 84
     if obs_mode == "camera_speed":
         return CameraSpeedObservation(env, width, height, projection)
     raise UserError(f"obs_mode {obs_mode!r}: expected one of {OBS_MODES}")
+
+
+class ActionStages:
+    """The agent's action stages in their one order, built here for training (``training.vec_env``,
+    ``training.run.EnvFactory``), evaluation and deploy (``trained.TrainedPolicy``): the action clipped and smoothed
+    (``ActionFilter`` with ``smoothing``, ``u_t = u_{t-1} + alpha (a_t - u_{t-1})``; 1: off), then the safety shield
+    (``shield``: its ``ShieldParams``, None: off) on the Vector observation the action answers, so the shield acts
+    last. One action or a batch of rows (one per copy). Part of the learned agent, not of the robot (the paper: "a
+    smoothing algorithm can also be applied to the learned policy"): the closed loop is the same in training,
+    evaluation and deploy."""
+
+    def __init__(self, smoothing: float = 1.0, shield: ShieldParams | None = None) -> None:
+        if not 0.0 < smoothing <= 1.0:
+            raise UserError(f"action smoothing alpha {smoothing!r}: expected a number in (0, 1]")
+        self.filter = ActionFilter(smoothing) if smoothing < 1.0 else None
+        self.shield = SafetyShield(shield) if shield is not None else None
+
+    def reset(self, rows: list[int] | None = None) -> None:
+        """A new episode (of the given rows of a batch only): the filter forgets the past actions."""
+        if self.filter is not None:
+            self.filter.reset(rows)
+
+    def __call__(self, obs: np.ndarray, action: np.ndarray) -> np.ndarray:
+        a = action if self.filter is None else self.filter(action)
+        return a if self.shield is None else self.shield(obs, a)
+
+
+class ActionStagesWrapper(gym.Wrapper):
+    """``ActionStages`` around a Vector-mode env (it keeps the observation each action answers); each step's
+    ``info["shield"]`` says what the shield changed (``ShieldRecord.row``), None if nothing or no shield."""
+
+    def __init__(self, env: gym.Env, stages: ActionStages) -> None:
+        super().__init__(env)
+        self.stages = stages
+        self._obs: np.ndarray | None = None
+
+    def reset(self, **kwargs):  # type: ignore[override]
+        self.stages.reset()
+        obs, info = self.env.reset(**kwargs)
+        self._obs = obs
+        return obs, info
+
+    def step(self, action: np.ndarray):  # type: ignore[override]
+        if self._obs is None:
+            raise RuntimeError("ActionStagesWrapper.step called before reset")
+        obs, r, terminated, truncated, info = self.env.step(self.stages(self._obs, action))
+        self._obs = obs
+        shield = self.stages.shield
+        return obs, r, terminated, truncated, {**info, "shield": None if shield is None else shield.last.row()}
+
+
+class ShieldWrapper(ActionStagesWrapper):
+    """The safety shield alone around a Vector-mode env (``params``: default, the env's robot at Pepper's limits)."""
+
+    def __init__(self, env: gym.Env, params: ShieldParams | None = None) -> None:
+        core = env.unwrapped
+        super().__init__(env, ActionStages(1.0, params or ShieldParams.from_env(core.robot_params, core.social,
+                                                                                core.task)))
+        self.shield = self.stages.shield
+        self.params = self.shield.params

@@ -94,17 +94,13 @@ class EnvFactory:
 
     def __call__(self) -> Any:
         env = make_env(**self.kwargs)
-        if self.shield:  # innermost: the shield acts on the smoothed action
+        if self.shield or self.smoothing < 1.0:
             from ..env.shield import ShieldParams
-            from ..env.wrappers import ShieldWrapper
+            from ..env.wrappers import ActionStages, ActionStagesWrapper
 
             core = env.unwrapped
-            env = ShieldWrapper(env, ShieldParams.from_env(core.robot_params, core.social, core.task,
-                                                           self.shield_at_place))
-        if self.smoothing < 1.0:
-            from ..env.wrappers import ActionSmoothing
-
-            env = ActionSmoothing(env, self.smoothing)
+            shield = ShieldParams.from_env(core.robot_params, core.social, core.task, self.shield_at_place)
+            env = ActionStagesWrapper(env, ActionStages(self.smoothing, shield if self.shield else None))
         if self.monitor:
             from stable_baselines3.common.monitor import Monitor
 

@@ -18,9 +18,8 @@ from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices
 
 from ..env import observation as ob
 from ..env.batched import BatchedApproach
-from ..env.shield import ShieldParams, shield_actions
-from ..env.wrappers import ActionFilter
-from ..errors import UserError
+from ..env.shield import ShieldParams
+from ..env.wrappers import ActionStages
 
 
 class BatchedVecEnv(VecEnv):
@@ -30,10 +29,8 @@ class BatchedVecEnv(VecEnv):
                  **env_kwargs: Any) -> None:
         self.batch = BatchedApproach(num, **env_kwargs)
         b = self.batch
-        if not 0.0 < smoothing <= 1.0:
-            raise UserError(f"action smoothing alpha {smoothing!r}: expected a number in (0, 1]")
-        self.filter = ActionFilter(smoothing) if smoothing < 1.0 else None
-        self.shield = ShieldParams.from_env(b.robot_params, b.social, b.task, shield_at_place) if shield else None
+        self.stages = ActionStages(smoothing, ShieldParams.from_env(b.robot_params, b.social, b.task, shield_at_place)
+                                   if shield else None)
         self.render_mode = None
         size = b.obs_size  # with the range scan or without (``scan=False``)
         obs_space = gym.spaces.Box(-ob.OBS_LIMIT, ob.OBS_LIMIT, shape=(size,), dtype=np.float32)
@@ -46,8 +43,7 @@ class BatchedVecEnv(VecEnv):
         if self._seeds[i] is not None:
             self.batch.seed(i, self._seeds[i])
         info = self.batch.reset(i, self._options[i])
-        if self.filter is not None:
-            self.filter.reset(rows=[i])
+        self.stages.reset(rows=[i])
         return info
 
     def reset(self) -> np.ndarray:
@@ -62,12 +58,7 @@ class BatchedVecEnv(VecEnv):
 
     def step_wait(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[dict[str, Any]]]:
         b = self.batch
-        a = self._actions
-        if self.filter is not None:
-            a = self.filter(a)
-        if self.shield is not None:
-            a = shield_actions(self._obs, a, self.shield)
-        rewards, terminated, truncated = b.step(a)
+        rewards, terminated, truncated = b.step(self.stages(self._obs, self._actions))
         obs = b.observations()
         done = terminated | truncated
         infos: list[dict[str, Any]] = [{} for _ in range(self.num_envs)]
