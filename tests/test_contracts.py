@@ -9,6 +9,11 @@ A tool is ``tools/NAME.py`` or ``-m package.module``. New tools add their rows h
 
 from __future__ import annotations
 
+import contextlib
+import importlib.util
+import io
+import os
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -268,8 +273,38 @@ def _fill(arg: str, tmp: Path, out: Path, file: Path, binary: Path) -> str:
 
 
 def run_tool(tool: str, argv: list[str], timeout: float = 120) -> subprocess.CompletedProcess:
-    cmd = [sys.executable, *tool.split()] if tool.startswith("-m ") else [sys.executable, str(ROOT / "tools" / tool)]
-    return subprocess.run([*cmd, *argv], capture_output=True, text=True, timeout=timeout, cwd=ROOT)
+    """The tool as a user runs it: ``-m`` modules in a fresh interpreter (deploy leaves by ``os._exit``), the
+    scripts of tools/ in this process (their ``main`` under ``cli.run``, as their last line calls it), which
+    spares each case an interpreter start and the package's imports."""
+    if tool.startswith("-m "):
+        cmd = [sys.executable, *tool.split()]
+        return subprocess.run([*cmd, *argv], capture_output=True, text=True, timeout=timeout, cwd=ROOT)
+    return run_in_process(ROOT / "tools" / tool, argv)
+
+
+def run_in_process(script: Path, argv: list[str]) -> subprocess.CompletedProcess:
+    """``script``'s ``main(argv)`` under ``cli.run`` here, from the repository root, with its exit code and what it
+    wrote to stdout and stderr; the signal handlers ``cli.run`` installs are put back."""
+    from ssbl_pb.cli import run
+
+    spec = importlib.util.spec_from_file_location(f"_tool_{script.stem}", script)
+    module = importlib.util.module_from_spec(spec)
+    out, err = io.StringIO(), io.StringIO()
+    handlers = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    cwd, code = os.getcwd(), 0
+    try:
+        os.chdir(ROOT)
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+            spec.loader.exec_module(module)
+            try:
+                run(module.main, argv)
+            except SystemExit as exc:
+                code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
+    finally:
+        os.chdir(cwd)
+        for s, h in handlers.items():
+            signal.signal(s, h)
+    return subprocess.CompletedProcess([str(script), *argv], code, out.getvalue(), err.getvalue())
 
 
 @pytest.mark.parametrize("case", CASES, ids=[f"{c.tool}:{' '.join(c.argv)}"[:80] for c in CASES])
