@@ -57,6 +57,19 @@ def test_select_thresholds_shrinks_and_suppresses():
     np.testing.assert_allclose(select_ssd(raw, p), [[10, 0, 80, 180, 0.9]])
 
 
+def test_box_offsets_are_the_median_cuts_to_the_gt_boxes():
+    # every GT box 30 x 80 px; the detector's box around it 6 px more on the left, 4 on the right, 2 above, 3 below
+    gt = np.array([[f, k, 100.0 + 60 * k, 50.0 + 10 * f, 30.0, 80.0] for f in range(3) for k in range(2)])
+    raw = {f: np.array([[g[2] - 6, g[3] - 2, 40.0, 85.0, 0.9] for g in gt[gt[:, 0] == f]]) for f in range(3)}
+    p = learned.box_offsets(raw, gt, SsdParams(score_threshold=0.5), 0, 3)
+    # cuts as fractions of the detector's box: left 6/40, right 4/40 -> shrink 0.125 and a shift of 0.025 right
+    assert (p.shrink_x, p.shift_x) == pytest.approx((0.125, 0.025))
+    assert (p.shrink_top, p.shrink_bottom) == pytest.approx((2 / 85, 3 / 85))
+    np.testing.assert_allclose(select_ssd(raw[1], p)[:, :4], gt[gt[:, 0] == 1, 2:6], atol=1e-9)  # NMS keeps both
+    with pytest.raises(Exception, match="no detection overlaps"):
+        learned.box_offsets(raw, gt, SsdParams(score_threshold=0.95), 0, 3)
+
+
 def test_params_round_trip_and_defaults():
     p = default_params("ssd")
     assert p.detector == "ssd" and p.box.head_ranging

@@ -3,6 +3,7 @@ feet-hidden painting (perception.occlusion)."""
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -86,6 +87,20 @@ def test_cue_choice_feet_head_and_cut():
     assert list(cue) == [HEAD]
     # the tracker trusts the head cue less along the line of sight than the feet at the same place
     assert cov[1, 0, 0] > cov[0, 0, 0]
+
+
+def test_a_box_too_wide_for_a_whole_person_is_ranged_from_the_head():
+    geom = Level()
+    whole = person_box(4.0, 0.0)  # 45.75 x 132 px: width / height 0.347
+    # cut at 80 %: bottom at v = 74.25 + 105.6 = 179.85, as feet 345 / 59.85 = 5.764 m away, where 1 m is
+    # 52.05 px: the 105.6 px imply a 2.03 m person, plausible, so only the box's shape (0.433) tells it is cut
+    knees = person_box(4.0, 0.0, keep=0.8)
+    assert knees[2] / knees[3] == pytest.approx(0.4332, abs=1e-4)
+    _, _, cue = range_boxes(geom, np.stack([whole, knees]), 240, P)
+    assert list(cue) == [FEET, FEET]
+    xy, _, cue = range_boxes(geom, np.stack([whole, knees]), 240, dataclasses.replace(P, max_aspect=0.4))
+    assert list(cue) == [FEET, HEAD]
+    np.testing.assert_allclose(xy, [[4.0, 0.0], [4.0, 0.0]], atol=1e-3)
 
 
 def test_ground_tracker_ranges_cut_boxes_from_the_head():

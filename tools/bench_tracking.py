@@ -18,10 +18,23 @@ Writes results/tracking/{pets_params,pets_metrics,timing,sim,bench}.json, result
 tools/track.py's code path on one thread (cv2.setNumThreads(1)): the whole video scored on 400-794, then frames
 400-794 with every GT person's lower body painted over (--hide-feet); it writes results/tracking/compare.json and
 the comparison table into docs/tracking.md (between the detector-comparison markers).
+
+    python tools/bench_tracking.py --tune --detector ssd   # the learned detector's thresholds, about 15 min
+
+--tune chooses one detector's pipeline thresholds (detector, tracker, measurement noise per ranging cue) on frames
+0-399 only: the detector runs once over frames 0-399 as they are and with the feet hidden (cached in
+results/tracking/.cache), the SSD boxes' median offsets from the GT boxes are measured on them
+(``learned.box_offsets``), then coordinate descent over ``PipelineParams.grid`` from the built-in values, scored by
+MOTA + IDF1 on both versions (``--objective visible`` for the unpainted frames alone). It writes the chosen
+values to results/tracking/{detector}_params.json (tools/track.py --params reads it; copy them into
+``tuning.SSD_DEFAULT`` to make them the built-in ones) and reports frames 400-794 through tools/track.py's code
+path on one thread (results/tracking/tune_{detector}.json).
 """
 
 from __future__ import annotations
 
+import argparse
+import dataclasses
 import json
 import platform
 import shutil
@@ -33,15 +46,27 @@ from pathlib import Path
 import numpy as np
 
 from ssbl_pb.cli import ArgumentParser, command_line, run
+from ssbl_pb.errors import UserError
 from ssbl_pb.files import write_json, write_text
 from ssbl_pb.perception.bench import time_pipeline, time_tracker_update
 from ssbl_pb.perception.detectors import HogParams
+from ssbl_pb.perception.learned import box_offsets
 from ssbl_pb.perception.pets import load_ground_truth
 from ssbl_pb.perception.pipeline import detect_raw, read_frames
 from ssbl_pb.perception.sim_eval import SimEvalParams, evaluate_sim
 from ssbl_pb.perception.tracking_io import evaluate_dir, track_video
 from ssbl_pb.perception.tsai import TsaiCamera
-from ssbl_pb.perception.tuning import ALL_SCALES, UNTUNED, PipelineParams, score, tune
+from ssbl_pb.perception.tuning import (
+    ALL_SCALES,
+    DETECTORS,
+    SSD_UNTUNED,
+    UNTUNED,
+    PipelineParams,
+    cache_raw,
+    default_params,
+    score,
+    tune,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -66,10 +91,24 @@ def main(argv: list[str] | None = None) -> int:
                     help="only the detector comparison (HOG vs SSD, feet visible and hidden) -> docs/tracking.md")
     ap.add_argument("--tracking-doc", default=str(ROOT / "docs" / "tracking.md"),
                     help="the page whose detector-comparison section --compare rewrites")
+    ap.add_argument("--variant", action="append", default=[], metavar="LABEL=PARAMS.json",
+                    help="--compare: one more row, the pipeline parameters in PARAMS.json (as --tune writes them)")
+    ap.add_argument("--tune", action="store_true",
+                    help="only choose --detector's thresholds on frames 0-399 and report 400-794 (see above)")
+    ap.add_argument("--detector", choices=DETECTORS, default="ssd", help="the detector --tune tunes (default ssd)")
+    ap.add_argument("--input-size", default=None, metavar="WxH",
+                    help="--tune, ssd: the network's input size (default: the built-in one)")
+    ap.add_argument("--objective", choices=("both", "visible"), default="both",
+                    help="--tune: MOTA + IDF1 on frames 0-399 with the feet visible and hidden (both), or visible only")
+    ap.add_argument("--init", choices=("default", "untuned"), default="default",
+                    help="--tune: start from the built-in thresholds or from the untuned ones")
+    ap.add_argument("--rounds", type=int, default=3, help="--tune: coordinate-descent rounds (at most)")
     args = ap.parse_args(argv)
     data, out = Path(args.data), Path(args.out)
+    if args.tune:
+        return tune_detector(data, out, args, argv)
     if args.compare:
-        return compare(data, out, Path(args.tracking_doc), argv)
+        return compare(data, out, Path(args.tracking_doc), argv, args.variant)
     if args.report_only:
         write_text(args.doc, markdown(json.loads((out / "bench.json").read_text())))
         return 0
@@ -145,6 +184,110 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
+def parse_size(text: str) -> tuple[int, int]:
+    """``"WxH"`` -> (w, h); a ``UserError`` naming the option otherwise."""
+    try:
+        w, h = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise UserError(f"--input-size {text!r}: expected WxH, e.g. 400x300") from None
+    if w < 32 or h < 32:
+        raise UserError(f"--input-size {text!r}: expected both sides >= 32 px")
+    return w, h
+
+
+def tune_detector(data: Path, out: Path, args: argparse.Namespace, argv: list[str] | None) -> int:
+    """``--tune``: thresholds on frames 0-399 (feet visible and hidden), written to OUT/{detector}_params.json;
+    frames 400-794 reported through tools/track.py's code path on one thread."""
+    import cv2
+
+    from ssbl_pb.perception.occlusion import FeetHidden, median_background
+
+    det = args.detector
+    init = default_params(det) if args.init == "default" else (SSD_UNTUNED if det == "ssd" else UNTUNED)
+    if args.input_size is not None:
+        if det != "ssd":
+            raise UserError("--input-size: only for --detector ssd (HOG searches fixed scales)")
+        init = init.with_value("ssd.input_size", parse_size(args.input_size))
+    if args.rounds < 1:
+        raise UserError(f"--rounds {args.rounds}: expected >= 1")
+    video, gt_path, calib = data / "vtest.avi", data / "PETS2009-S2L1.xml", data / "View_001_tsai_calibration.xml"
+    for f in (video, gt_path, calib):
+        if not f.is_file():
+            print(f"error: {f}: not found (the PETS data lives in ../shared/data/video)", file=sys.stderr)
+            return 2
+    cam = TsaiCamera.from_xml(calib)
+    gt = load_ground_truth(gt_path)
+    t_all = time.time()
+    hidden = FeetHidden(gt, median_background(video))
+    if det == "ssd":
+        w, h = init.ssd.input_size
+        tag = f"ssd_{w}x{h}_raw{init.ssd.raw_threshold:g}_max{init.ssd.max_boxes}"
+    else:
+        tag = f"hog_s{init.hog.win_stride}_raw{RAW_THRESHOLD:g}"
+    caches = {}
+    for version in ("visible", "hidden") if args.objective == "both" else ("visible",):
+        paint = hidden if version == "hidden" else None
+        caches[version] = cached_raw(out / ".cache" / f"{tag}_{version}_0-400.npz", video, init, paint)
+    if det == "ssd":  # the boxes' offsets from the GT boxes depend on the input size: measured on frames 0-399
+        init = dataclasses.replace(init, ssd=box_offsets(caches["visible"], gt, init.ssd, 0, 400))
+        print("box offsets on frames 0-399: " + ", ".join(f"{k} {getattr(init.ssd, k):.3f}" for k in
+                                                           ("shrink_x", "shift_x", "shrink_top", "shrink_bottom")))
+    print(f"tuning {det} on frames 0-399 ({args.objective}) ...", flush=True)
+    extra = (caches["hidden"],) if "hidden" in caches else ()
+    params, train, log = tune(caches["visible"], gt, cam, 1.0 / PETS_FPS, 0, 400, init, rounds=args.rounds,
+                              extra=extra)
+    params_path = write_json(out / f"{det}_params.json", params.to_dict())
+    changed = {f"{part}.{k}": v for part in ("hog", "ssd", "trk", "box", "rng")
+               for k, v in dataclasses.asdict(getattr(params, part)).items()
+               if v != dataclasses.asdict(getattr(init, part))[k]}
+    print(f"chosen on 0-399 (score {log[0]['score']:.3f} -> {max(e['score'] for e in log):.3f}, {len(log)} trials): "
+          f"{changed or 'no change'} -> {params_path}", flush=True)
+    cv2.setNumThreads(1)
+    test = {}
+    for version in ("visible", "hidden"):
+        print(f"frames 400-794, feet {version}, one thread ...", flush=True)
+        tmp = Path(tempfile.mkdtemp(prefix=".tune-", dir=out))
+        try:
+            run_info = track_video(video, calib, tmp, start=0 if version == "visible" else 400, fps=PETS_FPS,
+                                   params=params.to_dict(), overlay=False, progress=False,
+                                   hide_feet=gt_path if version == "hidden" else None)
+            m = evaluate_dir(tmp, gt_path, calib, [(400, 795)])["frames 400-794"]
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)
+        test[version] = {"metrics": m, "run": run_info}
+    report = {"command": command_line("tools/bench_tracking.py", argv), "date": time.strftime("%Y-%m-%d %H:%M"),
+              "detector": det, "objective": args.objective, "init": init.to_dict(), "params": params.to_dict(),
+              "changed": changed, "train_0_399": train, "log": log, "test_400_794": test,
+              "seconds": time.time() - t_all}
+    write_json(out / f"tune_{det}.json", report)
+    print("| feet | MOTA | IDF1 | recall | precision | ground err median (m) | ms/frame (1 thread) |")
+    print("|---|---|---|---|---|---|---|")
+    for version, r in test.items():
+        m = r["metrics"]
+        print(f"| {version} | {m['mota']:.3f} | {m['idf1']:.3f} | {m['recall']:.3f} | {m['precision']:.3f} | "
+              f"{m['ground_err_median_m']:.3f} | {r['run']['ms_per_frame']:.0f} |")
+    print(f"done in {report['seconds']:.0f} s -> {out / f'tune_{det}.json'}")
+    return 0
+
+
+def cached_raw(cache: Path, video: Path, params: PipelineParams, paint=None) -> dict[int, np.ndarray]:
+    """The detector's raw output on frames 0-399 (``paint(index, frame)`` applied first), computed once."""
+    if cache.is_file():
+        z = np.load(cache)
+        return {int(k): z[k] for k in z.files}
+    print(f"{params.detector} over frames 0-399 -> {cache.name} ...", flush=True)
+    frames = ((i, paint(i, f) if paint is not None else f) for i, f in read_frames(video, 0, 400))
+    if params.detector == "ssd":
+        raw = cache_raw(frames, params)
+    else:
+        raw = detect_raw(frames, HogParams(scales=ALL_SCALES, win_stride=params.hog.win_stride), RAW_THRESHOLD)
+    cache.parent.mkdir(parents=True, exist_ok=True)
+    tmp = cache.with_name(cache.stem + ".tmp.npz")
+    np.savez_compressed(tmp, **{str(k): v for k, v in raw.items()})
+    tmp.replace(cache)
+    return raw
+
+
 COMPARE_BEGIN, COMPARE_END = "<!-- detector-comparison: begin -->", "<!-- detector-comparison: end -->"
 DETECTOR_INFO = {  # licence and the size of what carries the weights (measured on the installed wheels)
     "hog": ("OpenCV's HOG + linear SVM people detector", "Apache-2.0 (opencv-python-headless)",
@@ -154,8 +297,9 @@ DETECTOR_INFO = {  # licence and the size of what carries the weights (measured 
 }
 
 
-def compare(data: Path, out: Path, doc: Path, argv: list[str] | None) -> int:
-    """HOG vs the learned detector on PETS S2L1, feet visible and hidden; one thread; table into ``doc``."""
+def compare(data: Path, out: Path, doc: Path, argv: list[str] | None, variants: list[str] = ()) -> int:
+    """HOG vs the learned detector on PETS S2L1, feet visible and hidden; one thread; table into ``doc``.
+    ``variants``: more rows, ``LABEL=PARAMS.json`` (pipeline parameters as ``--tune`` writes them)."""
     import cv2
 
     video, gt_path, calib = data / "vtest.avi", data / "PETS2009-S2L1.xml", data / "View_001_tsai_calibration.xml"
@@ -168,23 +312,34 @@ def compare(data: Path, out: Path, doc: Path, argv: list[str] | None) -> int:
         print(f"error: {doc}: lacks the markers {COMPARE_BEGIN} / {COMPARE_END} around the comparison section",
               file=sys.stderr)
         return 2
+    runs: dict[str, tuple[PipelineParams, str | None]] = {det: (default_params(det), None) for det in ("hog", "ssd")}
+    for spec in variants:
+        label, _, path = spec.partition("=")
+        if not label or not path or label in runs:
+            raise UserError(f"--variant {spec!r}: expected LABEL=PARAMS.json with a new label (not hog or ssd)")
+        try:
+            runs[label] = (PipelineParams.from_dict(json.loads(Path(path).read_text())), path)
+        except (OSError, ValueError, KeyError, TypeError) as exc:
+            raise UserError(f"--variant {spec!r}: cannot read {path} as pipeline parameters ({exc})") from exc
     cv2.setNumThreads(1)
     out.mkdir(parents=True, exist_ok=True)
     res: dict = {"command": command_line("tools/bench_tracking.py", argv), "date": time.strftime("%Y-%m-%d %H:%M"),
                  "detectors": {}}
-    for det in ("hog", "ssd"):
-        row = {}
+    for label, (pp, path) in runs.items():
+        row: dict = {"detector": pp.detector, "params": path}
+        if pp.detector == "ssd":
+            row["input_size"] = list(pp.ssd.input_size)
         for hidden in (False, True):
-            print(f"{det}, feet {'hidden' if hidden else 'visible'} ...", flush=True)
+            print(f"{label}, feet {'hidden' if hidden else 'visible'} ...", flush=True)
             tmp = Path(tempfile.mkdtemp(prefix=".compare-", dir=out))
             try:
                 run = track_video(video, calib, tmp, start=400 if hidden else 0, fps=PETS_FPS, overlay=False,
-                                  progress=False, detector=det, hide_feet=gt_path if hidden else None)
+                                  progress=False, params=pp.to_dict(), hide_feet=gt_path if hidden else None)
                 m = evaluate_dir(tmp, gt_path, calib, [(400, 795)])["frames 400-794"]
             finally:
                 shutil.rmtree(tmp, ignore_errors=True)
             row["hidden" if hidden else "visible"] = {"metrics": m, "run": run}
-        res["detectors"][det] = row
+        res["detectors"][label] = row
     write_json(out / "compare.json", res)
     head, rest = text.split(COMPARE_BEGIN, 1)
     doc.write_text(head + COMPARE_BEGIN + "\n" + compare_markdown(res) + COMPARE_END + rest.split(COMPARE_END, 1)[1])
@@ -204,12 +359,17 @@ def compare_markdown(r: dict) -> str:
          "", "| detector | MOTA | IDF1 | ground err median (m) | ms/frame (x HOG) | feet hidden: recall | "
          "feet hidden: MOTA | feet hidden: ground err median (m) | head-ranged boxes (feet hidden) | licence | "
          "weights |", "|---|---|---|---|---|---|---|---|---|---|---|"]
-    for det, row in r["detectors"].items():
+    for label, row in r["detectors"].items():
         v, h = row["visible"], row["hidden"]
         mv, mh = v["metrics"], h["metrics"]
+        det = row.get("detector", label)
         name, lic, size = DETECTOR_INFO[det]
+        if "input_size" in row:
+            name += f", {row['input_size'][0]}x{row['input_size'][1]} input"
+        if row.get("params"):
+            name += f" (`--params {row['params']}`)"
         share = h["run"]["head_ranged"] / max(h["run"]["boxes"], 1)
-        L.append(f"| {det}: {name} | {mv['mota']:.3f} | {mv['idf1']:.3f} | {mv['ground_err_median_m']:.3f} | "
+        L.append(f"| {label}: {name} | {mv['mota']:.3f} | {mv['idf1']:.3f} | {mv['ground_err_median_m']:.3f} | "
                  f"{v['run']['ms_per_frame']:.0f} ({v['run']['ms_per_frame'] / hog_ms:.2f}) | {mh['recall']:.3f} | "
                  f"{mh['mota']:.3f} | {mh['ground_err_median_m']:.3f} | {share:.0%} of {h['run']['boxes']} | "
                  f"{lic} | {size} |")

@@ -45,7 +45,7 @@ def time_pipeline(frames: list[np.ndarray], camera: TsaiCamera, params: Pipeline
         if rescale_scales:
             hog = dataclasses.replace(hog, scales=tuple(s / f for s in hog.scales))
         det = HogFgDetector(hog)
-        gt = GroundTracker(camera.scaled(f), params.trk, params.box)
+        gt = GroundTracker(camera.scaled(f), params.trk, params.box, params.rng)
         times, det_t = [], []
         for fr in frames:
             img = cv2.resize(fr, size, interpolation=cv2.INTER_AREA)

@@ -172,10 +172,11 @@ class SsdParams:
     min_height: float = 0.0  # px in the frame; smaller boxes are dropped
     max_boxes: int = 100  # best-scoring boxes kept before NMS
     # the network's boxes are wider than the person: median offsets to PETS GT boxes on frames 0-399 (fraction of
-    # the box cut from each side; negative grows it)
+    # the box cut from each side; negative grows it; ``box_offsets`` measures them for an input size)
     shrink_x: float = 0.09
     shrink_top: float = -0.02
     shrink_bottom: float = 0.04
+    shift_x: float = 0.0  # fraction of the box's width it is moved right (the boxes' horizontal bias)
 
     def __post_init__(self) -> None:
         w, h = self.input_size
@@ -187,18 +188,18 @@ class SsdParams:
                 raise UserError(f"ssd.{name} = {v!r}: expected in [0, 1]")
         if self.min_height < 0:
             raise UserError(f"ssd.min_height = {self.min_height!r}: expected >= 0")
-        for name in ("shrink_x", "shrink_top", "shrink_bottom"):
+        for name in ("shrink_x", "shrink_top", "shrink_bottom", "shift_x"):
             v = getattr(self, name)
             if not -0.25 <= v < 0.45:
                 raise UserError(f"ssd.{name} = {v!r}: expected in [-0.25, 0.45)")
 
 
 def select_ssd(raw: np.ndarray, params: SsdParams) -> np.ndarray:
-    """Threshold, NMS, shrink and minimum height on ``SsdDetector.raw`` rows ``x, y, w, h, score``."""
+    """Threshold, NMS, shrink (and shift) and minimum height on ``SsdDetector.raw`` rows ``x, y, w, h, score``."""
     p = params
     raw = np.asarray(raw, dtype=float).reshape(-1, 5)
     b = nms(raw[raw[:, 4] >= p.score_threshold], p.nms_iou)
-    b = np.column_stack([b[:, 0] + p.shrink_x * b[:, 2], b[:, 1] + p.shrink_top * b[:, 3],
+    b = np.column_stack([b[:, 0] + (p.shrink_x + p.shift_x) * b[:, 2], b[:, 1] + p.shrink_top * b[:, 3],
                          b[:, 2] * (1 - 2 * p.shrink_x), b[:, 3] * (1 - p.shrink_top - p.shrink_bottom), b[:, 4]])
     return b[b[:, 3] >= p.min_height] if p.min_height > 0 else b
 
@@ -245,3 +246,39 @@ class SsdDetector:
 
     def __call__(self, frame: np.ndarray) -> np.ndarray:
         return select_ssd(self.raw(frame), self.params)
+
+
+def box_offsets(raw: dict[int, np.ndarray], gt: np.ndarray, params: SsdParams, start: int, stop: int,
+                min_iou: float = 0.3) -> SsdParams:
+    """``params`` with ``shrink_x``, ``shift_x``, ``shrink_top`` and ``shrink_bottom`` set to the median offsets
+    between the detector's boxes (``raw``: ``SsdDetector.raw`` per frame) and ground-truth boxes (rows ``frame,
+    id, x, y, w, h``) on frames ``start <= f < stop``: each GT box against the box overlapping it most (IoU >=
+    ``min_iou``), after thresholding and NMS."""
+    bare = dataclasses.replace(params, shrink_x=0.0, shift_x=0.0, shrink_top=0.0, shrink_bottom=0.0, min_height=0.0)
+    cuts = []
+    for f in range(start, stop):
+        g = gt[gt[:, 0] == f, 2:6]
+        d = select_ssd(raw.get(f, np.zeros((0, 5))), bare)
+        if not len(g) or not len(d):
+            continue
+        iou = box_iou(g, d[:, :4])
+        j = iou.argmax(axis=1)
+        for i in np.flatnonzero(iou.max(axis=1) >= min_iou):
+            (gx, gy, gw, gh), (dx, dy, dw, dh) = g[i], d[j[i], :4]
+            cuts.append([(gx - dx) / dw, (dx + dw - gx - gw) / dw, (gy - dy) / dh, (dy + dh - gy - gh) / dh])
+    if not cuts:
+        raise UserError(f"box_offsets: no detection overlaps a ground-truth box in frames {start}-{stop - 1}")
+    left, right, top, bottom = np.median(np.array(cuts), axis=0)
+    return dataclasses.replace(params, shrink_x=float((left + right) / 2), shift_x=float((left - right) / 2),
+                               shrink_top=float(top), shrink_bottom=float(bottom))
+
+
+def box_iou(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """IoU (n, m) of boxes ``x, y, w, h`` (n, >=4) against (m, >=4)."""
+    a, b = np.asarray(a, dtype=float)[:, :4], np.asarray(b, dtype=float)[:, :4]
+    x1 = np.maximum(a[:, None, 0], b[None, :, 0])
+    y1 = np.maximum(a[:, None, 1], b[None, :, 1])
+    x2 = np.minimum(a[:, None, 0] + a[:, None, 2], b[None, :, 0] + b[None, :, 2])
+    y2 = np.minimum(a[:, None, 1] + a[:, None, 3], b[None, :, 1] + b[None, :, 3])
+    inter = np.clip(x2 - x1, 0, None) * np.clip(y2 - y1, 0, None)
+    return inter / np.maximum(a[:, None, 2] * a[:, None, 3] + b[None, :, 2] * b[None, :, 3] - inter, 1e-9)

@@ -123,7 +123,8 @@ class BoxParams:
     #                            (occlusion rather than leaving), if larger than max_coast
     det_weight: float = 0.0  # weight of the matched detection's own box against the drawn one (0 = drawn)
     pixel_noise: float = 0.0  # foot-point noise as a fraction of box height; > 0 gives each detection a
-    #                           covariance through the projection's Jacobian (depth error grows with range)
+    #                           covariance through the projection's Jacobian (depth error grows with range);
+    #                           the head cue's noise is ``RangingParams.pixel_noise`` (of the box's width)
     head_ranging: bool = False  # boxes cut above the feet (or by the image's bottom) ranged from the head row and
     #                             the box's width (``ranging.range_boxes``), with that cue's covariance
 
@@ -162,8 +163,7 @@ class GroundTracker:
         self.cues = np.full(len(boxes), FEET, dtype=int)
         if b.head_ranging and len(boxes):
             h_img = self.camera.height * self.camera.scale
-            rp = dataclasses.replace(self.ranging, pixel_noise=b.pixel_noise or self.ranging.pixel_noise)
-            xy, rcov, self.cues = range_boxes(TsaiGeometry(self.camera), boxes, h_img, rp)
+            xy, rcov, self.cues = range_boxes(TsaiGeometry(self.camera), boxes, h_img, self.ranging)
             head = self.cues == HEAD
             ground = np.where(head[:, None], xy, ground)
             heights = np.where(head, np.nan, heights)  # the prior, not a measurement: no height update
@@ -215,11 +215,12 @@ def ground_covariance(camera: TsaiCamera, feet: np.ndarray, sigma_px: np.ndarray
 
 
 def track_detections(dets: dict[int, np.ndarray], camera: TsaiCamera, dt: float,
-                     params: TrackerParams | None = None, box: BoxParams | None = None) -> np.ndarray:
+                     params: TrackerParams | None = None, box: BoxParams | None = None,
+                     ranging: RangingParams | None = None) -> np.ndarray:
     """Run ``GroundTracker`` over per-frame boxes (frames in increasing order; missing frames = no boxes).
 
     Returns (m, 10) rows ``frame, id, left, top, w, h, x_m, y_m, vx, vy``."""
-    gt = GroundTracker(camera, params, box)
+    gt = GroundTracker(camera, params, box, ranging)
     rows = []
     if not dets:
         return np.zeros((0, 10))

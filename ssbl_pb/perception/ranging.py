@@ -2,8 +2,9 @@
 
 Two cues, chosen per box:
 
-- **feet**: the box's bottom centre on the ground plane (z = 0), used when the bottom edge is inside the image
-  and the body height the box then implies (head row against the foot point) is plausible (1.3-2.1 m);
+- **feet**: the box's bottom centre on the ground plane (z = 0), used when the bottom edge is inside the image,
+  the body height the box then implies (head row against the foot point) is plausible (1.3-2.1 m) and the box is
+  not too wide for a whole person (``max_aspect``, width / height; off by default);
 - **head**: otherwise (the feet below the image, hidden behind something, or cut off by the detector). The
   box's top centre is the head top: its ray meets the plane at the prior person height (``person_height``);
   the box's width (``box_width`` m across the line of sight at half that height, the same detector's boxes
@@ -92,6 +93,7 @@ class RangingParams:
     min_body_height: float = 1.3  # m; a foot-ranged box implying a body outside these heights is taken as cut
     max_body_height: float = 2.1  # above the feet (the camera above heads: shorter; near head height: taller)
     edge_margin: float = 2.0  # px; a bottom edge this close to the image's is taken as cut by it
+    max_aspect: float = float("inf")  # a box wider than this times its height is taken as cut above the feet
     pixel_noise: float = 0.05  # px noise as a fraction of the box height (feet) or width (head)
 
     def __post_init__(self) -> None:
@@ -162,8 +164,9 @@ def range_boxes(geom: Geometry, boxes: np.ndarray, image_height: float,
                 p: RangingParams | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per box: ground position (n, 2), covariance (n, 2, 2) and cue (``FEET`` or ``HEAD``).
 
-    Feet where the bottom edge is inside the image (``edge_margin``) and the foot point implies a body between
-    ``min_body_height`` and ``max_body_height``; the head and the box's width elsewhere."""
+    Feet where the bottom edge is inside the image (``edge_margin``), the foot point implies a body between
+    ``min_body_height`` and ``max_body_height`` and the box's width / height is at most ``max_aspect``; the head and
+    the box's width elsewhere."""
     p = p or RangingParams()
     boxes = np.asarray(boxes, dtype=float)
     boxes = boxes.reshape(-1, boxes.shape[-1] if boxes.ndim == 2 else 4)
@@ -173,6 +176,7 @@ def range_boxes(geom: Geometry, boxes: np.ndarray, image_height: float,
     if n == 0:
         return xy, cov, cue
     cut = boxes[:, 1] + boxes[:, 3] >= image_height - p.edge_margin
+    cut |= boxes[:, 2] > p.max_aspect * boxes[:, 3]
     body = implied_height(geom, xy, boxes[:, 1])
     odd = ~((body >= p.min_body_height) & (body <= p.max_body_height))
     head = cut | odd | ~np.isfinite(xy).all(axis=1)

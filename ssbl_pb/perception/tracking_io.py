@@ -125,7 +125,7 @@ def track_video(video: str | Path, calib: str | Path, out_dir: str | Path, start
         raise InputError(f"frame range [{start}, {stop}): expected 0 <= start < stop")
     dt = 1.0 / (fps or vfps)
     det = make_detector(pp, scale)
-    gt = GroundTracker(cam, pp.trk, pp.box)
+    gt = GroundTracker(cam, pp.trk, pp.box, pp.rng)
     out = Path(out_dir)
     mot, world = [], []
     writer = None
