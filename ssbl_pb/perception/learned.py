@@ -171,6 +171,8 @@ class SsdParams:
     nms_iou: float = 0.45
     min_height: float = 0.0  # px in the frame; smaller boxes are dropped
     max_boxes: int = 100  # best-scoring boxes kept before NMS
+    roi: tuple[float, float, float, float] | None = None  # x0, y0, x1, y1 (fractions of the frame) the network sees
+    #   (resized to ``input_size``); None: the whole frame. A static camera's walkable band at a finer scale
     # the network's boxes are wider than the person: median offsets to PETS GT boxes on frames 0-399 (fraction of
     # the box cut from each side; negative grows it; ``box_offsets`` measures them for an input size)
     shrink_x: float = 0.09
@@ -188,6 +190,11 @@ class SsdParams:
                 raise UserError(f"ssd.{name} = {v!r}: expected in [0, 1]")
         if self.min_height < 0:
             raise UserError(f"ssd.min_height = {self.min_height!r}: expected >= 0")
+        if self.roi is not None:
+            x0, y0, x1, y1 = self.roi
+            if not (0 <= x0 < x1 <= 1 and 0 <= y0 < y1 <= 1):
+                raise UserError(f"ssd.roi = {self.roi!r}: expected x0, y0, x1, y1 with 0 <= x0 < x1 <= 1, "
+                                f"0 <= y0 < y1 <= 1 (fractions of the frame)")
         for name in ("shrink_x", "shrink_top", "shrink_bottom", "shift_x"):
             v = getattr(self, name)
             if not -0.25 <= v < 0.45:
@@ -218,9 +225,14 @@ class SsdDetector:
     def raw(self, frame: np.ndarray) -> np.ndarray:
         """Every decoded box scoring at least ``raw_threshold`` (at most ``max_boxes``), before NMS."""
         p = self.params
-        h0, w0 = frame.shape[:2]
         if frame.ndim == 2:
             frame = cv2.cvtColor(frame, cv2.COLOR_GRAY2BGR)
+        ox = oy = 0
+        if p.roi is not None:
+            h, w = frame.shape[:2]
+            ox, oy = int(round(p.roi[0] * w)), int(round(p.roi[1] * h))
+            frame = frame[oy:max(int(round(p.roi[3] * h)), oy + 1), ox:max(int(round(p.roi[2] * w)), ox + 1)]
+        h0, w0 = frame.shape[:2]
         blob = cv2.dnn.blobFromImage(frame, 1.0 / 127.5, p.input_size, (127.5, 127.5, 127.5),
                                      swapRB=not self.rgb, crop=False)
         self.net.setInput(blob)
@@ -242,6 +254,8 @@ class SsdDetector:
         boxes = decode(np.concatenate(encs)[idx], anchors[idx])
         boxes[:, [0, 2]] *= w0 / p.input_size[0]
         boxes[:, [1, 3]] *= h0 / p.input_size[1]
+        boxes[:, 0] += ox
+        boxes[:, 1] += oy
         return np.column_stack([boxes, score[idx]])
 
     def __call__(self, frame: np.ndarray) -> np.ndarray:
