@@ -130,3 +130,33 @@ def test_tune_names_missing_data(tmp_path, capsys):
     assert bench_tool().main(["--tune", "--data", str(tmp_path / "none"), "--out", str(tmp_path / "out")]) == 2
     assert "none/vtest.avi: not found" in capsys.readouterr().err
     assert not (tmp_path / "out").exists()
+
+
+def test_bench_deploy_hands_its_detector_to_deploy(monkeypatch, tmp_path):
+    """tools/bench_deploy.py --detector reaches deploy's command line (the learned detector against the virtual
+    Pepper); a name deploy does not know is refused before anything runs."""
+    import contextlib
+
+    from ssbl_pb.deploy import bench
+
+    seen = []
+
+    @contextlib.contextmanager
+    def pepper(*_args, **_kw):
+        yield None, "tcp://127.0.0.1:1"
+
+    def deploy(url, folder, policy, *extra):
+        seen.append(extra)
+        raise RuntimeError("stop here")
+
+    monkeypatch.setattr(bench, "virtual_pepper", pepper)
+    monkeypatch.setattr(bench, "start_deploy", deploy)
+    with pytest.raises(RuntimeError, match="stop here"):
+        bench.run_approach(tmp_path / "run", 0, detector="ssd")
+    assert seen and list(seen[0][seen[0].index("--detector"):][:2]) == ["--detector", "ssd"]
+    spec = importlib.util.spec_from_file_location("_bench_deploy", ROOT / "tools" / "bench_deploy.py")
+    tool = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(tool)
+    with pytest.raises(UserError, match="argument --detector: invalid choice: 'yolo'"):
+        tool.main(["--detector", "yolo", "--out", str(tmp_path / "bd")])
+    assert not (tmp_path / "bd").exists()

@@ -43,6 +43,7 @@ def _written_before(logs: Path) -> list[Path]:
 
 def main(argv: list[str] | None = None) -> int:
     from ssbl_pb.deploy.bench import FAULTS
+    from ssbl_pb.deploy.perceive import DETECTORS
 
     ap = ArgumentParser(description=__doc__)
     ap.add_argument("--runs", type=int_at_least(0), default=20, help="seeded approaches (default 20)")
@@ -53,6 +54,8 @@ def main(argv: list[str] | None = None) -> int:
                     "(default: the policy's, its config's env.groups)")
     ap.add_argument("--faults", default=",".join(FAULTS), help=f"comma list of {', '.join(FAULTS)}, or none")
     ap.add_argument("--soak", type=float_in(0.0, 86400.0), default=600.0, help="soak seconds (0: none)")
+    ap.add_argument("--detector", choices=("auto", *DETECTORS), default="auto",
+                    help="deploy's --detector (default auto: colour on the virtual Pepper)")
     ap.add_argument("--lockstep", action="store_true", help="approaches in this process on a simulated clock "
                     "(deterministic, no qi)")
     ap.add_argument("--out", type=Path, default=ROOT / "results" / "bench_deploy",
@@ -88,12 +91,12 @@ def main(argv: list[str] | None = None) -> int:
     logs.mkdir(parents=True, exist_ok=True)
     (logs / MARKER).write_text("runs of tools/bench_deploy.py; a rerun replaces them\n")
     res = {"environment": bench.environment(), "scenario": args.scenario, "policy": args.policy, "groups": args.groups,
-           "lockstep": args.lockstep, "approaches": [], "faults": []}
+           "lockstep": args.lockstep, "detector": args.detector, "approaches": [], "faults": []}
     approach = bench.lockstep_approach if args.lockstep else bench.run_approach
     with progress_bar(args.runs, "approaches", "run") as bar:
         for i in range(args.runs):
             res["approaches"].append(approach(logs / f"run{i:02d}", args.seed + i, args.policy, args.scenario,
-                                              groups=args.groups))
+                                              groups=args.groups, detector=args.detector))
             bar(1)
     if args.runs:
         per_run, pooled = bench.perception_report([logs / f"run{i:02d}" for i in range(args.runs)], args.policy, figure)

@@ -124,14 +124,15 @@ def truth_score(vp_log: Path, deploy_dir: Path, task: TaskParams | None = None) 
 
 
 def run_approach(folder: Path, seed: int, policy: str = "vector", scenario: str = "default",
-                 duration: float = 60.0, groups: str | None = None) -> dict[str, Any]:
+                 duration: float = 60.0, groups: str | None = None, detector: str = "auto") -> dict[str, Any]:
     """One approach against a fresh virtual Pepper: the deploy summary plus the ground-truth score. ``groups``:
-    the group model of both (default: each one's own, the policy's)."""
+    the group model of both (default: each one's own, the policy's); ``detector``: deploy's ``--detector``."""
     folder.mkdir(parents=True, exist_ok=True)
     vp_log = folder / "virtual_pepper.jsonl"
     flag = () if groups is None else ("--groups", groups)
     with virtual_pepper(vp_log, seed, scenario, *flag) as (_, url):
-        proc = start_deploy(url, folder / "deploy", policy, "--duration", str(duration), *flag)
+        proc = start_deploy(url, folder / "deploy", policy, "--duration", str(duration), "--detector", detector,
+                            *flag)
         _, err = proc.communicate(timeout=duration + 120)
     summary = json.loads((folder / "deploy" / SUMMARY).read_text())
     return {"seed": seed, "exit_code": proc.returncode, **summary, **truth_score(vp_log, folder / "deploy"),
@@ -139,7 +140,8 @@ def run_approach(folder: Path, seed: int, policy: str = "vector", scenario: str 
 
 
 def lockstep_approach(folder: Path, seed: int, policy: Any = "vector", scenario: str = "default",
-                      duration: float = 60.0, groups: str | None = None, fps: float = 15.0) -> dict[str, Any]:
+                      duration: float = 60.0, groups: str | None = None, fps: float = 15.0,
+                      detector: str = "auto") -> dict[str, Any]:
     """One approach in this process, deterministic (no qi): deploy's loop on a ``SimRobot`` in lockstep
     (``SimClock``, the camera at ``fps``, perception inline), writing the two logs ``run_approach`` leaves
     (``folder/deploy/log.jsonl``, ``folder/virtual_pepper.jsonl``); ``wall`` in both is the simulated time, and
@@ -179,7 +181,8 @@ def lockstep_approach(folder: Path, seed: int, policy: Any = "vector", scenario:
                 fh.write(json.dumps(state_row(robot, robot.t)) + "\n")
 
         log = Log(folder / "deploy")
-        perception = Perception(robot, clock.now, "colour", robot_params, social=social, threaded=False)
+        perception = Perception(robot, clock.now, "colour" if detector == "auto" else detector, robot_params,
+                                social=social, threaded=False)
         loop = DeployLoop(Setup(robot, pol, perception, Frames(), robot_params, social, task, groups,
                                 bool(seen.get("waypoints", False)), bool(seen.get("waypoints_near_group", False))),
                           params, log, now=clock.now, sleep=clock.sleep)
@@ -379,7 +382,7 @@ def markdown(res: dict[str, Any]) -> str:
 
         def med(key: str) -> float:
             vals = sorted(r[key] for r in runs if r.get(key) is not None)
-            return vals[len(vals) // 2]
+            return vals[len(vals) // 2] if vals else float("nan")  # e.g. no estimate age: nobody ever tracked
 
         p99 = max(r["tick_ms_p99"] for r in runs if r.get("tick_ms_p99") is not None)
         ticks = sum(r.get("policy_ticks") or 0 for r in runs)
