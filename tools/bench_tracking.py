@@ -19,7 +19,7 @@ tools/track.py's code path on one thread (cv2.setNumThreads(1)): the whole video
 400-794 with every GT person's lower body painted over (--hide-feet); it writes results/tracking/compare.json and
 the comparison table into docs/tracking.md (between the detector-comparison markers).
 
-    python tools/bench_tracking.py --tune --detector ssd   # the learned detector's thresholds, about 15 min
+    python tools/bench_tracking.py --tune --detector ssd --input-size 400x300  # about 35 min on 2 shared cores
 
 --tune chooses one detector's pipeline thresholds (detector, tracker, measurement noise per ranging cue) on frames
 0-399 only: the detector runs once over frames 0-399 as they are and with the feet hidden (cached in
@@ -341,6 +341,10 @@ def compare(data: Path, out: Path, doc: Path, argv: list[str] | None, variants: 
             row["hidden" if hidden else "visible"] = {"metrics": m, "run": run}
         res["detectors"][label] = row
     write_json(out / "compare.json", res)
+    text = doc.read_text()  # as it is now: the page may have been edited while the detectors ran
+    if COMPARE_BEGIN not in text or COMPARE_END not in text:
+        raise UserError(f"{doc}: lost its markers {COMPARE_BEGIN} / {COMPARE_END} while the comparison ran; the "
+                        f"figures are in {out / 'compare.json'}")
     head, rest = text.split(COMPARE_BEGIN, 1)
     doc.write_text(head + COMPARE_BEGIN + "\n" + compare_markdown(res) + COMPARE_END + rest.split(COMPARE_END, 1)[1])
     print(f"-> {out / 'compare.json'}, {doc}")

@@ -1,7 +1,9 @@
 """Threshold selection on a frame range by coordinate descent over small grids (MOTA + IDF1 as the score).
 
-Works on cached ``detect_raw`` windows, so one HOG pass serves every trial. Only frames inside the given
-range are read, which is how the benchmark keeps frames 400-794 unseen while choosing thresholds.
+Works on cached detector output (``pipeline.detect_raw`` windows for HOG, ``cache_raw`` boxes for the learned
+detector), so one detector pass serves every trial. Only frames inside the given range are read, which is how the
+benchmark keeps frames 400-794 unseen while choosing thresholds; ``extra`` caches (the same frames with the feet
+hidden) add their score to the objective.
 """
 
 from __future__ import annotations
