@@ -271,19 +271,73 @@ def test_deploy_params_name_the_field_that_is_wrong():
         DeployParams(settle_s=-1.0)
 
 
-def test_a_success_is_claimed_only_when_every_member_was_seen_lately_else_it_looks_first():
+def test_a_success_is_claimed_only_when_every_member_was_seen_lately_else_it_looks_at_each_in_turn():
     from types import SimpleNamespace
 
     loop = DeployLoop.__new__(DeployLoop)  # only the claim's state: no robot, camera or policy needed
     loop.p = DeployParams(confirm_s=4.0, search_turn=0.5)
     loop.s = SimpleNamespace(task=SimpleNamespace(heading_gain=2.0))
-    members = [SimpleNamespace(id=1, seen=True), SimpleNamespace(id=2, seen=False)]
-    pos = np.array([[2.0, 0.0], [0.0, 1.5]])  # member 2 to the robot's left (+90 deg), out of view
-    loop._seen_at = {1: 10.0, 2: 7.0}
-    assert loop._confirm(members, pos, np.zeros(3), now=10.0) is None  # member 2 seen 3 s ago: within 4 s
-    look = loop._confirm(members, pos, np.zeros(3), now=11.5)  # 4.5 s: it turns toward member 2 first
-    assert look == pytest.approx([0.0, 0.0, 0.5])  # 2.0 * 90 deg, capped at search_turn
-    loop._seen_at[2] = 11.4  # seen again as it turned
-    assert loop._confirm(members, pos, np.zeros(3), now=11.5) is None
-    del loop._seen_at[2]  # a member never detected under this id cannot back a claim
-    assert loop._confirm(members, pos, np.array([0.0, 0.0, math.pi]), now=11.5) == pytest.approx([0, 0, -0.5])
+    loop._claim_from, loop._look = None, None
+    members = [SimpleNamespace(id=1), SimpleNamespace(id=2), SimpleNamespace(id=3)]
+    pos = np.array([[2.0, 0.0], [0.0, 1.5], [0.0, -1.5]])  # 2 to the left (+90 deg), 3 to the right, out of view
+    loop._seen_at = {1: 10.0, 2: 7.0, 3: 6.5}
+    assert loop._confirm(members, pos, np.zeros(3), now=10.0, claim=False) is None  # no claim, no look
+    # claim first tried at 10.0: seen at or after 6.0 backs it (all three)
+    assert loop._confirm(members, pos, np.zeros(3), now=10.0, claim=True) is None
+    loop._claim_from = None
+    loop._seen_at = {1: 10.0, 2: 5.0, 3: 4.0}
+    look = loop._confirm(members, pos, np.zeros(3), now=10.0, claim=True)  # 3 seen longest ago: right first
+    assert look == pytest.approx([0.0, 0.0, -0.5])  # 2.0 * -90 deg, capped at search_turn
+    assert loop._claim_from == 10.0 and loop._look == (3, 10.0)
+    # the look goes on while turning breaks the rule (claim False), until member 3 is detected
+    assert loop._confirm(members, pos, np.array([0.0, 0.0, -1.0]), now=12.0, claim=False) == pytest.approx(
+        [0.0, 0.0, -0.5])  # 2.0 * (-90 + 57 deg), capped
+    loop._seen_at[3] = 12.1
+    assert loop._confirm(members, pos, np.zeros(3), now=12.2, claim=False) is None  # seen: the policy turns back
+    assert loop._look is None
+    # back at the group 6 s later: member 3 still backs the claim (seen since the first try), member 2 does not
+    assert loop._confirm(members, pos, np.zeros(3), now=18.0, claim=True) == pytest.approx([0.0, 0.0, 0.5])
+    loop._seen_at[2] = 19.0
+    assert loop._confirm(members, pos, np.zeros(3), now=19.5, claim=True) is None
+    assert loop._confirm(members, pos, np.zeros(3), now=19.6, claim=True) is None  # claimed with all backed
+    # a member never detected under this id cannot back a claim; a look at it ends after LOOK_S
+    from ssbl_pb.deploy.loop import LOOK_S
+
+    members.append(SimpleNamespace(id=4))
+    pos = np.vstack([pos, [[-2.0, 0.0]]])
+    assert loop._confirm(members, pos, np.zeros(3), now=20.0, claim=True) is not None and loop._look == (4, 20.0)
+    assert loop._confirm(members, pos, np.zeros(3), now=20.0 + LOOK_S + 0.1, claim=False) is None
+    assert loop._look is None
+
+
+def test_a_claim_waits_until_the_success_rule_has_held_for_a_second():
+    from ssbl_pb.deploy.loop import CLAIM_HOLD_S
+
+    loop = DeployLoop.__new__(DeployLoop)
+    loop._success_since = None
+    assert CLAIM_HOLD_S == 1.0
+    assert not loop._held(True, 10.0) and not loop._held(True, 10.5)
+    assert not loop._held(False, 10.6)  # one tick out: the hold starts again
+    assert [loop._held(True, 10.7 + 0.1 * k) for k in range(12)] == [False] * 10 + [True] * 2
+
+
+def test_deploy_docks_the_last_centimetres_when_the_policy_stops_short_of_its_margin():
+    from types import SimpleNamespace
+
+    from ssbl_pb.deploy.loop import ARRIVAL_MARGIN, DOCK_SPEED
+    from ssbl_pb.env.task import TaskParams
+
+    loop = DeployLoop.__new__(DeployLoop)
+    loop.s = SimpleNamespace(task=TaskParams(), robot_params=RobotParams(), policy=SimpleNamespace())
+    pose, centre = np.array([0.0, 0.0, 0.0]), np.array([2.0, 0.0])  # approach frame = odometry frame
+    slot = np.array([0.0, 0.25])  # 0.25 m to the left: within the tolerance (0.3), not within 0.3 - 0.1
+    obs = np.zeros(10)
+    dock = loop._dock(obs, np.array([0.05, 0.0]), pose, centre, slot, 0.25)  # policy at 0.0175 m/s: stopped
+    assert dock == pytest.approx([0.0, DOCK_SPEED / RobotParams().max_speed])  # straight to the left
+    assert loop._dock(obs, np.array([0.5, 0.0]), pose, centre, slot, 0.25) is None  # policy still moving
+    near = 0.3 - ARRIVAL_MARGIN - 0.01
+    assert loop._dock(obs, np.array([0.0, 0.0]), pose, centre, slot * near / 0.25, near) is None  # arrived
+    assert loop._dock(obs, np.array([0.0, 0.0]), pose, centre, slot * 2.0, 0.5) is None  # too far: the policy's
+    # facing the centre at 90 deg to the odometry frame, the same place is ahead-left in the approach frame
+    turned = loop._dock(obs, np.zeros(2), pose, np.array([0.0, 2.0]), np.array([0.25, 0.0]), 0.25)
+    assert turned == pytest.approx([0.0, -DOCK_SPEED / RobotParams().max_speed])
