@@ -133,12 +133,15 @@ def test_compare_marks_the_better_side():
     assert both["test"]["test"] == "mcnemar" and both["test"]["a_only"] == 9 and both["better"] == "baseline"
     assert cmp["n_humans"]["better"] is None  # descriptive: no direction
     assert compare_rows(baseline, learned)["mean_jerk"]["better"] == "baseline"
-    # a rank test's side: 19 pairs a little lower, one far higher (mean higher), is lower in the test's terms
+    # 19 pairs a little lower, one far higher (mean higher): lower in the rank test's terms, not by the mean, so
+    # neither side is better
     skew_l = [{"human_displacement_m": 0.10 - 0.001 * i if i else 1.0} for i in range(20)]
     skew_b = [{"human_displacement_m": 0.11 - 0.001 * i} for i in range(20)]
     skew = compare_rows(skew_l, skew_b)["human_displacement_m"]
     assert skew["learned"]["mean"] > skew["baseline"]["mean"] and skew["test"]["mean_diff"] > 0
-    assert skew["test"]["effect"] < 0 and skew["test"]["p"] < 0.05 and skew["better"] == "learned"
+    assert skew["test"]["effect"] < 0 and skew["test"]["p"] < 0.05 and skew["better"] is None
+    skew_l[0]["human_displacement_m"] = 0.105  # the tail gone: the mean agrees with the test
+    assert compare_rows(skew_l, skew_b)["human_displacement_m"]["better"] == "learned"
 
 
 def test_path_panels_show_the_place_and_the_o_space() -> None:

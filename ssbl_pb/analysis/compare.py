@@ -48,13 +48,14 @@ def paired_test(a: list[float], b: list[float], binary: bool) -> dict[str, float
 
 def compare_rows(learned: list[dict[str, float]], baseline: list[dict[str, float]], alpha: float = 0.05
                  ) -> dict[str, Any]:
-    """Per metric: means with 95 % CIs for both, the paired test, and which side is better (if significant).
+    """Per metric: means with 95 % CIs for both, the paired test, and which side is better.
 
-    The side is the one the test finds lower: for McNemar's, the rarer of the discordant pairs (the means
-    agree); for Wilcoxon's signed-rank test, the sign of its rank-biserial effect, which can disagree with the
-    means when a few pairs differ by much (members displaced, issue 14: the learned robot displaces members less
-    in most pairs, more in a tail of starts beside a member, and its mean is the higher one). ``mean_diff`` keeps
-    the means' side in view."""
+    A side is better when the test finds it lower (or higher, by the metric's direction) at ``alpha`` and its
+    mean says the same: for McNemar's, the rarer of the discordant pairs (the means agree); for Wilcoxon's
+    signed-rank test, the sign of its rank-biserial effect, which can disagree with the means when a few pairs
+    differ by much (members displaced, issue 14: the learned robot displaced members less in most pairs, more in
+    a tail of starts beside a member, and its mean was the higher one). Then neither is (issue 37: "by the mean
+    and a paired test"); ``mean_diff`` keeps the means' side in view."""
     out: dict[str, Any] = {}
     for key in learned[0]:
         if key == "seed":
@@ -67,7 +68,9 @@ def compare_rows(learned: list[dict[str, float]], baseline: list[dict[str, float
         shift = test["mean_diff"] if test["test"] == "mcnemar" else test["effect"]
         better = None
         directed = key in LOWER_IS_BETTER or key in HIGHER_IS_BETTER
-        if directed and test["p"] < alpha and math.isfinite(shift) and shift != 0:
+        agree = math.isfinite(shift) and shift != 0 and (test["mean_diff"] < 0) == (shift < 0) \
+            and test["mean_diff"] != 0
+        if directed and test["p"] < alpha and agree:
             better = "learned" if (shift < 0) == (key in LOWER_IS_BETTER) else "baseline"
         out[key] = {"learned": ma, "baseline": mb, "test": test, "better": better}
     return out
