@@ -306,18 +306,30 @@ def test_a_policys_shield_at_place_travels_to_evaluation_and_deploy(tmp_path):
 
 
 def test_near_its_place_the_shield_keeps_the_places_clearance():
-    """A member 0.75 m ahead (body to footprint circle), the robot commanded at it at full speed: with the place
-    1 m away the shield allows sqrt(2 a (0.75 - 0.5)); with the place at the robot, sqrt(2 a (0.75 - 0.6)); half
-    way through the ramp (0.45 m), the clearance kept is 0.55 m. Without ``place_clearance`` nothing changes."""
+    """A member 0.75 m ahead (body to footprint circle), the robot commanded at it at full speed, the range scan
+    seeing nothing: with the place 2 m away the shield allows sqrt(2 a (0.75 - 0.5)); with the place at the robot
+    or 1.2 m away (the passing ramp's start), sqrt(2 a (0.75 - 0.6)); half way through that ramp (1.4 m), the
+    clearance kept is 0.55 m. With a desk 1.25 m behind (half way through the scan's gate) it is 0.55 m at 1.2 m;
+    with one 0.9 m behind, only the place's own ramp holds (0.5 m at 1.2 m; 0.55 m at 0.45 m). Without
+    ``place_clearance`` nothing changes."""
+    from ssbl_pb.env.observation import BASE_SIZE, SCAN_RANGE
+    from ssbl_pb.env.shield import CLEARANCE_FAR, CLEARANCE_NEAR, ROOM_FAR, ROOM_NEAR
+
+    assert (CLEARANCE_NEAR, CLEARANCE_FAR, ROOM_NEAR, ROOM_FAR) == (1.2, 1.6, 1.0, 1.5)
     a = P.brake_accel
     at_place = ShieldParams(place_clearance=0.6)
     member_x = 0.75 + REACH + P.human_radius
-    for place, kept in ((1.0, 0.5), (0.0, 0.6), (0.45, 0.55)):
+    back = BASE_SIZE + 12  # the ray straight behind (ray k points at 2 pi k / 24)
+    for place, desk, kept in ((2.0, None, 0.5), (0.0, None, 0.6), (1.2, None, 0.6), (1.4, None, 0.55),
+                              (1.2, 1.25, 0.55), (1.2, 0.9, 0.5), (0.45, 0.9, 0.55)):
         obs = obs_with([(member_x, 0.0)])
+        obs[BASE_SIZE:] = 1.0
+        if desk is not None:
+            obs[back] = desk / SCAN_RANGE
         obs[0] = place / POS_SCALE
         for params, c_min in ((at_place, kept), (P, 0.5)):
             v = shield_action(obs, np.array([1.0, 0.0], dtype=np.float32), params)[0] * P.max_speed
-            assert v == pytest.approx(math.sqrt(2 * a * (0.75 - c_min)), abs=1e-3), (place, params)
+            assert v == pytest.approx(math.sqrt(2 * a * (0.75 - c_min)), abs=1e-3), (place, desk, params)
 
 
 def test_near_its_place_the_shield_caps_the_speed_to_arrive_slowly():
