@@ -96,11 +96,12 @@ def report(args: Any, results: dict[str, list[Any]], seeds: range) -> None:
     text = [f"# {args.policy} vs {args.baseline}", "",
             f"Scenario `{args.scenario}`, {args.episodes} paired episodes (seeds {seeds.start}-{seeds.stop - 1}). "
             f"Metrics marked ** are the five social measures of the target; lower is better for each. `better` is the "
-            f"side the paired test finds lower or higher at p < 0.05 (Wilcoxon: the sign of its rank-biserial effect "
-            f"r, which counts pairs, not metres; McNemar: the discordant pairs, learned only / SFFM only) when its mean "
-            f"says the same; where r and the means disagree (a few pairs differ by much), neither is.", "",
+            f"side the paired test finds lower or higher at p < 0.05 (Wilcoxon: the sign of its rank-biserial "
+            f"effect r, which counts pairs, not metres; McNemar: the discordant pairs, learned only / SFFM only) when "
+            f"its mean says the same; where r and the means disagree (a few pairs differ by much), neither is.", "",
             markdown_table(cmp, ("learned", args.baseline)), "",
-            f"Learned better (by the mean and p < 0.05) on: {', '.join(better) or 'none'}; worse on: {', '.join(worse) or 'none'}.",
+            f"Learned better (by the mean and p < 0.05) on: {', '.join(better) or 'none'}; "
+            f"worse on: {', '.join(worse) or 'none'}.",
             f"Target (better on >= 3, worse on none): {'met' if verdict['target_met'] else 'NOT met'}.", "",
             "Files: `paths.png`, `speed_vs_distance.png`, `videos/`."]
     write_text(args.out / "report.md", "\n".join(text) + "\n")

@@ -49,11 +49,12 @@ from .task import TaskParams
 # fully, and beyond which not at all (linear between): the task's slot tolerance, and twice it (ours)
 PLACE_NEAR, PLACE_FAR = 0.3, 0.6
 # ... and where the range scan's nearest point lies beyond ``ROOM_FAR`` (not at all where it is nearer than
-# ``ROOM_NEAR``, linear between), the same from ``CLEARANCE_NEAR`` of the place out to ``CLEARANCE_FAR``: the passing clearance. Ours: held within
-# 0.6 m only, the robot rounding a pair's member toward its place passed them at the 0.5 m line and pushed them
-# 0.25-0.38 m in 10 % of default starts (members displaced 0.087 m against the SFFM's 0.073). Swept on 200 starts
-# per scenario (docs/decisions.md, "Safety shield"): 1.2 / 1.6 m gives 0.062 m; without the scan's gate it cost
-# 17 points in the small map room (ways between a member and the furniture); 2.0 / 2.5 m cost 4.5 points of mixed
+# ``ROOM_NEAR``, linear between), the same from ``CLEARANCE_NEAR`` of the place out to ``CLEARANCE_FAR``: the
+# passing clearance. Ours: held within 0.6 m only, the robot rounding a pair's member toward its place passed
+# them at the 0.5 m line and pushed them 0.25-0.38 m in 10 % of default starts (members displaced 0.087 m
+# against the SFFM's 0.073). Swept on 200 starts per scenario (docs/decisions.md, "Safety shield"): 1.2 / 1.6 m
+# gives 0.062 m; without the scan's gate it cost 17 points in the small map room (ways between a member and the
+# furniture); 2.0 / 2.5 m cost 4.5 points of mixed
 CLEARANCE_NEAR, CLEARANCE_FAR = 1.2, 1.6
 ROOM_NEAR, ROOM_FAR = 1.0, 1.5
 
