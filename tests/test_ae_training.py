@@ -1,4 +1,5 @@
-"""Frames files, autoencoder training and checkpoints (perception/frames.py, ae_train.py, tools/train_ae.py)."""
+"""Frames files, autoencoder training and checkpoints (perception/autoencoding/frames.py, ae_train.py,
+tools/train_ae.py)."""
 
 from __future__ import annotations
 
@@ -9,9 +10,9 @@ import pytest
 import torch
 
 from ssbl_pb.errors import UserError
-from ssbl_pb.perception import autoencoders as A
-from ssbl_pb.perception.ae_losses import LossWeights, triplet_centres
-from ssbl_pb.perception.ae_train import (
+from ssbl_pb.perception.autoencoding import autoencoders as A
+from ssbl_pb.perception.autoencoding.ae_losses import LossWeights, triplet_centres
+from ssbl_pb.perception.autoencoding.ae_train import (
     AETrainParams,
     CheckpointError,
     load_autoencoder,
@@ -19,7 +20,7 @@ from ssbl_pb.perception.ae_train import (
     split_centres,
     train_autoencoder,
 )
-from ssbl_pb.perception.frames import (
+from ssbl_pb.perception.autoencoding.frames import (
     FramesError,
     collect,
     frames_hfov,
@@ -295,7 +296,7 @@ def test_resume_errors_name_the_flag_and_come_before_any_work(tmp_path: Path, ca
 
 
 def test_ctrl_c_keeps_the_snapshots_and_prints_the_resume_command(tmp_path: Path, capsys, monkeypatch) -> None:
-    import ssbl_pb.perception.ae_train as T
+    import ssbl_pb.perception.autoencoding.ae_train as T
 
     def interrupted(data, arch, size, params, progress=None, on_eval=None, resume=None):
         on_eval(params.eval_every, A.build(arch, size).eval(), {})
@@ -314,7 +315,7 @@ def test_ctrl_c_keeps_the_snapshots_and_prints_the_resume_command(tmp_path: Path
 
 
 def test_load_frames_refuses_a_truncated_archive_for_every_caller(tmp_path: Path) -> None:
-    from ssbl_pb.perception.frames import FramesError, load_frames
+    from ssbl_pb.perception.autoencoding.frames import FramesError, load_frames
 
     whole = save_frames(tmp_path / "f.npz", moving_square(10, 5, size=64)).read_bytes()
     (tmp_path / "tail.npz").write_bytes(whole[:-40])  # bench_camera and Table I read frames this way too

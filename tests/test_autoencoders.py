@@ -1,5 +1,5 @@
-"""Autoencoders (perception/autoencoders.py, ae_losses.py): the spatial operations against hand computations,
-gradients through every trainable part, sizes and keypoint-to-pixel geometry."""
+"""Autoencoders (perception/autoencoding/autoencoders.py, ae_losses.py): the spatial operations against hand
+computations, gradients through every trainable part, sizes and keypoint-to-pixel geometry."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ import pytest
 import torch
 
 from ssbl_pb.errors import UserError
-from ssbl_pb.perception import autoencoders as A
-from ssbl_pb.perception.ae_losses import smoothness, triplet_loss
+from ssbl_pb.perception.autoencoding import autoencoders as A
+from ssbl_pb.perception.autoencoding.ae_losses import smoothness, triplet_loss
 
 TINY = A.AESize("tiny", 24, (4, 6, 5), (3, 3, 3), 2, 12, (4, 4), 8, 6)
 

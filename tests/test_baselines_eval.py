@@ -8,11 +8,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from ssbl_pb.agents.policies import SFFMPolicy, StraightPolicy, make_policy
+from ssbl_pb.agents.rollout import run_episode
 from ssbl_pb.analysis.evaluation import Setup, evaluate
-from ssbl_pb.env.approach import ApproachGroupEnv
-from ssbl_pb.env.observation import OBS_SIZE
-from ssbl_pb.env.policies import SFFMPolicy, StraightPolicy, make_policy
-from ssbl_pb.env.rollout import run_episode
+from ssbl_pb.env.formulas.observation import OBS_SIZE
+from ssbl_pb.env.gymenv.approach import ApproachGroupEnv
 from ssbl_pb.errors import UserError
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -111,7 +111,7 @@ def test_baseline_needs_vector_obs(tmp_path):
 
 
 def test_shipped_vector_policy_joins_the_group():
-    from ssbl_pb.env.trained import load_trained
+    from ssbl_pb.agents.trained import load_trained
 
     env = ApproachGroupEnv(record=True)
     pol = load_trained("vector", env.observation_space)

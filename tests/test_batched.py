@@ -1,16 +1,16 @@
-"""The batched training env plays the same episodes as the single env (``env.batched``, ``training.vec_env``)."""
+"""The batched training env plays the same episodes as the single env (``env.engine.batched``, ``training.vec_env``)."""
 
 
 import numpy as np
 import pytest
 
-from ssbl_pb.env import observation as ob
-from ssbl_pb.env.approach import ApproachGroupEnv
-from ssbl_pb.env.batched import BatchedApproach
-from ssbl_pb.env.policies import SFFMPolicy, StraightPolicy
-from ssbl_pb.env.reward import TERMS, RewardWeights, total_reward, weight_vector
-from ssbl_pb.env.shield import ShieldParams, shield_action, shield_actions
-from ssbl_pb.env.wrappers import ActionFilter
+from ssbl_pb.agents.policies import SFFMPolicy, StraightPolicy
+from ssbl_pb.env.engine.batched import BatchedApproach
+from ssbl_pb.env.formulas import observation as ob
+from ssbl_pb.env.formulas.reward import TERMS, RewardWeights, total_reward, weight_vector
+from ssbl_pb.env.formulas.shield import ShieldParams, shield_action, shield_actions
+from ssbl_pb.env.gymenv.approach import ApproachGroupEnv
+from ssbl_pb.env.gymenv.wrappers import ActionFilter
 
 
 def _drive(num: int, steps: int, seed: int, noise: float = 0.15, **kwargs):

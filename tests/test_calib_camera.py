@@ -7,7 +7,7 @@ import pybullet as p
 import pytest
 
 from ssbl_pb.calib.io import CalibrationError
-from ssbl_pb.env import cameras
+from ssbl_pb.env.view import cameras
 from ssbl_pb.params import RobotParams
 from ssbl_pb.perception.camera import PinholeCamera, sim_projection_from_yaml
 

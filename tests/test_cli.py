@@ -117,7 +117,7 @@ def test_atomic_writes_keep_the_old_file_on_failure_and_use_normal_permissions(t
 
 
 def test_config_messages_show_plain_numbers_and_name_their_file(tmp_path):
-    from ssbl_pb.env.approach import make_env
+    from ssbl_pb.env.gymenv.approach import make_env
     from ssbl_pb.params import ConfigError, RobotParams
 
     with pytest.raises(ConfigError, match=r"robot.max_speed = -0.3: expected") as exc:
@@ -130,7 +130,7 @@ def test_config_messages_show_plain_numbers_and_name_their_file(tmp_path):
 
 
 def test_no_pybullet_banner_on_stderr(tmp_path):
-    code = "import ssbl_pb.env.approach as a; a.make_env().close()"
+    code = "import ssbl_pb.env.gymenv.approach as a; a.make_env().close()"
     res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     assert res.returncode == 0 and "pybullet build time" not in res.stderr + res.stdout
 

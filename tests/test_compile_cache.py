@@ -24,3 +24,13 @@ def test_the_env_caches_by_key_and_leaves_a_users_folder_alone(tmp_path):
     theirs = subprocess.run([sys.executable, "-c", code], env={**env, "NUMBA_CACHE_DIR": str(tmp_path)},
                             capture_output=True, text=True, check=True)
     assert theirs.stdout.strip() == str(tmp_path)
+
+
+def test_an_edit_in_a_sub_package_changes_the_key(tmp_path):
+    (tmp_path / "engine").mkdir()
+    (tmp_path / "engine" / "kernels.py").write_text("def step(): return 1.0\n")
+    before = source_key(tmp_path)
+    (tmp_path / "engine" / "kernels.py").write_text("def step(): return 2.0\n")
+    assert source_key(tmp_path) != before
+    (tmp_path / "engine" / "kernels.py").rename(tmp_path / "kernels.py")  # a move changes it too
+    assert source_key(tmp_path) != before

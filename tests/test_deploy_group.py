@@ -1,5 +1,5 @@
 """From tracked people to the policy's group: circle, free slot, the joining model and the memory of people out of
-view, held against the simulator's own group (env.humans)."""
+view, held against the simulator's own group (env.formulas.humans)."""
 
 from __future__ import annotations
 
@@ -9,12 +9,12 @@ import numpy as np
 import pytest
 
 from ssbl_pb.deploy.group import GroupModel, GroupTracker, group_circle, policy_groups
-from ssbl_pb.env.humans import Group
-from ssbl_pb.env.layouts import free_layout, paper_layout, slot_keep
-from ssbl_pb.env.task import TaskParams
+from ssbl_pb.env.formulas.humans import Group
+from ssbl_pb.env.formulas.layouts import free_layout, paper_layout, slot_keep
+from ssbl_pb.env.formulas.task import TaskParams
 from ssbl_pb.params import RobotParams, SocialParams
-from ssbl_pb.perception.sim_eval import sim_camera
-from ssbl_pb.perception.tracker import TrackerParams
+from ssbl_pb.perception.tracking.sim_eval import sim_camera
+from ssbl_pb.perception.tracking.tracker import TrackerParams
 
 SOCIAL = SocialParams()
 
@@ -207,8 +207,8 @@ def test_one_box_per_colour_spans_a_torso_split_by_a_nearer_person():
         image = robot.render().image
     finally:
         robot.close()
-    from ssbl_pb.env.world import HUMAN_COLOURS
-    from ssbl_pb.perception.detectors import ColourDetector
+    from ssbl_pb.env.view.world import HUMAN_COLOURS
+    from ssbl_pb.perception.tracking.detectors import ColourDetector
 
     assert len(ColourDetector(HUMAN_COLOURS)(image)) == 3  # the far torso shows on either side of the near one
     detect, torso = make_detector("colour")

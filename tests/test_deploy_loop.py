@@ -10,6 +10,7 @@ import math
 import numpy as np
 import pytest
 
+from ssbl_pb.agents.policies import make_policy
 from ssbl_pb.calib.dynamics_log import read_log as read_dynamics_log
 from ssbl_pb.deploy.faults import EXIT_CODES, StaleOdometry
 from ssbl_pb.deploy.frames import Frames
@@ -17,7 +18,6 @@ from ssbl_pb.deploy.log import RunLog, read_log
 from ssbl_pb.deploy.loop import DeployLoop, DeployParams, Setup, deploy_shield
 from ssbl_pb.deploy.perceive import Perception
 from ssbl_pb.deploy.sim_robot import SimClock, SimRobot
-from ssbl_pb.env.policies import make_policy
 from ssbl_pb.params import RobotParams, SocialParams
 
 
@@ -38,8 +38,8 @@ def make_loop(seed=11, policy="sffm", folder=None, clock_cls=SimClock, groups="c
     clock = clock_cls(robot)
     social = SocialParams()
     if policy == "vector":
-        from ssbl_pb.env.task import TaskParams
-        from ssbl_pb.env.trained import load_trained, shield_at_place
+        from ssbl_pb.agents.trained import load_trained, shield_at_place
+        from ssbl_pb.env.formulas.task import TaskParams
 
         shield = deploy_shield(RobotParams(), social, TaskParams(), DeployParams().stop_distance,
                                shield_at_place("vector"))  # as the CLI builds it: the place's clearance and cap
@@ -211,8 +211,8 @@ def test_a_failing_stop_does_not_mask_the_runs_own_error():
 
 
 def test_the_shield_s_interventions_are_logged_and_summarised(tmp_path):
-    from ssbl_pb.env.shield import SafetyShield
-    from ssbl_pb.env.task import TaskParams
+    from ssbl_pb.env.formulas.shield import SafetyShield
+    from ssbl_pb.env.formulas.task import TaskParams
 
     class Charging:
         """Full speed toward the place, whatever is in the way; the deploy shield brakes it."""
@@ -325,7 +325,7 @@ def test_deploy_docks_the_last_centimetres_when_the_policy_stops_short_of_its_ma
     from types import SimpleNamespace
 
     from ssbl_pb.deploy.loop import ARRIVAL_MARGIN, DOCK_SPEED
-    from ssbl_pb.env.task import TaskParams
+    from ssbl_pb.env.formulas.task import TaskParams
 
     loop = DeployLoop.__new__(DeployLoop)
     loop.s = SimpleNamespace(task=TaskParams(), robot_params=RobotParams(), policy=SimpleNamespace())

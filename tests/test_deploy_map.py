@@ -7,6 +7,7 @@ import cv2
 import numpy as np
 import pytest
 
+from ssbl_pb.agents.policies import make_policy
 from ssbl_pb.deploy.frames import Frames, load_room
 from ssbl_pb.deploy.log import RunLog, read_log
 from ssbl_pb.deploy.loop import DeployLoop, DeployParams, Setup
@@ -14,7 +15,6 @@ from ssbl_pb.deploy.perceive import Perception
 from ssbl_pb.deploy.plot import draw
 from ssbl_pb.deploy.sim_robot import SimClock, SimRobot
 from ssbl_pb.deploy.virtual_robot import write_room_map
-from ssbl_pb.env.policies import make_policy
 from ssbl_pb.errors import UserError
 from ssbl_pb.params import RobotParams, SocialParams
 
@@ -76,8 +76,8 @@ def test_run_on_the_map_logs_true_poses_and_draws_them(robot, tmp_path):
 
 def test_scan_from_the_map_is_the_simulators(tmp_path):
     """Deploy casts the scan from the room YAML at the localised pose exactly as the simulator does in that room."""
-    from ssbl_pb.env import observation as ob
-    from ssbl_pb.env.approach import make_env
+    from ssbl_pb.env.formulas import observation as ob
+    from ssbl_pb.env.gymenv.approach import make_env
 
     r = SimRobot("default", seed=35)
     try:

@@ -1,4 +1,4 @@
-"""Camera modes through a frozen autoencoder (env/encoded.py): the wrappers, the frozen encoder inside SB3,
+"""Camera modes through a frozen autoencoder (env/gymenv/encoded.py): the wrappers, the frozen encoder inside SB3,
 training with encoder conv / saev and evaluating the result (training/config.py, run.py, evaluation.py)."""
 
 from __future__ import annotations
@@ -10,12 +10,12 @@ import numpy as np
 import pytest
 import torch
 
-from ssbl_pb.env.approach import make_env
-from ssbl_pb.env.encoded import EncodedVecEnv, FrozenEncoder, load_encoder
+from ssbl_pb.env.gymenv.approach import make_env
+from ssbl_pb.env.gymenv.encoded import EncodedVecEnv, FrozenEncoder, load_encoder
 from ssbl_pb.errors import UserError
 from ssbl_pb.params import ConfigError
-from ssbl_pb.perception import autoencoders as A
-from ssbl_pb.perception.ae_train import save_checkpoint
+from ssbl_pb.perception.autoencoding import autoencoders as A
+from ssbl_pb.perception.autoencoding.ae_train import save_checkpoint
 from ssbl_pb.training.config import load_config
 
 TINY = A.AESize("tiny", 24, (4, 6, 5), (3, 3, 3), 2, 12, (4, 4), 8, 6)
@@ -229,8 +229,8 @@ def test_config_checks_the_encoder_checkpoint(checkpoints: dict[str, Path]) -> N
 @pytest.mark.parametrize("obs_mode,policy,smoothing", [("camera_speed", "lstm", 1.0), ("camera", "ff", 0.5)])
 def test_train_and_evaluate_a_camera_policy(checkpoints: dict[str, Path], tmp_path: Path, obs_mode: str,
                                             policy: str, smoothing: float) -> None:
+    from ssbl_pb.agents.trained import policy_env_kwargs
     from ssbl_pb.analysis.evaluation import Setup, evaluate
-    from ssbl_pb.env.trained import policy_env_kwargs
     from ssbl_pb.training.run import train
 
     cfg = load_config(None, {"obs_mode": obs_mode, "encoder": "saev", "policy": policy, "camera_size": 24,
@@ -264,7 +264,7 @@ def test_shipped_camera_speed_saev_policy_runs_with_its_encoder() -> None:
 
 
 def test_low_pass_episodes_restarts_at_each_episode() -> None:
-    from ssbl_pb.env.encoded import low_pass_episodes
+    from ssbl_pb.env.gymenv.encoded import low_pass_episodes
 
     x = np.array([[0.0], [4.0], [8.0], [2.0], [6.0]], np.float32)
     got = low_pass_episodes(x, np.array([0, 0, 0, 1, 1]), 0.5)
@@ -274,7 +274,7 @@ def test_low_pass_episodes_restarts_at_each_episode() -> None:
 
 
 def test_feature_jitter_by_hand_and_falls_with_the_low_pass(checkpoints: dict[str, Path]) -> None:
-    from ssbl_pb.perception.camera_bench import feature_jitter
+    from ssbl_pb.perception.autoencoding.camera_bench import feature_jitter
     from tests.test_ae_training import moving_square
 
     data = moving_square(10, 12)

@@ -8,9 +8,9 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import ssbl_pb  # noqa: F401  (registers the env)
-from ssbl_pb.env.approach import ApproachGroupEnv
-from ssbl_pb.env.observation import OBS_SIZE, decode_members
-from ssbl_pb.env.scenarios import ScenarioMix
+from ssbl_pb.env.formulas.observation import OBS_SIZE, decode_members
+from ssbl_pb.env.gymenv.approach import ApproachGroupEnv
+from ssbl_pb.env.rooms.scenarios import ScenarioMix
 
 
 @pytest.mark.parametrize("mode", ["vector", "camera", "camera_speed"])
@@ -140,7 +140,7 @@ def test_route_keeps_the_footprint_corners_out_of_the_intimate_zone():
     # a point on the far side of the group from the slot: its way goes around at the keep-out radius
     far = g.centre + 4.0 * (g.centre - env.slot()) / np.linalg.norm(g.centre - env.slot())
     keep_out = g.radius + env.social.human_radius + env.robot_params.reach + env.task.intimate_zone
-    from ssbl_pb.env.reward import route_distance
+    from ssbl_pb.env.formulas.reward import route_distance
 
     assert env.keep_out() == pytest.approx(keep_out + env.task.route_margin)
     pose = np.array([*far, 0.0])
@@ -212,7 +212,7 @@ projection_matrix: {rows: 3, cols: 4, data: [500.0, 0.0, 319.5, 0.0, 0.0, 500.0,
 
 
 def test_calibration_yamls_overlay_the_defaults(tmp_path):
-    from ssbl_pb.env.approach import make_env
+    from ssbl_pb.env.gymenv.approach import make_env
     from ssbl_pb.params import ConfigError
 
     (tmp_path / "dyn.yaml").write_text("latency_s: 0.2\nmax_accel: 0.4\n")

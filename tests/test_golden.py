@@ -18,7 +18,7 @@ SCENARIOS = ("mixed", "mixed@furnished")
 
 def rollout() -> dict[str, np.ndarray]:
     """4 copies per scenario, seeds 100-103, 120 steps of actions from a seeded generator, resets as they end."""
-    from ssbl_pb.env.batched import BatchedApproach
+    from ssbl_pb.env.engine.batched import BatchedApproach
 
     out: dict[str, list[np.ndarray]] = {"obs": [], "reward": [], "pose": [], "members": []}
     rng = np.random.default_rng(5)

@@ -10,9 +10,9 @@ from scipy.io import savemat
 
 from ssbl_pb.calib.fformations import load_dataset, load_datasets
 from ssbl_pb.calib.groups import group_geometry, groups_yaml, real_stats, sim_stats
-from ssbl_pb.env.approach import ApproachGroupEnv, make_env
-from ssbl_pb.env.humans import Group
-from ssbl_pb.env.layouts import GroupModel, load_group_data, parse_group_data, real_layout, slot_keep
+from ssbl_pb.env.formulas.humans import Group
+from ssbl_pb.env.formulas.layouts import GroupModel, load_group_data, parse_group_data, real_layout, slot_keep
+from ssbl_pb.env.gymenv.approach import ApproachGroupEnv, make_env
 from ssbl_pb.errors import UserError
 from ssbl_pb.params import RobotParams, SocialParams
 
@@ -224,7 +224,7 @@ def test_real_scenario_places_members_as_annotated():
         assert np.allclose(env.world.group.centre0, pos.mean(axis=0))  # re-centred on the centroid
     assert sizes <= {2, 3, 4, 5} and len(sizes) >= 3
     env.close()
-    from ssbl_pb.env.scenarios import ScenarioMix
+    from ssbl_pb.env.rooms.scenarios import ScenarioMix
 
     assert "real" in {f for sc in ScenarioMix("mixed").members for f in sc.formations}
 

@@ -85,5 +85,25 @@ def test_the_finder_finds_a_cycle_and_only_cycles():
 
 def test_the_package_has_no_import_cycle():
     edges = import_graph(PACKAGE)
-    assert len(edges) > 100 and "ssbl_pb.env.batched" in edges["ssbl_pb.env.approach"]
+    assert len(edges) > 100 and "ssbl_pb.env.engine.batched" in edges["ssbl_pb.env.gymenv.approach"]
     assert cycles(edges) == [], "import cycles: " + "; ".join(" <-> ".join(c) for c in cycles(edges))
+
+
+def test_the_env_sub_packages_are_layered():
+    """env/'s sub-packages import each other in one direction only (formulas <- rooms <- engine; view; gymenv on
+    top, imported by none of them); a module may import its own package's siblings."""
+    edges = import_graph(PACKAGE)
+    subs = {p.name for p in (PACKAGE / "env").iterdir() if (p / "__init__.py").is_file()}
+    assert {"formulas", "rooms", "engine", "view", "gymenv"} <= subs
+
+    def sub(m):
+        parts = m.split(".")
+        return parts[2] if len(parts) > 3 and parts[:2] == ["ssbl_pb", "env"] and parts[2] in subs else None
+
+    packages: dict[str, set[str]] = {s: set() for s in subs}
+    for m, targets in edges.items():
+        for t in targets:
+            if sub(m) and sub(t) and sub(m) != sub(t):
+                packages[sub(m)].add(sub(t))
+    assert cycles(packages) == [], packages
+    assert "gymenv" not in set().union(*packages.values())

@@ -1,4 +1,5 @@
-"""SAEV keypoints as a detector (perception/keypoints.py) and the linear probe (perception/probe.py)."""
+"""SAEV keypoints as a detector (perception/autoencoding/keypoints.py) and the linear probe
+(perception/autoencoding/probe.py)."""
 
 from __future__ import annotations
 
@@ -6,9 +7,9 @@ import numpy as np
 import pytest
 
 from ssbl_pb.params import RobotParams
-from ssbl_pb.perception.keypoints import calibrate, merge_points, nearest_member_distance, plane_projection
-from ssbl_pb.perception.probe import fit_linear, fit_predict_mlp, member_probe, pixel_probe, predict_linear
-from ssbl_pb.perception.sim_eval import sim_camera
+from ssbl_pb.perception.autoencoding.keypoints import calibrate, merge_points, nearest_member_distance, plane_projection
+from ssbl_pb.perception.autoencoding.probe import fit_linear, fit_predict_mlp, member_probe, pixel_probe, predict_linear
+from ssbl_pb.perception.tracking.sim_eval import sim_camera
 
 
 def test_calibration_finds_the_keypoint_on_the_feet_and_its_height() -> None:
@@ -80,7 +81,7 @@ def test_mlp_probe_reads_depth_from_a_torso_row_where_a_linear_map_cannot() -> N
 
 
 def test_keypoint_precision_feet_tolerate_noise_that_torso_rows_do_not() -> None:
-    from ssbl_pb.perception.camera_bench import keypoint_precision
+    from ssbl_pb.perception.autoencoding.camera_bench import keypoint_precision
 
     rng = np.random.default_rng(1)
     n = 1200
@@ -111,9 +112,9 @@ def test_keypoint_precision_feet_tolerate_noise_that_torso_rows_do_not() -> None
 
 
 def test_pets_person_boxes_stand_on_their_ground_points(shared_data) -> None:
-    from ssbl_pb.perception.pets import foot_points, load_ground_truth
-    from ssbl_pb.perception.pets_saev import ground_truth_positions, person_boxes
-    from ssbl_pb.perception.tsai import TsaiCamera
+    from ssbl_pb.perception.autoencoding.pets_saev import ground_truth_positions, person_boxes
+    from ssbl_pb.perception.tracking.pets import foot_points, load_ground_truth
+    from ssbl_pb.perception.tracking.tsai import TsaiCamera
 
     pets = shared_data / "video" / "pets2009_s2l1"
     cam = TsaiCamera.from_xml(pets / "View_001_tsai_calibration.xml")

@@ -13,8 +13,8 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def test_a_short_run_of_the_main_jobs_config_joins_most_held_out_groups(tmp_path):
+    from ssbl_pb.agents.rollout import run_episodes
     from ssbl_pb.analysis.evaluation import Setup
-    from ssbl_pb.env.rollout import run_episodes
     from ssbl_pb.training.run import train
 
     # the main job's config, 60k of its 450k steps (seeded: the run is deterministic); measured 60-85 % at 50k

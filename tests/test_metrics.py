@@ -1,15 +1,15 @@
-"""The per-episode metrics against hand computations (env/metrics.py, docs/metrics.md)."""
+"""The per-episode metrics against hand computations (agents/metrics.py, docs/metrics.md)."""
 
 import math
 
 import numpy as np
 import pytest
 
-from ssbl_pb.env.approach import ApproachGroupEnv
-from ssbl_pb.env.metrics import METRICS, TTC_HORIZON, episode_metrics, time_to_collision
-from ssbl_pb.env.policies import make_policy
-from ssbl_pb.env.rollout import run_episode
-from ssbl_pb.env.task import TaskParams
+from ssbl_pb.agents.metrics import METRICS, TTC_HORIZON, episode_metrics, time_to_collision
+from ssbl_pb.agents.policies import make_policy
+from ssbl_pb.agents.rollout import run_episode
+from ssbl_pb.env.formulas.task import TaskParams
+from ssbl_pb.env.gymenv.approach import ApproachGroupEnv
 
 TASK = TaskParams()
 

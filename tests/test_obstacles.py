@@ -6,9 +6,9 @@ import math
 import numpy as np
 import pytest
 
-from ssbl_pb.env import obstacles as obs
-from ssbl_pb.env.obstacles import CAP, CELL, box_distance, box_rows, boxes_distance, field_at, ray_range
-from ssbl_pb.env.rooms import FurnitureParams, Room, furnished_room
+from ssbl_pb.env.rooms import obstacles as obs
+from ssbl_pb.env.rooms.obstacles import CAP, CELL, box_distance, box_rows, boxes_distance, field_at, ray_range
+from ssbl_pb.env.rooms.rooms import FurnitureParams, Room, furnished_room
 from ssbl_pb.params import RobotParams
 
 HL, HW = RobotParams().length / 2, RobotParams().width / 2
@@ -127,7 +127,7 @@ def test_furnished_rooms_are_seeded_and_in_bounds():
 def test_a_room_too_small_for_the_group_is_no_place_not_a_crash():
     # a 3 x 3 m furnished room cannot hold a group of 5 (it needs ~4 m): NoPlace, so a reset draws another room
     # (it was numpy's "high - low < 0" from deep inside a training run)
-    from ssbl_pb.env.spawn import NoPlace, spawn_layout
+    from ssbl_pb.env.rooms.spawn import NoPlace, spawn_layout
     from ssbl_pb.params import SocialParams, WorldParams
 
     small = Room((3.0, 3.0), box_rows(np.array([[1.2, 1.2, 0.2, 0.2, 0.0]])), "small")

@@ -8,10 +8,10 @@ import math
 import numpy as np
 import pytest
 
-from ssbl_pb.env.approach import ApproachGroupEnv
-from ssbl_pb.env.batched import BatchedApproach
+from ssbl_pb.env.engine.batched import BatchedApproach
+from ssbl_pb.env.gymenv.approach import ApproachGroupEnv
 from ssbl_pb.params import ConfigError, RobotParams, SocialParams
-from ssbl_pb.perception.simulated import CopyPerception, PerceptionParams, detect
+from ssbl_pb.perception.tracking.simulated import CopyPerception, PerceptionParams, detect
 
 EXACT = PerceptionParams(range_std_m=0.0, range_std_per_m=0.0, bearing_std_deg=0.0, miss_prob=0.0)
 
@@ -103,7 +103,7 @@ def test_bad_model_settings_are_named():
 
 
 def test_the_share_of_a_torso_hidden_behind_nearer_people_by_hand():
-    from ssbl_pb.perception.simulated import hidden_share
+    from ssbl_pb.perception.tracking.simulated import hidden_share
 
     # behind a person straight ahead: all of it; a person 0.2 m to the side (bearing atan(0.1) = 0.0997 rad,
     # half-angle atan(0.115) = 0.1145 rad) covers the target's rays (k / 10 - 1) atan(0.23 / 3) from -0.0148 rad:
@@ -175,7 +175,7 @@ def test_with_facing_a_pair_seen_from_behind_is_joined_on_its_far_side():
 
 
 def test_searching_adds_its_time_to_the_episode_up_to_one_episode_more():
-    from ssbl_pb.env import kernels
+    from ssbl_pb.env.engine import kernels
 
     b = BatchedApproach(1, "default", perception=True)
     b.seed(0, 11)
@@ -243,8 +243,8 @@ def test_a_torso_cut_by_the_image_side_is_completed_beyond_it():
 
 
 def test_the_share_of_a_torso_inside_the_image_by_hand():
-    from ssbl_pb.perception.sim_eval import sim_camera
-    from ssbl_pb.perception.simulated import image_share
+    from ssbl_pb.perception.tracking.sim_eval import sim_camera
+    from ssbl_pb.perception.tracking.simulated import image_share
 
     cam = sim_camera(RobotParams(), 320, 240)
     half = math.radians(RobotParams().camera_hfov_deg) / 2

@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ssbl_pb.perception.detectors import HogParams, box_fractions, nms, shrink_windows
-from ssbl_pb.perception.pipeline import BoxParams, GroundTracker, ground_covariance, select
-from ssbl_pb.perception.tracker import TrackerParams
-from ssbl_pb.perception.tsai import TsaiCamera
-from ssbl_pb.perception.tuning import PipelineParams, keep_scales
+from ssbl_pb.perception.tracking.detectors import HogParams, box_fractions, nms, shrink_windows
+from ssbl_pb.perception.tracking.pipeline import BoxParams, GroundTracker, ground_covariance, select
+from ssbl_pb.perception.tracking.tracker import TrackerParams
+from ssbl_pb.perception.tracking.tsai import TsaiCamera
+from ssbl_pb.perception.tracking.tuning import PipelineParams, keep_scales
 
 CAM = """<?xml version="1.0"?>
 <Camera name="c"><Geometry width="768" height="576" dpx="0.005127" dpy="0.00465"/>

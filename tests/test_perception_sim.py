@@ -7,9 +7,9 @@ import math
 import numpy as np
 import pytest
 
-from ssbl_pb.env.world import HUMAN_COLOURS, World
-from ssbl_pb.perception.detectors import ColourDetector, SimDetector, mask_boxes
-from ssbl_pb.perception.sim_eval import boxes_to_ground, proxy_geometry, sim_camera
+from ssbl_pb.env.view.world import HUMAN_COLOURS, World
+from ssbl_pb.perception.tracking.detectors import ColourDetector, SimDetector, mask_boxes
+from ssbl_pb.perception.tracking.sim_eval import boxes_to_ground, proxy_geometry, sim_camera
 
 
 @pytest.fixture(scope="module")
@@ -74,7 +74,7 @@ def test_seg_detector_needs_mask(scene):
 
 
 def test_short_sim_evaluation():
-    from ssbl_pb.perception.sim_eval import SimEvalParams, evaluate_sim
+    from ssbl_pb.perception.tracking.sim_eval import SimEvalParams, evaluate_sim
 
     res = evaluate_sim(SimEvalParams(episodes=1, steps=40, width=160, height=120, seed=1))
     assert res["scored"] > 20

@@ -8,7 +8,7 @@ import time
 import numpy as np
 import pytest
 
-from ssbl_pb.perception.tracker import Tracker, TrackerParams, cv_matrices
+from ssbl_pb.perception.tracking.tracker import Tracker, TrackerParams, cv_matrices
 
 DT = 0.1
 

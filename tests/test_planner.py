@@ -1,4 +1,4 @@
-"""The way to the group through furnished rooms (env/planner.py): distances by hand, waypoints around a wall, and
+"""The way to the group through furnished rooms (env/rooms/planner.py): distances by hand, waypoints around a wall, and
 the observation's slot entries with and without waypoints, in the env and in deploy."""
 
 import math
@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 from ssbl_pb.deploy.frames import Frames, RoomMap
-from ssbl_pb.env import planner
-from ssbl_pb.env.observation import POS_SCALE
-from ssbl_pb.env.obstacles import CELL, box_rows
-from ssbl_pb.env.rooms import Room
+from ssbl_pb.env.formulas.observation import POS_SCALE
+from ssbl_pb.env.rooms import planner
+from ssbl_pb.env.rooms.obstacles import CELL, box_rows
+from ssbl_pb.env.rooms.rooms import Room
 
 # a 6 x 6 m room split by a wall along x = 0 from y = -3 to y = 1.5: the way round is through the gap above it
 WALL = Room((6.0, 6.0), box_rows(np.array([[0.0, -0.75, 0.2, 4.5, 0.0]])), "wall")
@@ -67,8 +67,8 @@ def _slot_entries(sim, obs):
 
 
 def test_the_env_shows_the_way_while_the_slot_is_out_of_sight():
-    from ssbl_pb.env.approach import make_env
-    from ssbl_pb.env.kernels import PLAN, PLANNED
+    from ssbl_pb.env.engine.kernels import PLAN, PLANNED
+    from ssbl_pb.env.gymenv.approach import make_env
 
     shown = 0
     plain = make_env(scenario="default@furnished")
@@ -114,8 +114,8 @@ def test_deploy_shows_the_same_waypoint_from_the_map():
 
 
 def test_bad_flags_name_themselves():
-    from ssbl_pb.env.approach import make_env
-    from ssbl_pb.env.reward import RewardWeights
+    from ssbl_pb.env.formulas.reward import RewardWeights
+    from ssbl_pb.env.gymenv.approach import make_env
     from ssbl_pb.errors import UserError
 
     with pytest.raises(UserError, match="waypoints = 'yes': expected true or false"):
@@ -131,8 +131,8 @@ def test_bad_flags_name_themselves():
 def test_the_furnitures_detour_extends_the_episode():
     """``kernels.detour_steps``: the way round the wall minus the way through the empty room (same grid metric),
     at the top speed; nothing where the way is straight."""
-    from ssbl_pb.env import kernels
-    from ssbl_pb.env.approach import ApproachGroupEnv
+    from ssbl_pb.env.engine import kernels
+    from ssbl_pb.env.gymenv.approach import ApproachGroupEnv
 
     tp = ApproachGroupEnv().unwrapped.sim._tp
     row = np.zeros(kernels.N_ROOM)
@@ -165,9 +165,9 @@ def test_plan_distance_interpolates_and_reads_nearby_nodes():
 def test_the_shaping_goes_round_furniture_only_with_geodesic_route():
     """``kernels.route_to_slot``: the way round the wall to the way in, then in; without ``geodesic_route`` (or
     inside the group's disc) the way round the group only; ``potential`` keeps the last value off the map."""
-    from ssbl_pb.env import kernels
-    from ssbl_pb.env.approach import ApproachGroupEnv
-    from ssbl_pb.env.reward import route_length, slot_potential
+    from ssbl_pb.env.engine import kernels
+    from ssbl_pb.env.formulas.reward import route_length, slot_potential
+    from ssbl_pb.env.gymenv.approach import ApproachGroupEnv
 
     plain = ApproachGroupEnv().unwrapped.sim._tp
     geodesic = ApproachGroupEnv(task={"geodesic_route": True}).unwrapped.sim._tp
@@ -199,8 +199,8 @@ def test_the_shaping_goes_round_furniture_only_with_geodesic_route():
 
 
 def test_geodesic_route_plans_every_furnished_episode_and_never_shortens_the_way():
-    from ssbl_pb.env import kernels
-    from ssbl_pb.env.approach import make_env
+    from ssbl_pb.env.engine import kernels
+    from ssbl_pb.env.gymenv.approach import make_env
 
     env = make_env(scenario="default@furnished", task={"geodesic_route": True})
     plain = make_env(scenario="default@furnished")
@@ -219,7 +219,7 @@ def test_geodesic_route_plans_every_furnished_episode_and_never_shortens_the_way
 def test_way_length_is_the_plans_distance_at_the_start():
     """``planner.way_length`` (A* to one point) against ``plan_map`` (the whole room) in furnished rooms: the
     same metres from the way in, with or without the obstacles, also from starts inside an obstacle's margin."""
-    from ssbl_pb.env.rooms import FurnitureParams, furnished_room
+    from ssbl_pb.env.rooms.rooms import FurnitureParams, furnished_room
 
     rng = np.random.default_rng(3)
     checked = 0
@@ -246,9 +246,9 @@ def test_way_length_is_the_plans_distance_at_the_start():
 def test_waypoints_near_the_group_are_shown_up_to_its_disc():
     """``waypoints_near_group``: the plan's way is shown right up to the group's keep-out disc (a policy trained
     with it reads it from its config: ``trained.OBSERVATION_KEYS``)."""
-    from ssbl_pb.env import kernels
-    from ssbl_pb.env.approach import make_env
-    from ssbl_pb.env.trained import policy_env_kwargs
+    from ssbl_pb.agents.trained import policy_env_kwargs
+    from ssbl_pb.env.engine import kernels
+    from ssbl_pb.env.gymenv.approach import make_env
 
     near = make_env(scenario="default@furnished", waypoints=True, waypoints_near_group=True)
     far = make_env(scenario="default@furnished", waypoints=True)

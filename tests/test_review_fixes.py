@@ -7,12 +7,12 @@ import numpy as np
 import pytest
 import yaml
 
-from ssbl_pb.env import spawn
-from ssbl_pb.env.approach import ApproachGroupEnv
-from ssbl_pb.env.batched import BatchedApproach
-from ssbl_pb.env.observation import OBS_SIZE, POS_SCALE
-from ssbl_pb.env.policies import SFFMPolicy, make_policy
-from ssbl_pb.env.task import TaskParams
+from ssbl_pb.agents.policies import SFFMPolicy, make_policy
+from ssbl_pb.env.engine.batched import BatchedApproach
+from ssbl_pb.env.formulas.observation import OBS_SIZE, POS_SCALE
+from ssbl_pb.env.formulas.task import TaskParams
+from ssbl_pb.env.gymenv.approach import ApproachGroupEnv
+from ssbl_pb.env.rooms import spawn
 from ssbl_pb.params import ConfigError, RobotParams, SocialParams, WorldParams
 
 
@@ -48,7 +48,7 @@ def test_fitting_sizes_passes_its_task_on(monkeypatch):
         return real(*args, **kwargs)
 
     monkeypatch.setattr(spawn, "spawn_layout", spy)
-    from ssbl_pb.env.rooms import Room
+    from ssbl_pb.env.rooms.rooms import Room
 
     spawn.fitting_sizes(Room((10.0, 10.0)), tries=1, task=TaskParams(intimate_zone=0.7))
     assert zones and set(zones) == {0.7}

@@ -6,11 +6,11 @@ import math
 import numpy as np
 import pytest
 
-from ssbl_pb.env import kernels
-from ssbl_pb.env import observation as ob
-from ssbl_pb.env.approach import ApproachGroupEnv, make_env
-from ssbl_pb.env.obstacles import boxes_distance
-from ssbl_pb.env.spawn import GROUP_CLEARANCE, START_CLEARANCE
+from ssbl_pb.env.engine import kernels
+from ssbl_pb.env.formulas import observation as ob
+from ssbl_pb.env.gymenv.approach import ApproachGroupEnv, make_env
+from ssbl_pb.env.rooms.obstacles import boxes_distance
+from ssbl_pb.env.rooms.spawn import GROUP_CLEARANCE, START_CLEARANCE
 from ssbl_pb.errors import UserError
 from ssbl_pb.params import ConfigError, RobotParams, WorldParams
 
@@ -183,9 +183,9 @@ def test_the_way_around_the_group_agrees_with_labelling_the_free_space():
     outside the group's disc does (scipy's 4-connected labels)."""
     from scipy import ndimage
 
-    from ssbl_pb.env.obstacles import CELL
-    from ssbl_pb.env.rooms import FurnitureParams, furnished_room
-    from ssbl_pb.env.spawn import _connected
+    from ssbl_pb.env.rooms.obstacles import CELL
+    from ssbl_pb.env.rooms.rooms import FurnitureParams, furnished_room
+    from ssbl_pb.env.rooms.spawn import _connected
 
     def _around_group(room, reach, c, keep_out, a, b):
         ia, ja, ib, jb = (int(round((v - o) / CELL)) for v, o in ((a[1], room.y0), (a[0], room.x0), (b[1], room.y0),
@@ -226,7 +226,7 @@ def test_a_small_map_room_is_judged_by_spawning_in_it(tmp_path):
 def test_clutter_covers_the_share_of_the_floor_asked_for():
     """Clutter (blobs of small boxes, as a SLAM map shows) covers about the drawn share of the floor, measured on
     the distance field; without it a room holds its furniture only."""
-    from ssbl_pb.env.rooms import FurnitureParams, furnished_room
+    from ssbl_pb.env.rooms.rooms import FurnitureParams, furnished_room
 
     rng = np.random.default_rng(3)
     plain = [furnished_room(rng, FurnitureParams(density_min=0.0, density_max=0.0)) for _ in range(3)]
@@ -244,8 +244,8 @@ def test_clutter_covers_the_share_of_the_floor_asked_for():
 def test_a_map_room_draws_another_group_when_one_finds_no_place(room_yaml, monkeypatch):
     """A map room holds the scenario's largest group (checked at the start), but a rare draw (1 in ~1,000 in the
     Willow Garage west room) found no place and ended a whole evaluation: the episode's group is drawn again."""
-    from ssbl_pb.env import batched
-    from ssbl_pb.env.spawn import NoPlace
+    from ssbl_pb.env.engine import batched
+    from ssbl_pb.env.rooms.spawn import NoPlace
 
     env = make_env(room_yaml=room_yaml, scenario="mixed@map")
     real_spawn, refused = batched.spawn_layout, []

@@ -126,8 +126,8 @@ def test_rows_are_sweep_trials_and_a_finished_one_is_read_back(tmp_path: Path) -
     low = row_trials(rows, 1, BUDGETS["full"], {"saev": "/x/saev.pt"}, feature_smoothing=0.5)
     assert "feature_smoothing" not in low[0].definition()  # the vector row has no features to filter
     assert low[1].definition()["feature_smoothing"] == 0.5  # a table with the low-pass is another table
-    from ssbl_pb.perception import autoencoders as A
-    from ssbl_pb.perception.ae_train import save_checkpoint
+    from ssbl_pb.perception.autoencoding import autoencoders as A
+    from ssbl_pb.perception.autoencoding.ae_train import save_checkpoint
 
     saev_ckpt = save_checkpoint(tmp_path / "saev.pt", A.build("saev", A.SIZES["cpu"]).eval())
     cfgs = [row_config(r, 0, BUDGETS["full"], {"saev": str(saev_ckpt)}, 0.5) for r in rows]
@@ -160,7 +160,7 @@ def test_smoke_table_and_resume(tmp_path: Path) -> None:
     md = (out / "table1.md").read_text()
     assert "| CameraSpeed + SAEV + LSTM |" in md and "79.80 %" in md
     assert (out / "ae" / "saev" / "keypoints.png").is_file() and (out / "ae" / "conv" / "encoder.pt").is_file()
-    from ssbl_pb.env.encoded import encoder_hfov  # the table's camera by default: the paper's 26.5 deg
+    from ssbl_pb.env.gymenv.encoded import encoder_hfov  # the table's camera by default: the paper's 26.5 deg
 
     assert encoder_hfov(out / "ae" / "saev" / "encoder.pt") == encoder_hfov(out / "ae" / "conv" / "encoder.pt") == 26.5
     results = sorted((out / "trials").glob("*/result.json"))
@@ -181,8 +181,8 @@ def test_encoders_must_have_learned_through_the_tables_camera(tmp_path: Path) ->
 
     from ssbl_pb.analysis.table1 import prepare_encoders
     from ssbl_pb.errors import UserError
-    from ssbl_pb.perception import autoencoders as A
-    from ssbl_pb.perception.ae_train import save_checkpoint
+    from ssbl_pb.perception.autoencoding import autoencoders as A
+    from ssbl_pb.perception.autoencoding.ae_train import save_checkpoint
 
     torch.manual_seed(0)
     tiny = A.AESize("tiny", 24, (4, 6, 5), (3, 3, 3), 2, 12, (4, 4), 8, 6)
@@ -212,8 +212,8 @@ def _store(root: Path, trial, task: dict, finished: str = "2030-01-01T00:00:00")
 def _saev(path: Path, seed: int) -> Path:
     import torch
 
-    from ssbl_pb.perception import autoencoders as A
-    from ssbl_pb.perception.ae_train import save_checkpoint
+    from ssbl_pb.perception.autoencoding import autoencoders as A
+    from ssbl_pb.perception.autoencoding.ae_train import save_checkpoint
 
     torch.manual_seed(seed)
     tiny = A.AESize("tiny", 24, (4, 6, 5), (3, 3, 3), 2, 12, (4, 4), 8, 6)

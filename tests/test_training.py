@@ -32,8 +32,8 @@ def test_smoke_run_writes_a_complete_run_dir(tmp_path):
     assert json.loads((out / "summary.json").read_text())["steps"] == 512
     assert list((out / "tb").iterdir())
     # the run loads as a policy and acts
-    from ssbl_pb.env.approach import ApproachGroupEnv
-    from ssbl_pb.env.trained import load_trained
+    from ssbl_pb.agents.trained import load_trained
+    from ssbl_pb.env.gymenv.approach import ApproachGroupEnv
 
     env = ApproachGroupEnv()
     pol = load_trained(str(out), env.observation_space)
@@ -146,7 +146,7 @@ def test_a_ramped_weight_set_to_another_value_is_refused_not_ignored():
 
 
 def test_corrupt_model_file(tmp_path):
-    from ssbl_pb.env.trained import ModelError, load_trained
+    from ssbl_pb.agents.trained import ModelError, load_trained
 
     bad = tmp_path / "model.zip"
     bad.write_bytes(b"not a zip")
@@ -162,8 +162,8 @@ def test_camera_speed_cnn_trains(tmp_path):
                           "eval_episodes=1", "--set", "baseline_episodes=1", "--set", "camera_size=48"],
                          capture_output=True, text=True, timeout=240)
     assert res.returncode == 0, res.stderr[-2000:]
-    from ssbl_pb.env.approach import make_env
-    from ssbl_pb.env.trained import load_trained
+    from ssbl_pb.agents.trained import load_trained
+    from ssbl_pb.env.gymenv.approach import make_env
 
     env = make_env(obs_mode="camera_speed", camera_width=48, camera_height=48)
     pol = load_trained(str(out), env.observation_space)
@@ -177,7 +177,7 @@ def test_bounded_mean_policy_keeps_the_mean_in_the_box_and_loads_back(tmp_path):
     import torch
     from stable_baselines3 import PPO
 
-    from ssbl_pb.env.approach import make_env
+    from ssbl_pb.env.gymenv.approach import make_env
     from ssbl_pb.training.policies import BoundedMlpPolicy
 
     model = PPO(BoundedMlpPolicy, make_env(), n_steps=64, batch_size=64, seed=0, device="cpu")
@@ -291,7 +291,7 @@ def test_env_keys_are_checked_before_any_output(tmp_path):
 def test_copy_policy_brings_the_encoder_along(tmp_path):
     import yaml
 
-    from ssbl_pb.env.trained import copy_policy, policy_env_kwargs
+    from ssbl_pb.agents.trained import copy_policy, policy_env_kwargs
 
     run, enc, dest = tmp_path / "run", tmp_path / "elsewhere" / "saev.pt", tmp_path / "shipped"
     for folder in (run, enc.parent, dest):
@@ -315,8 +315,8 @@ def test_fine_tuning_onto_the_range_scan_starts_as_the_source(tmp_path):
     the fine-tuned model acts exactly as the source."""
     import torch
 
-    from ssbl_pb.env import observation as ob
-    from ssbl_pb.env.trained import load_trained
+    from ssbl_pb.agents.trained import load_trained
+    from ssbl_pb.env.formulas import observation as ob
     from ssbl_pb.training.run import _init_from, build_model, make_vec_env
 
     src_dir = tmp_path / "no_scan"

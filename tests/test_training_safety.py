@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-from ssbl_pb.env.trained import ModelError, resolve_model
+from ssbl_pb.agents.trained import ModelError, resolve_model
 from ssbl_pb.training.config import load_config, save_config
 from ssbl_pb.training.run import RunError
 
@@ -304,7 +304,7 @@ def test_episode_workers_die_with_their_sigkilled_tool(tmp_path: Path) -> None:
     script.write_text(
         "import os, sys\n"
         "from ssbl_pb.analysis.evaluation import Setup\n"
-        "from ssbl_pb.env.rollout import run_episodes\n"
+        "from ssbl_pb.agents.rollout import run_episodes\n"
         "if __name__ == '__main__':\n"
         "    print(os.getpid(), flush=True)\n"
         "    run_episodes(Setup('sffm'), range(100000), workers=2)\n")

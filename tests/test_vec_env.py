@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from stable_baselines3.common.vec_env import DummyVecEnv
 
-from ssbl_pb.env.policies import SFFMPolicy
+from ssbl_pb.agents.policies import SFFMPolicy
 from ssbl_pb.params import ConfigError
 from ssbl_pb.training.config import TrainConfig
 from ssbl_pb.training.run import EnvFactory, make_vec_env
@@ -74,9 +74,9 @@ def test_make_vec_env_batched_reports_episodes():
 
 
 def test_batched_evaluation_matches_single_env_episodes():
-    from ssbl_pb.env.approach import make_env
-    from ssbl_pb.env.rollout import run_episode
-    from ssbl_pb.env.trained import load_trained, shield_at_place
+    from ssbl_pb.agents.rollout import run_episode
+    from ssbl_pb.agents.trained import load_trained, shield_at_place
+    from ssbl_pb.env.gymenv.approach import make_env
     from ssbl_pb.training.vec_env import evaluate_first_episodes
 
     single = load_trained("vector", shield=True)  # the shipped policy: smoothing 0.4 and the shield
@@ -107,9 +107,9 @@ def test_dummy_and_batched_training_envs_start_alike():
 def test_batched_evaluation_of_a_recurrent_policy_matches_single_env():
     from sb3_contrib import RecurrentPPO
 
-    from ssbl_pb.env.approach import make_env
-    from ssbl_pb.env.rollout import run_episode
-    from ssbl_pb.env.trained import TrainedPolicy
+    from ssbl_pb.agents.rollout import run_episode
+    from ssbl_pb.agents.trained import TrainedPolicy
+    from ssbl_pb.env.gymenv.approach import make_env
     from ssbl_pb.training.policies import bounded_policy
     from ssbl_pb.training.vec_env import evaluate_first_episodes
 
@@ -157,7 +157,7 @@ def test_set_attr_weights_changes_the_rewards_at_once():
 
 
 def test_reset_options_pick_the_group_in_single_and_batched_envs():
-    from ssbl_pb.env.approach import make_env
+    from ssbl_pb.env.gymenv.approach import make_env
     from ssbl_pb.errors import UserError
 
     env = make_env(scenario="default")

@@ -41,7 +41,7 @@ def main(argv: list[str] | None = None) -> int:
 
     from ssbl_pb.errors import UserError
     from ssbl_pb.files import check_output_path, write_json
-    from ssbl_pb.perception.ae_train import read_checkpoint
+    from ssbl_pb.perception.autoencoding.ae_train import read_checkpoint
 
     parts = args.only.split(",") if args.only else list(PARTS)
     if bad := sorted(set(parts) - set(PARTS)):
@@ -62,7 +62,7 @@ def main(argv: list[str] | None = None) -> int:
     check_output_path(args.out, "--out", is_dir=False)
     frames = None
     if args.frames is not None and {"probe", "precision", "jitter", "tracking"} & set(parts):
-        from ssbl_pb.perception.frames import load_frames
+        from ssbl_pb.perception.autoencoding.frames import load_frames
 
         frames = load_frames(args.frames, 64)
 
@@ -70,7 +70,7 @@ def main(argv: list[str] | None = None) -> int:
 
     import torch
 
-    from ssbl_pb.perception import camera_bench as cb
+    from ssbl_pb.perception.autoencoding import camera_bench as cb
 
     torch.set_num_threads(args.threads)
     res: dict = {"threads": args.threads, "load_average_at_start": [round(v, 2) for v in os.getloadavg()]}
@@ -94,7 +94,7 @@ def main(argv: list[str] | None = None) -> int:
         res["tracking_saev"] = cb.keypoint_tracking(frames, str(args.saev))
     if "pets" in parts:
         from ssbl_pb.cli import make_bar
-        from ssbl_pb.perception.pets_saev import pets_saev
+        from ssbl_pb.perception.autoencoding.pets_saev import pets_saev
 
         bar = make_bar(args.pets_steps, "SAEV on PETS", "step")
         res["pets_saev"] = pets_saev(*(args.pets / f for f in pets_files), steps=args.pets_steps, progress=bar)

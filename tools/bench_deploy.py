@@ -24,7 +24,7 @@ import shutil
 from pathlib import Path
 
 from ssbl_pb.cli import ArgumentParser, float_in, int_at_least, progress_bar, run
-from ssbl_pb.env.layouts import GROUP_MODELS
+from ssbl_pb.env.formulas.layouts import GROUP_MODELS
 from ssbl_pb.errors import UserError
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -66,7 +66,7 @@ def main(argv: list[str] | None = None) -> int:
     if bad:
         raise UserError(f"--faults {','.join(bad)}: expected a comma list of {', '.join(FAULTS)}, or none")
     from ssbl_pb.analysis.evaluation import check_policy_spec
-    from ssbl_pb.env.scenarios import ScenarioMix
+    from ssbl_pb.env.rooms.scenarios import ScenarioMix
     from ssbl_pb.files import check_output_path
 
     ScenarioMix(args.scenario)  # a bad name fails here, before any folder exists

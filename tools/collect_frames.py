@@ -4,7 +4,7 @@
 Each episode is driven by one policy of a mix (default random, sffm, straight, vector, in turn) so the frames
 cover the task from far away to standing in the group. Every frame comes with the robot's speed and, for
 evaluation only, each member's position relative to the robot and its pixel when visible (layout:
-ssbl_pb/perception/frames.py).
+ssbl_pb/perception/autoencoding/frames.py).
 
 Examples:
     python tools/collect_frames.py --episodes 120 --out results/frames/frames.npz
@@ -36,7 +36,7 @@ def main(argv: list[str] | None = None) -> int:
     from ssbl_pb.analysis.evaluation import check_policy_spec
     from ssbl_pb.errors import UserError
     from ssbl_pb.files import check_output_path
-    from ssbl_pb.perception.frames import check_hfov, collect, save_frames
+    from ssbl_pb.perception.autoencoding.frames import check_hfov, collect, save_frames
 
     if args.out.suffix != ".npz":
         raise UserError(f"--out {args.out}: expected a .npz file name")
@@ -51,7 +51,7 @@ def main(argv: list[str] | None = None) -> int:
         check_policy_spec(p)
     check_hfov(args.camera_hfov)
     check_output_path(args.out, "--out", is_dir=False)
-    from ssbl_pb.env.scenarios import ScenarioMix
+    from ssbl_pb.env.rooms.scenarios import ScenarioMix
 
     ScenarioMix(args.scenario)  # a bad scenario fails before any episode
     with progress_bar(args.episodes, "collect frames") as bar:

@@ -33,8 +33,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--workers", type=int_at_least(0), default=0, help="processes (default 0: all cores)")
     args = ap.parse_args(argv)
 
+    from ssbl_pb.agents.rollout import run_episodes
     from ssbl_pb.analysis.evaluation import Setup, check_policy_spec
-    from ssbl_pb.env.rollout import run_episodes
     from ssbl_pb.files import check_output_path, output_dir
 
     workers = args.workers or os.cpu_count() or 1
@@ -61,7 +61,7 @@ def report(args: Any, results: dict[str, list[Any]], seeds: range) -> None:
     from ssbl_pb.analysis.evaluation import build_policy, outcome
     from ssbl_pb.analysis.report import plot_paths, write_json
     from ssbl_pb.analysis.video import record_episode, write_mp4
-    from ssbl_pb.env.approach import make_env
+    from ssbl_pb.env.gymenv.approach import make_env
     from ssbl_pb.files import write_text
 
     rows = {k: [r.metrics for r in v] for k, v in results.items()}

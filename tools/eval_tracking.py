@@ -17,8 +17,8 @@ from pathlib import Path
 
 from ssbl_pb.cli import ArgumentParser, run
 from ssbl_pb.files import write_json, write_text
-from ssbl_pb.perception.evaluation import to_markdown
-from ssbl_pb.perception.tracking_io import InputError, evaluate_dir
+from ssbl_pb.perception.tracking.evaluation import to_markdown
+from ssbl_pb.perception.tracking.tracking_io import InputError, evaluate_dir
 
 
 def parse_range(text: str) -> tuple[int, int | None]:

@@ -36,7 +36,8 @@ def main(argv: list[str] | None = None) -> int:
                          "o-space circle (paper)")
     ap.add_argument("--perception", choices=["off", "on"], default="off",
                     help="the policy sees the true state (off, default) or the group as deploy's perception would "
-                         "see it through Pepper's camera (on: the observation model, ssbl_pb/perception/simulated.py)")
+                         "see it through Pepper's camera (on: the observation model, "
+                         "ssbl_pb/perception/tracking/simulated.py)")
     ap.add_argument("--shield", choices=["auto", "on", "off"], default="auto",
                     help="a trained policy's safety shield: as trained (auto, default), or forced on/off")
     for name, what in (("camera", "tools/calibrate_camera.py"), ("robot", "tools/identify_dynamics.py"),

@@ -55,12 +55,12 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def fits(data: dict) -> list[int]:
-    """Group sizes the simulator can place in the room with the robot (``env.spawn.fitting_sizes``)."""
+    """Group sizes the simulator can place in the room with the robot (``env.rooms.spawn.fitting_sizes``)."""
     import math
 
-    from ssbl_pb.env.obstacles import box_rows
-    from ssbl_pb.env.rooms import Room
-    from ssbl_pb.env.spawn import fitting_sizes
+    from ssbl_pb.env.rooms.obstacles import box_rows
+    from ssbl_pb.env.rooms.rooms import Room
+    from ssbl_pb.env.rooms.spawn import fitting_sizes
 
     boxes = [[x, y, sx, sy, math.radians(yaw)] for x, y, sx, sy, yaw in data["obstacles"]["boxes"]]
     size = tuple(data["world"]["room_size"])

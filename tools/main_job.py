@@ -32,7 +32,7 @@ def main(argv: list[str] | None = None) -> int:
     from ssbl_pb.analysis.compare_plot import plot_summaries
     from ssbl_pb.analysis.evaluation import Setup, build_policy, evaluate
     from ssbl_pb.analysis.video import record_episode, write_mp4
-    from ssbl_pb.env.approach import make_env
+    from ssbl_pb.env.gymenv.approach import make_env
     from ssbl_pb.files import check_output_path, write_text
     from ssbl_pb.training.run import load_config, train
 

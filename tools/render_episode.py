@@ -25,7 +25,7 @@ def main(argv: list[str] | None = None) -> int:
 
     from ssbl_pb.analysis.evaluation import build_policy, check_policy_spec, outcome
     from ssbl_pb.analysis.video import contact_sheet, record_episode, save_png, write_mp4
-    from ssbl_pb.env.approach import make_env
+    from ssbl_pb.env.gymenv.approach import make_env
     from ssbl_pb.files import check_output_path, output_dir
 
     if args.out.suffix != ".mp4":

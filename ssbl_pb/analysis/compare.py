@@ -10,13 +10,13 @@ from typing import Any
 import numpy as np
 from scipy import stats
 
-from ..env import metrics
+from ..agents import metrics
 from .report import mean_ci
 
 # the five social measures of the targets: lower is better for each
 SOCIAL = ("personal_zone_time_s", "human_displacement_m", "mean_jerk", "arrival_speed", "outside_fov_time_s")
 BINARY = tuple(k for k, (unit, *_rest) in metrics.METRICS.items() if unit == "0/1")  # McNemar's test
-# each metric's direction is in env.metrics.METRICS; the rest is descriptive
+# each metric's direction is in agents.metrics.METRICS; the rest is descriptive
 LOWER_IS_BETTER = metrics.LOWER_IS_BETTER
 HIGHER_IS_BETTER = {*metrics.HIGHER_IS_BETTER, "return"}
 

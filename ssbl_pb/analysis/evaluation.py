@@ -10,9 +10,9 @@ from typing import Any
 
 import gymnasium as gym
 
-from ..env.approach import make_env
-from ..env.policies import BASELINES, Policy, make_policy
-from ..env.rollout import EpisodeResult, run_episodes
+from ..agents.policies import BASELINES, Policy, make_policy
+from ..agents.rollout import EpisodeResult, run_episodes
+from ..env.gymenv.approach import make_env
 from ..errors import UserError
 from ..files import check_output_path, make_stage_dir, output_dir
 from ..policies import SHIPPED
@@ -30,9 +30,9 @@ class Setup:
     shield: bool | None = None  # a trained policy's safety shield: None = as trained, else forced on/off
 
     def __call__(self) -> tuple[gym.Env, Policy]:
-        from ..env.trained import policy_env_kwargs
+        from ..agents.trained import policy_env_kwargs
 
-        # a policy on a frozen autoencoder brings its camera mode and encoder (env.encoded)
+        # a policy on a frozen autoencoder brings its camera mode and encoder (env.gymenv.encoded)
         kwargs = {"obs_mode": self.obs_mode, **dict(self.env_kwargs), **policy_env_kwargs(self.policy)}
         env = make_env(scenario=self.scenario, **kwargs)
         return env, build_policy(self.policy, env, self.shield)
@@ -46,8 +46,8 @@ def build_policy(spec: str, env: gym.Env, shield: bool | None = None) -> Policy:
         if spec != "random" and env.observation_space != core.observation_space:
             raise UserError(f"policy '{spec}' reads the vector observation; use --obs-mode vector")
         return make_policy(spec, core.robot_params, core.social, seed=0)
-    from ..env.shield import ShieldParams
-    from ..env.trained import load_trained, shield_at_place
+    from ..agents.trained import load_trained, shield_at_place
+    from ..env.formulas.shield import ShieldParams
 
     # the shield brakes within this env's (possibly calibrated) robot limits, as the model was trained
     return load_trained(spec, env.observation_space, shield, ShieldParams.from_env(core.robot_params, core.social,

@@ -38,9 +38,9 @@ from ..errors import UserError
 # not Pepper's 56.3 deg one; through it the table comes closest to the paper's ordering (docs/decisions.md,
 # "The camera's field of view").
 TABLE_CAMERA_HFOV = 26.5
-# The camera rows' low-pass of the encoded features (env/encoded.py; docs/decisions.md, "A low-pass on the encoded
-# features"): not in the paper; with it the table holds more of the paper's ordering (docs/benchmarks.md, "Table I
-# with the features low-passed").
+# The camera rows' low-pass of the encoded features (env/gymenv/encoded.py; docs/decisions.md, "A low-pass on the
+# encoded features"): not in the paper; with it the table holds more of the paper's ordering (docs/benchmarks.md, "Table
+# I with the features low-passed").
 TABLE_FEATURE_SMOOTHING = 0.3
 BENCH_SEED = 500_000  # held-out evaluation seeds (docs/decisions.md, "Training")
 
@@ -133,8 +133,8 @@ def percent(value: float, random: float, baseline: float) -> float:
 def check_given_encoders(given: dict[str, str | None], camera_hfov_deg: float | None = None) -> None:
     """Refuse, naming the flag (``--saev`` / ``--conv``), a given checkpoint that is missing, unreadable, of
     another architecture or learned through another camera than ``camera_hfov_deg``: before any output exists."""
-    from ..env.encoded import encoder_hfov
-    from ..perception.ae_train import CheckpointError, checkpoint_info
+    from ..env.gymenv.encoded import encoder_hfov
+    from ..perception.autoencoding.ae_train import CheckpointError, checkpoint_info
 
     for arch, path in given.items():
         if not path:
@@ -168,11 +168,11 @@ def prepare_encoders(budget: Budget, out: Path, archs: set[str], given: dict[str
     ``out/ae/ARCH`` (frames in ``out/frames.npz``, seen through a camera of ``camera_hfov_deg``, default
     Pepper's), reusing what an earlier run of the table left there. An encoder that learned through another
     camera than ``camera_hfov_deg`` (when given) is refused."""
-    from ..env.encoded import encoder_hfov
-    from ..perception.ae_report import write_report
-    from ..perception.ae_train import AETrainParams, train_autoencoder
-    from ..perception.autoencoders import SIZES
-    from ..perception.frames import collect, load_frames, save_frames
+    from ..env.gymenv.encoded import encoder_hfov
+    from ..perception.autoencoding.ae_report import write_report
+    from ..perception.autoencoding.ae_train import AETrainParams, train_autoencoder
+    from ..perception.autoencoding.autoencoders import SIZES
+    from ..perception.autoencoding.frames import collect, load_frames, save_frames
 
     paths: dict[str, str] = {}
     frames_file = out / "frames.npz"
@@ -224,7 +224,8 @@ def features_raw(row: Row) -> bool:
 def row_config(row: Row, seed: int, budget: Budget, encoders: dict[str, str], feature_smoothing: float = 1.0,
                reward: dict[str, Any] | None = None) -> dict[str, Any]:
     """The training config (``training.config`` keys) of a row (``feature_smoothing``: the camera rows' low-pass
-    of the encoded features, ``env.encoded``; 1 = off; ``reward``: the reward keys, default ``_default_reward()``)."""
+    of the encoded features, ``env.gymenv.encoded``; 1 = off; ``reward``: the reward keys, default
+    ``_default_reward()``)."""
     reward = _default_reward() if reward is None else reward
     cfg: dict[str, Any] = {**reward, "normalize_obs": not features_raw(row),
         "name": f"{row.slug}_s{seed}", "obs_mode": row.obs_mode, "encoder": row.encoder, "policy": row.policy,
@@ -234,7 +235,7 @@ def row_config(row: Row, seed: int, budget: Budget, encoders: dict[str, str], fe
         "checkpoint_every": budget.eval_every, "baseline_episodes": 2,
         "ppo": {"n_steps": budget.n_steps, "batch_size": min(256, budget.n_steps * budget.n_envs)}}
     if row.encoder in ("conv", "saev"):
-        from ..perception.ae_train import checkpoint_info
+        from ..perception.autoencoding.ae_train import checkpoint_info
 
         cfg["encoder_checkpoint"] = encoders[row.encoder]
         cfg["camera_size"] = int(checkpoint_info(encoders[row.encoder])["resolution"])
@@ -245,7 +246,7 @@ def row_config(row: Row, seed: int, budget: Budget, encoders: dict[str, str], fe
 
 def _test_episodes(spec: str, episodes: int, seed: int = BENCH_SEED, reward: dict | None = None
                    ) -> dict[str, float]:
-    from ..env.rollout import run_episodes
+    from ..agents.rollout import run_episodes
     from .evaluation import Setup
 
     res = run_episodes(Setup(spec, env_kwargs=(("reward", reward or {}),)), range(seed, seed + episodes))

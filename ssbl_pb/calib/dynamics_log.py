@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..env.base import HolonomicBase
+from ..env.formulas.base import HolonomicBase
 from ..params import RobotParams
 from .io import CalibrationError, write_text
 

@@ -22,8 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..env.humans import Group
-from ..env.layouts import paper_layout
+from ..env.formulas.humans import Group
+from ..env.formulas.layouts import paper_layout
 from ..params import FORMATIONS, SocialParams
 from .io import CalibrationError
 

@@ -9,7 +9,7 @@ narrower than ``door_width`` so that a room does not leak into the corridor. Its
 wall-to-wall extent; the largest free axis-aligned rectangle inside it gives the furniture-free size.
 Every cell inside the room's walls that is not its free space (occupied, unknown, or behind a door) becomes an
 obstacle of the simulated room: the cells are merged into boxes (``obstacle_boxes``, row runs stacked), which the
-room YAML carries (``obstacles.boxes``) and the env builds (``env.rooms``).
+room YAML carries (``obstacles.boxes``) and the env builds (``env.rooms.rooms``).
 The room frame is centred on the chosen rectangle, axes parallel to the map image's.
 """
 

@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from ..cli import ArgumentParser, run
-from ..env.layouts import GROUP_MODELS
+from ..env.formulas.layouts import GROUP_MODELS
 from ..errors import UserError
 from ..files import check_output_path
 from .faults import EXIT_CODES
@@ -79,8 +79,8 @@ def _number(flag: str, value: float, lo: float, hi: float, unit: str) -> None:
 
 def _params(args: argparse.Namespace) -> Any:
     """Every input checked before anything connects or is written: (params, robot, social, task, policy, frames)."""
-    from ..env.approach import core_kwargs
-    from ..env.task import TaskParams
+    from ..env.formulas.task import TaskParams
+    from ..env.gymenv.approach import core_kwargs
     from ..params import RobotParams, SocialParams, from_dict
     from .frames import Frames, load_room
     from .loop import DeployParams
@@ -124,9 +124,9 @@ def _policy(spec: str, robot: Any, social: Any, task: Any, stop_distance: float)
     the stop distance (``loop.deploy_shield``)."""
     import gymnasium as gym
 
-    from ..env import observation as ob
-    from ..env.policies import make_policy
-    from ..env.trained import load_trained, shield_at_place
+    from ..agents.policies import make_policy
+    from ..agents.trained import load_trained, shield_at_place
+    from ..env.formulas import observation as ob
     from .loop import deploy_shield
 
     if spec in BASELINES:
@@ -143,7 +143,7 @@ def _rate(spec: str, rate: float | None) -> float:
 
     trained = None
     if spec not in BASELINES:
-        from ..env.trained import resolve_model
+        from ..agents.trained import resolve_model
 
         world = (resolve_model(spec)[2].get("env") or {}).get("world") or {}
         trained = 1.0 / float(world.get("dt", WorldParams.dt)) if isinstance(world, dict) else None
@@ -169,7 +169,7 @@ def _warm_up(policy: Any) -> None:
     first approach ticks took 306, 140 and 79 ms without it). Also one torch thread (a small MLP; more only
     contend with detection) and a 1 ms GIL switch interval, so the control thread gets the interpreter back
     within ~1 ms of each robot call while the detector thread runs Python (5 ms by default)."""
-    from ..env import observation as ob
+    from ..env.formulas import observation as ob
 
     sys.setswitchinterval(0.001)
     if hasattr(policy, "model"):  # a trained model (baselines need no torch)
@@ -215,7 +215,7 @@ def main(argv: list[str] | None = None) -> int:
 
 def _run(args: argparse.Namespace, url: str, folder: Path, robot: Any, params: Any, robot_params: Any, social: Any,
          task: Any, policy: Any, frames: Any) -> int:
-    from ..env.trained import policy_env_kwargs
+    from ..agents.trained import policy_env_kwargs
     from ..perception.camera import PinholeCamera
     from .loop import DeployLoop, Setup, status_printer
     from .perceive import Perception

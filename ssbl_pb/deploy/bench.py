@@ -20,7 +20,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-from ..env.task import TaskParams
+from ..env.formulas.task import TaskParams
 from .log import LOG, SUMMARY
 from .virtual_robot import load_log
 
@@ -147,8 +147,8 @@ def lockstep_approach(folder: Path, seed: int, policy: Any = "vector", scenario:
     (``folder/deploy/log.jsonl``, ``folder/virtual_pepper.jsonl``); ``wall`` in both is the simulated time, and
     each tick's ground truth is logged at its tick's time. ``policy``: a spec as deploy's ``--policy`` or a
     policy object (``predict``). Returns the outcome and the ground-truth score."""
-    from ..env.task import TaskParams
-    from ..env.trained import policy_env_kwargs
+    from ..agents.trained import policy_env_kwargs
+    from ..env.formulas.task import TaskParams
     from ..params import RobotParams, SocialParams
     from .__main__ import _policy
     from .frames import Frames
@@ -200,8 +200,8 @@ def perception_report(folders: list[Path], policy: str = "vector", figure: Path 
                       ) -> tuple[list[dict[str, Any] | None], dict[str, Any] | None]:
     """Perception's errors (``perception_errors``) of each run folder (None where it has no logs) and pooled
     over them, the policy's action difference with the policy ``policy``; ``figure``: the pooled figure."""
-    from ..env.task import TaskParams
-    from ..env.trained import policy_env_kwargs
+    from ..agents.trained import policy_env_kwargs
+    from ..env.formulas.task import TaskParams
     from ..params import RobotParams, SocialParams
     from .__main__ import _policy
     from .loop import DeployParams

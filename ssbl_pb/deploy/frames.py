@@ -6,7 +6,7 @@ the occupancy map. Without a map the room frame is the odometry frame and the wa
 every side: the middle of the training room (10 m), a place the policy knows, with no wall near.
 
 The range scan of the observation is cast from the localised pose against the room's walls and the room YAML's
-obstacles (``scan``), with the simulator's own function (``env.obstacles.fill_scan``): what the policy saw in
+obstacles (``scan``), with the simulator's own function (``env.rooms.obstacles.fill_scan``): what the policy saw in
 training, people excluded (Pepper's lasers would see the members' legs, which the observation carries apart, and
 leave the rear 120 deg blind). Without a map, or with a room YAML without obstacles, nothing is known: every ray
 reports its full range, as in the middle of an empty training room.
@@ -22,10 +22,10 @@ from typing import Any
 import numpy as np
 
 from ..calib.room_map import OccupancyMap, read_map
-from ..env import observation as ob
-from ..env.obstacles import box_rows, fill_scan
-from ..env.planner import in_sight, plan_map, way_clearances, way_in_for_group, waypoint
-from ..env.rooms import Room, read_obstacles
+from ..env.formulas import observation as ob
+from ..env.rooms.obstacles import box_rows, fill_scan
+from ..env.rooms.planner import in_sight, plan_map, way_clearances, way_in_for_group, waypoint
+from ..env.rooms.rooms import Room, read_obstacles
 from ..errors import UserError
 from ..params import WorldParams, load_yaml
 from .robot import compose, relative
@@ -131,7 +131,7 @@ class Frames:
         return None if self.room is None else compose(self.room.map_to_room, self.room_pose(odom_pose))
 
     def walls(self, room_pose: np.ndarray) -> np.ndarray:
-        """Distances to the walls (+x, -x, +y, -y) as ``env.approach`` computes them."""
+        """Distances to the walls (+x, -x, +y, -y) as ``env.gymenv.approach`` computes them."""
         if self.room is None:
             return np.full(4, NO_WALLS)
         (sx, sy), (x, y) = self.room.room_size, room_pose[:2]
@@ -152,7 +152,7 @@ class Frames:
 
     def way_to(self, room_pose: np.ndarray, members: np.ndarray, centre: np.ndarray, slot: np.ndarray, reach: float,
                body_reach: float, near_group: bool = False) -> np.ndarray:
-        """What the observation's slot entries show for a policy trained with waypoints (``env.planner``, room
+        """What the observation's slot entries show for a policy trained with waypoints (``env.rooms.planner``, room
         frame): the slot, or the point along the way around the map's obstacles while the slot is out of sight.
         The plan is made again when the group's centre or slot estimate moved 0.2 m (~1 ms); ``near_group`` as
         the policy was trained (``planner.way_in_for_group``)."""

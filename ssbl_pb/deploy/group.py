@@ -4,7 +4,7 @@ centre, the o-space radius and the free slot, all in the odometry frame.
 Pepper's camera sees 56 deg: at the free slot the members stand 60-90 deg to either side, so tracks of people
 who leave the view are kept as *remembered* members (moved by the group's model) until their place comes back
 into view, unoccluded and within detection range, and nobody is found there for ``forget_frames`` frames.
-The group's geometry is the simulator's (``env.humans.measured_group``: the centre, the o-space radius, the
+The group's geometry is the simulator's (``env.formulas.humans.measured_group``: the centre, the o-space radius, the
 joining weight and the free slot come from the same functions the env steps), spawned where the members stood
 before the robot came to join (their *rest* positions) and then moved to where they stand now, as in the env.
 The centre is measured: a pair gives its midpoint (the calibrated model: real pairs stand symmetric about their
@@ -22,10 +22,10 @@ from typing import Any
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from ..env.humans import MAX_HUMANS, measured_group
+from ..env.formulas.humans import MAX_HUMANS, measured_group
 from ..params import SocialParams
 from ..perception.camera import PinholeCamera
-from ..perception.tracker import Tracker, TrackerParams
+from ..perception.tracking.tracker import Tracker, TrackerParams
 
 BODY_HEIGHT = 1.14  # m: the point of a person checked against the view (torso middle, urdf/human.urdf)
 
@@ -215,11 +215,11 @@ class GroupModel:
 
 
 def policy_groups(spec: str) -> str:
-    """The group model (``env.layouts.GROUP_MODELS``) the policy ``spec`` was trained on: its run config's
+    """The group model (``env.formulas.layouts.GROUP_MODELS``) the policy ``spec`` was trained on: its run config's
     ``env.groups``; a baseline, or a config without one, the env's default."""
-    from ..env.layouts import GroupModel as EnvGroups
-    from ..env.policies import BASELINES
-    from ..env.trained import resolve_model
+    from ..agents.policies import BASELINES
+    from ..agents.trained import resolve_model
+    from ..env.formulas.layouts import GroupModel as EnvGroups
 
     if spec in BASELINES:
         return EnvGroups().name
@@ -230,8 +230,8 @@ def policy_groups(spec: str) -> str:
 
 def default_model(social: SocialParams) -> GroupModel:
     """``GroupModel`` with the robot's place as the default robot and task keep it (``layouts.slot_keep``)."""
-    from ..env.layouts import slot_keep
-    from ..env.task import TaskParams
+    from ..env.formulas.layouts import slot_keep
+    from ..env.formulas.task import TaskParams
     from ..params import RobotParams
 
     task = TaskParams()

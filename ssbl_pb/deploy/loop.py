@@ -24,10 +24,10 @@ from typing import Any
 
 import numpy as np
 
-from ..env import observation as ob
-from ..env.layouts import member_keep_out, slot_keep
-from ..env.shield import ShieldParams, footprint_clearance
-from ..env.task import TaskParams
+from ..env.formulas import observation as ob
+from ..env.formulas.layouts import member_keep_out, slot_keep
+from ..env.formulas.shield import ShieldParams, footprint_clearance
+from ..env.formulas.task import TaskParams
 from ..errors import Terminated
 from ..params import RobotParams, SocialParams, _check, _positive
 from .faults import EXIT_CODES, DeployFault, HumanTooClose, StaleFrame, StaleOdometry
@@ -121,8 +121,8 @@ class Setup:
     robot_params: RobotParams = dataclasses.field(default_factory=RobotParams)
     social: SocialParams = dataclasses.field(default_factory=SocialParams)
     task: TaskParams = dataclasses.field(default_factory=TaskParams)
-    groups: str = "calibrated"  # the group model the policy was trained with (``env.layouts.GROUP_MODELS``)
-    waypoints: bool = False  # the policy was trained with waypoints in furnished rooms (``env.planner``)
+    groups: str = "calibrated"  # the group model the policy was trained with (``env.formulas.layouts.GROUP_MODELS``)
+    waypoints: bool = False  # the policy was trained with waypoints in furnished rooms (``env.rooms.planner``)
     waypoints_near_group: bool = False  # ... shown up to the group's keep-out disc
 
 

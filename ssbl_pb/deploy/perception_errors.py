@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from ..env import observation as ob
+from ..env.formulas import observation as ob
 from ..params import RobotParams
 from .frames import Frames, inverse, load_room, transform_points
 from .log import RUN, read_log
@@ -320,8 +320,8 @@ def _copy_frames(fr: Frames) -> Frames:
 def analyse_folder(folder: Path, policy: Any = None, p: ErrorParams | None = None,
                    waypoints: tuple[bool, bool] = (False, False)) -> Samples:
     """``analyse`` of a benchmark run's folder (``deploy/`` and ``virtual_pepper.jsonl``, as ``bench`` writes)."""
-    from ..env.layouts import member_keep_out
-    from ..env.task import TaskParams
+    from ..env.formulas.layouts import member_keep_out
+    from ..env.formulas.task import TaskParams
     from ..params import SocialParams
     from .virtual_robot import load_log
 

@@ -18,7 +18,7 @@ from typing import Protocol
 
 import numpy as np
 
-from ..env.base import limit_command
+from ..env.formulas.base import limit_command
 from ..params import RobotParams
 
 

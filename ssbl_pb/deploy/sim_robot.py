@@ -11,13 +11,13 @@ from typing import Any
 
 import numpy as np
 
-from ..env.approach import ApproachGroupEnv
+from ..env.gymenv.approach import ApproachGroupEnv
 from ..params import RobotParams, WorldParams
 from .robot import Frame, Odometry, clamp_command, relative
 
 
 class SimRobot:
-    """Pepper and a conversation group in the PyBullet world (``env.approach``'s scene, its scenarios and
+    """Pepper and a conversation group in the PyBullet world (``env.gymenv.approach``'s scene, its scenarios and
     seeds), behind the ``Robot`` interface.
 
     Time advances only through ``advance`` and frames appear only through ``render`` (a lockstep test clock, or

@@ -36,7 +36,7 @@ import cv2
 import numpy as np
 
 from ..cli import ArgumentParser, float_in, int_at_least, run
-from ..env.layouts import GROUP_MODELS
+from ..env.formulas.layouts import GROUP_MODELS
 from ..errors import UserError
 from ..files import check_output_path
 from .naoqi import BGR, IDENTITY, RESOLUTIONS, RGB, import_qi
@@ -61,7 +61,7 @@ def check_listen(url: str, allow_remote: bool) -> str:
 
 def _render_worker(conn: Any, world: Any, robot: Any, social: Any) -> None:
     """The camera process: renders scenes sent over ``conn`` until it receives None."""
-    from ..env.world import World
+    from ..env.view.world import World
 
     w = World(world, robot, social)
     w.reset(np.random.default_rng(0), n_humans=2)  # warm up (group data, compiled code, the renderer) before

@@ -1,4 +1,4 @@
-"""Simulation: PyBullet world, social force field model, rewards, the Gymnasium env and baselines."""
+"""Simulation: formulas (forces, reward, shield, ...), rooms, engine (N copies), view (PyBullet), gymenv (Gymnasium)."""
 
 from .compile_cache import use_source_keyed_cache
 

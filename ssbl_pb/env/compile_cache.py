@@ -2,8 +2,9 @@
 
 numba's own cache (``cache=True``) checks only the source file of the function it compiled: ``kernels.step``
 compiled before an edit of ``reward.py`` or ``obstacles.py`` that it calls would keep running the old terms (it
-did, once, while the range scan was being changed). Keying the folder on every module of ``ssbl_pb.env`` makes
-any edit recompile everything once (~1 min) instead. A ``NUMBA_CACHE_DIR`` set by the user is left alone.
+did, once, while the range scan was being changed). Keying the folder on every module of ``ssbl_pb.env`` and of
+its sub-packages makes any edit recompile everything once (~1 min) instead. A ``NUMBA_CACHE_DIR`` set by the user is
+left alone.
 """
 
 from __future__ import annotations
@@ -20,10 +21,10 @@ KEEP_OLD_S = 86400.0  # folders of other keys are dropped once unused this long 
 
 
 def source_key(folder: Path) -> str:
-    """A short hash of every ``.py`` file in ``folder`` (names and contents)."""
+    """A short hash of every ``.py`` file in ``folder`` and its sub-folders (paths and contents)."""
     h = hashlib.sha1()
-    for f in sorted(folder.glob("*.py")):
-        h.update(f.name.encode())
+    for f in sorted(folder.rglob("*.py")):
+        h.update(f.relative_to(folder).as_posix().encode())
         h.update(f.read_bytes())
     return h.hexdigest()[:12]
 

@@ -1,0 +1,1 @@
+"""Perception: the camera model (camera), people tracking (tracking/), the camera autoencoders (autoencoding/)."""

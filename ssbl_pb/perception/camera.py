@@ -243,7 +243,7 @@ def sim_projection_from_yaml(path: str | Path, width: int, height: int) -> list[
     scale separately when the aspect ratios differ). Distortion is not rendered: compare sim frames with
     undistorted real frames (``cv2.undistort``). Pair it with ``robot_overrides()`` for the camera pose.
     """
-    from ..env.cameras import projection_from_intrinsics
+    from ..env.view.cameras import projection_from_intrinsics
 
     cam = PinholeCamera.from_yaml(path).scaled(width, height)
     return projection_from_intrinsics(cam.fx, cam.fy, cam.cx, cam.cy, int(width), int(height))

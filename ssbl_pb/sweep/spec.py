@@ -137,7 +137,7 @@ def _mapping(path: Path, key: str, value: Any) -> dict[str, Any]:
 def _check_keys(path: Path, keys: list[tuple[str, str]]) -> None:
     """Keys the config has (top level and the ppo / reward fields; env keys are checked by the config itself),
     no seed (the spec's seeds give it), none twice and none inside another."""
-    from ..env.reward import RewardWeights
+    from ..env.formulas.reward import RewardWeights
     from ..training.config import PPOConfig, TrainConfig
 
     top = {f.name for f in dataclasses.fields(TrainConfig)}
@@ -170,7 +170,7 @@ def _evaluation(path: Path, data: Any) -> EvalSpec:
 def _check_env(path: Path, name: str, cfg: Any, evaluation: EvalSpec) -> None:
     """The env of a configuration and its evaluation can be built (scenario, room, robot, social values), and a
     ``model: best`` evaluation has an in-training evaluation to pick from."""
-    from ..env.approach import make_env
+    from ..env.gymenv.approach import make_env
     from ..training.run import _env_kwargs
 
     try:

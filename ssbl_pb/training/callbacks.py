@@ -14,8 +14,8 @@ from typing import Any
 import numpy as np
 from stable_baselines3.common.callbacks import BaseCallback
 
-from ..env.rollout import run_episode
-from ..env.trained import STEP_STAMP, TrainedPolicy
+from ..agents.rollout import run_episode
+from ..agents.trained import STEP_STAMP, TrainedPolicy
 from ..files import atomic_write_all, make_stage_dir, replace_dir, write_text
 
 
@@ -103,7 +103,7 @@ class EvalCheckpointCallback(BaseCallback):
         self.last_ckpt = self.num_timesteps // self.checkpoint_every
 
     def evaluate(self) -> dict[str, float]:
-        from ..env.shield import ShieldParams
+        from ..env.formulas.shield import ShieldParams
 
         if self.make_eval_venv is not None:
             from .vec_env import evaluate_first_episodes

@@ -100,10 +100,10 @@ class TrainConfig:
     camera_size: int = 84
     # the frozen autoencoder of encoder conv / saev (tools/train_ae.py); empty = the shipped SAEV encoder
     encoder_checkpoint: str = ""
-    # low-pass of the frozen encoder's features over an episode, the newest frame's weight (env.encoded; 1 = off)
+    # low-pass of the frozen encoder's features over an episode, the newest frame's weight (env.gymenv.encoded; 1 = off)
     feature_smoothing: float = 1.0
-    action_smoothing: float = 0.4  # agent-side action filter (env.wrappers.ActionStages); 1.0 = off
-    safety_shield: bool = True  # agent-side safety shield (env.shield), the last action stage; it reads the
+    action_smoothing: float = 0.4  # agent-side action filter (env.gymenv.wrappers.ActionStages); 1.0 = off
+    safety_shield: bool = True  # agent-side safety shield (env.formulas.shield), the last action stage; it reads the
     #                             Vector observation, so camera modes train without it
     # VecNormalize's running standardisation of the observation (the original's "normalize: true"); false feeds
     # it raw (reward normalisation stays); unset (auto): on, except for a frozen encoder's features, which train
@@ -181,7 +181,7 @@ class TrainConfig:
         unknown = sorted(set(self.env) - set(env_keys()))
         _check(not unknown, "config", "env", unknown, f"keys among {env_keys()} (the config sets obs_mode, "
                "scenario, reward and camera size itself)")
-        from ..env.reward import RewardWeights
+        from ..env.formulas.reward import RewardWeights
 
         from_dict(RewardWeights, self.reward, "config.reward")  # validates names and values early
         for key, value in self.reward_ramp.items():
@@ -204,14 +204,14 @@ class TrainConfig:
             return
         _check(bool(path) and Path(path).is_file(), "config", "encoder_checkpoint", self.encoder_checkpoint,
                f"an existing {self.encoder} checkpoint from tools/train_ae.py (none is shipped for {self.encoder})")
-        from ..perception.ae_train import checkpoint_info
+        from ..perception.autoencoding.ae_train import checkpoint_info
 
         info = checkpoint_info(path)
         _check(info["arch"] == self.encoder, "config", "encoder_checkpoint", path,
                f"a {self.encoder} checkpoint (encoder: {self.encoder}), it holds a {info['arch']} autoencoder")
         _check(info["resolution"] == self.camera_size, "config", "camera_size", self.camera_size,
                f"{info['resolution']}, the input resolution of encoder checkpoint {path}")
-        from ..env.encoded import with_encoder_camera
+        from ..env.gymenv.encoded import with_encoder_camera
 
         try:  # env.robot's camera may not contradict the one the encoder learned through
             with_encoder_camera(dict(self.env), path)
@@ -227,7 +227,7 @@ def env_keys() -> list[str]:
     """The env arguments a config's ``env:`` may set (``make_env``'s and the core env's, minus the config's own)."""
     import inspect
 
-    from ..env.approach import ApproachGroupEnv, make_env
+    from ..env.gymenv.approach import ApproachGroupEnv, make_env
 
     own = {"obs_mode", "scenario", "reward", "camera_width", "camera_height", "render_mode", "render_width",
            "record", "self", "kwargs", "feature_smoothing"}
@@ -303,7 +303,7 @@ def _from_dict(data: dict[str, Any], where: str) -> TrainConfig:
 def check_env(cfg: TrainConfig) -> None:
     """The config's env parameters as the env will check them (room size for its groups, group data, room
     YAMLs), before anything is built."""
-    from ..env.env_params import parse_env_params
+    from ..env.engine.env_params import parse_env_params
 
     env = cfg.env
     parse_env_params(cfg.scenario, env.get("world"), env.get("robot"), env.get("social"), cfg.reward,

@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from ..env.approach import make_env
+from ..env.gymenv.approach import make_env
 from ..errors import UserError
 from ..files import check_output_path, output_dir, remove_temporaries, write_text
 from ..params import ConfigError
@@ -78,7 +78,7 @@ def _env_kwargs(cfg: TrainConfig) -> dict[str, Any]:
     kwargs = {"obs_mode": cfg.obs_mode, "scenario": cfg.scenario, "reward": dict(cfg.reward),
               "camera_width": cfg.camera_size, "camera_height": cfg.camera_size, **cfg.env}
     if cfg.encoder_file:  # the camera the encoder learned through
-        from ..env.encoded import with_encoder_camera
+        from ..env.gymenv.encoded import with_encoder_camera
 
         kwargs = with_encoder_camera(kwargs, cfg.encoder_file)
     return kwargs
@@ -95,8 +95,8 @@ class EnvFactory:
     def __call__(self) -> Any:
         env = make_env(**self.kwargs)
         if self.shield or self.smoothing < 1.0:
-            from ..env.shield import ShieldParams
-            from ..env.wrappers import ActionStages, ActionStagesWrapper
+            from ..env.formulas.shield import ShieldParams
+            from ..env.gymenv.wrappers import ActionStages, ActionStagesWrapper
 
             core = env.unwrapped
             shield = ShieldParams.from_env(core.robot_params, core.social, core.task, self.shield_at_place)
@@ -112,7 +112,7 @@ class BatchedFactory:
     """``BatchedVecEnv(n)`` for env keyword arguments (``_env_kwargs``) with the config's action stages."""
 
     def __init__(self, kwargs: dict[str, Any], cfg: TrainConfig) -> None:
-        from ..env.approach import core_kwargs
+        from ..env.gymenv.approach import core_kwargs
 
         self.env_kwargs, _ = core_kwargs(**{k: v for k, v in kwargs.items() if k != "obs_mode"})
         self.smoothing, self.shield, self.at_place = cfg.action_smoothing, cfg.shield_active, cfg.shield_at_place
@@ -136,8 +136,8 @@ def make_vec_env(cfg: TrainConfig, seed: int) -> Any:
         fns = [factory] * cfg.n_envs
         venv = SubprocVecEnv(fns, start_method="forkserver") if kind == "subproc" else DummyVecEnv(fns)
     venv.seed(seed)
-    if cfg.encoder_file:  # frozen autoencoder: all envs' images encoded in one batch per step (env.encoded)
-        from ..env.encoded import EncodedVecEnv, load_encoder
+    if cfg.encoder_file:  # frozen autoencoder: all envs' images encoded in one batch per step (env.gymenv.encoded)
+        from ..env.gymenv.encoded import EncodedVecEnv, load_encoder
 
         venv = EncodedVecEnv(venv, load_encoder(cfg.encoder_file, cfg.camera_size), cfg.feature_smoothing)
     if cfg.policy_obs_mode == "vector":
@@ -185,8 +185,8 @@ def build_model(cfg: TrainConfig, venv: Any, tb_dir: Path) -> Any:
 
 def baseline_returns(cfg: TrainConfig) -> dict[str, float]:
     """Mean episode return of the random and SFFM policies on the training task (same reward weights)."""
-    from ..env.policies import make_policy
-    from ..env.rollout import run_episode
+    from ..agents.policies import make_policy
+    from ..agents.rollout import run_episode
 
     kwargs = {**_env_kwargs(cfg), "obs_mode": "vector"}
     kwargs["reward"] = {**kwargs["reward"], **{k: v[1] for k, v in cfg.reward_ramp.items()}}  # as evaluations
@@ -273,7 +273,7 @@ def check_init_source(cfg: TrainConfig, source: Path) -> None:
     """``--init-from``: a run with a model, its normalisation and a config of the same kind."""
     if not (source / "config.yaml").is_file():
         raise RunError(f"--init-from {source}: not a run directory (no config.yaml)")
-    from ..env.trained import resolve_model
+    from ..agents.trained import resolve_model
 
     _, norm, _ = resolve_model(str(source))
     if norm is None:
@@ -329,7 +329,7 @@ def write_baselines(cfg: TrainConfig, run_dir: Path) -> None:
 
 def _init_from(model: Any, venv: Any, source: Path) -> Any:
     """Copy a run's final policy weights and observation statistics into a fresh model and VecEnv."""
-    from ..env.trained import resolve_model
+    from ..agents.trained import resolve_model
 
     src_model, src_norm, _ = resolve_model(str(source))
     if src_norm is None:
@@ -435,7 +435,7 @@ def resume(run_dir: Path, total_steps: int | None = None) -> dict[str, Any]:
     import torch
     from stable_baselines3.common.vec_env import VecNormalize
 
-    from ..env.trained import STEP_STAMP
+    from ..agents.trained import STEP_STAMP
 
     if not (run_dir / "config.yaml").is_file():
         hint = "; it was killed as it was created: start it again with the same command" if (

@@ -1,4 +1,4 @@
-"""``BatchedVecEnv``: SB3's VecEnv interface over ``env.batched.BatchedApproach`` (Vector observation).
+"""``BatchedVecEnv``: SB3's VecEnv interface over ``env.engine.batched.BatchedApproach`` (Vector observation).
 
 It does what ``DummyVecEnv`` over N ``EnvFactory`` envs does, action stages included (the agent's smoothing,
 then the safety shield), with one compiled step for all copies instead of N Python steps. Seeding follows SB3:
@@ -16,10 +16,10 @@ import gymnasium as gym
 import numpy as np
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices
 
-from ..env import observation as ob
-from ..env.batched import BatchedApproach
-from ..env.shield import ShieldParams
-from ..env.wrappers import ActionStages
+from ..env.engine.batched import BatchedApproach
+from ..env.formulas import observation as ob
+from ..env.formulas.shield import ShieldParams
+from ..env.gymenv.wrappers import ActionStages
 
 
 class BatchedVecEnv(VecEnv):
@@ -109,7 +109,7 @@ def evaluate_first_episodes(model: Any, normalizer: Any, recurrent: bool, venv: 
     observations normalised by ``normalizer`` (a ``VecNormalize``; None: raw). Seed ``venv`` first: copy i then
     plays the episode a single env reset with seed ``s + i`` plays, as ``rollout.run_episode`` would run it with
     the same model (the agent's smoothing and shield act inside ``venv``)."""
-    from ..env.trained import TrainedPolicy
+    from ..agents.trained import TrainedPolicy
 
     policy = TrainedPolicy(model, normalizer, recurrent)
     n = venv.num_envs

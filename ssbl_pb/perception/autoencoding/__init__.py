@@ -1,0 +1,1 @@
+"""The camera autoencoders (conv, SAEV): training, frames, reports, keypoints, probe, benches."""

@@ -1,0 +1,1 @@
+"""People tracking: detectors, Kalman tracker, video pipeline, PETS tools, sim evaluation, facing."""

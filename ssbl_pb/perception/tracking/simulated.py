@@ -1,0 +1,360 @@
+"""The group as the robot would perceive it, in simulation (issue 37): an observation model for the engine.
+
+On the robot the policy does not read the true state: deploy's perception detects the people in Pepper's 56 deg
+camera, projects them to the ground, tracks them (``perception.tracking.tracker``, ego-motion compensated), remembers
+the ones out of view and moves them by the group's model, and computes the group's centre, o-space radius and free
+slot from those estimates (``deploy.group``). This module runs that same pipeline from the simulator's state,
+with the camera replaced by a model of the detector: a member can be detected when it is in range with at least
+``deploy.perceive.MIN_VISIBLE`` of its torso's width inside the image (deploy completes torsos cut by the image's
+side, ``deploy.perceive.complete_cut_torsos``; such a detection gets ``partial_std_m`` more noise across the line
+of sight) and no more than ``hidden_fraction`` of it hidden behind nearer people; it is then missed with
+probability ``miss_prob`` and placed with range and bearing noise that grows with distance. Its facing (relative to
+its line of sight) is measured with ``facing_std_deg`` of noise when its front is toward the camera (within
+``facing_front_deg``: the virtual Pepper's people wear a marker on their chest), and with ``facing_back_std_deg``
+from further round (the torso's outline).
+Everything after the detections is deploy's code itself: ``GroupTracker.update`` (the Kalman tracker with deploy's
+settings, ``deploy.perceive.TRACKER``, and its memory of people out of view) and ``GroupModel.update`` (centre,
+radius, joining weight, free slot), called as ``deploy.loop.DeployLoop`` calls them.
+
+While fewer than two people are known, deploy does not run the policy: it turns in place to find the group, and
+after a full turn with one person in sight steps sideways for another line of sight (``DeployLoop._search``).
+``PerceivedGroups.steer`` gives the engine the same. Not modelled: deploy's 0.5 s settle at the start and the
+estimate's latency (one frame, ~60 ms).
+Seeded per copy, apart from the env's own generator, so an episode's start is the same with the model on or off.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from ...params import RobotParams, SocialParams, _check
+
+# QVGA, the resolution deploy subscribes (``deploy.naoqi.NaoqiParams.resolution``)
+IMAGE_SIZE = (320, 240)
+
+
+@dataclasses.dataclass(frozen=True)
+class PerceptionParams:
+    """The detector's model (ours; docs/benchmarks.md, "Deploy against the virtual Pepper", says where each
+    number comes from) and the search turn (``deploy.loop.DeployParams.search_turn``)."""
+
+    # the colour detector against the virtual Pepper (tools/bench_deploy.py --lockstep, mixed, 10 runs): detected
+    # members' position error median 0.035 m at 1-2 m, 0.045 m at 2-3 m, 0.05 m at 3-4 m, 0.11 m at 4-6 m; a
+    # Gaussian's median radial error is 1.18 sigma, so sigma ~0.03 m at 1.5 m to ~0.07 m at 5 m:
+    range_std_m: float = 0.01  # m: range noise of a detection at the robot ...
+    range_std_per_m: float = 0.012  # ... growing by this per metre of distance
+    bearing_std_deg: float = 0.5  # deg: bearing noise (a box's column error; 0.026 m across at 3 m)
+    miss_prob: float = 0.03  # a person deploy expects to see is not detected (measured: 3.2 % of frames)
+    # share of a torso's width that may be hidden behind nearer people with the person still detected: of the
+    # members whose line of sight passes within a torso's half-width of a nearer one, 56 % were detected
+    hidden_fraction: float = 0.75
+    partial_std_m: float = 0.04  # m across the line of sight for a torso completed beyond the image's side (its
+    #   apparent width taken as the mean over facings: off by at most 0.07 m)
+    facing_std_deg: float = 10.0  # deg: facing noise of a person whose front the camera sees ...
+    facing_front_deg: float = 80.0  # ... within this angle of looking at the robot; from further round ...
+    facing_back_std_deg: float = 30.0  # ... with this (inf: unknown)
+    search_turn: float = 0.5  # rad/s in place while fewer than two people are known (DeployParams.search_turn)
+    sidestep_s: float = 3.0  # s sideways after a full turn with one person known ... (DeployParams.sidestep_s)
+    sidestep_speed: float = 0.2  # m/s ... (DeployParams.sidestep_speed)
+    sidestep_repeats: int = 3  # ... up to this many in a row (DeployParams.sidestep_repeats)
+    sidestep_clearance: float = 0.4  # m: a sidestep goes only where the footprint keeps this from walls and furniture
+
+    def __post_init__(self) -> None:
+        for name in ("range_std_m", "range_std_per_m", "bearing_std_deg", "facing_std_deg", "partial_std_m"):
+            v = getattr(self, name)
+            _check(isinstance(v, int | float) and math.isfinite(v) and v >= 0, "perception", name, v,
+                   "a finite number >= 0")
+        _check(isinstance(self.miss_prob, int | float) and 0 <= self.miss_prob < 1, "perception", "miss_prob",
+               self.miss_prob, "a probability in [0, 1)")
+        _check(isinstance(self.facing_back_std_deg, int | float) and self.facing_back_std_deg >= 0, "perception",
+               "facing_back_std_deg", self.facing_back_std_deg, "a number >= 0 (inf: unknown)")
+        _check(isinstance(self.facing_front_deg, int | float) and 0 <= self.facing_front_deg <= 180, "perception",
+               "facing_front_deg", self.facing_front_deg, "degrees in [0, 180]")
+        _check(isinstance(self.hidden_fraction, int | float) and 0 <= self.hidden_fraction <= 1, "perception",
+               "hidden_fraction", self.hidden_fraction, "a fraction in [0, 1]")
+        _check(isinstance(self.search_turn, int | float) and 0 < self.search_turn <= 2, "perception",
+               "search_turn", self.search_turn, "rad/s in (0, 2]")
+        _check(isinstance(self.sidestep_s, int | float) and 0 <= self.sidestep_s <= 30, "perception",
+               "sidestep_s", self.sidestep_s, "seconds in [0, 30]")
+        _check(isinstance(self.sidestep_speed, int | float) and 0 <= self.sidestep_speed <= 0.55, "perception",
+               "sidestep_speed", self.sidestep_speed, "m/s in [0, 0.55]")
+        _check(isinstance(self.sidestep_repeats, int) and self.sidestep_repeats >= 1, "perception",
+               "sidestep_repeats", self.sidestep_repeats, "an integer >= 1")
+        _check(isinstance(self.sidestep_clearance, int | float) and self.sidestep_clearance >= 0, "perception",
+               "sidestep_clearance", self.sidestep_clearance, "metres >= 0")
+
+    @classmethod
+    def of(cls, value: Any) -> PerceptionParams | None:
+        """The env's ``perception`` argument: None/False (off: the true state), True (these defaults), a dict of
+        fields or an instance."""
+        from ...params import ConfigError, from_dict
+
+        if value is None or value is False:
+            return None
+        if value is True:
+            return cls()
+        if isinstance(value, cls):
+            return value
+        if isinstance(value, dict):
+            return from_dict(cls, value, "perception")
+        fields = [f.name for f in dataclasses.fields(cls)]
+        raise ConfigError(f"perception = {value!r}: expected false, true or a mapping of {fields}")
+
+
+def hidden_share(xy: np.ndarray, halfwidth: float) -> np.ndarray:
+    """Per robot-frame point (n, 2), the share of its torso's width (``halfwidth`` either side, across the line of
+    sight) that people nearer the camera by more than 0.2 m cover (their torsos alike), sampled at 21 points."""
+    xy = np.asarray(xy, dtype=float).reshape(-1, 2)
+    rng = np.maximum(np.hypot(xy[:, 0], xy[:, 1]), 1e-3)
+    bearing, half = np.arctan2(xy[:, 1], xy[:, 0]), np.arctan2(halfwidth, rng)
+    out = np.zeros(len(xy))
+    for k in range(len(xy)):
+        near = rng < rng[k] - 0.2
+        if not near.any():
+            continue
+        rays = bearing[k] + half[k] * np.linspace(-1.0, 1.0, 21)
+        gap = np.abs(np.remainder(rays[:, None] - bearing[near][None, :] + math.pi, 2 * math.pi) - math.pi)
+        out[k] = float((gap <= half[near][None, :]).any(axis=1).mean())
+    return out
+
+
+def image_share(xy: np.ndarray, camera: Any, halfwidth: float, height: float, max_range: float) -> np.ndarray:
+    """Per robot-frame point (n, 2), the share of a torso's width (``halfwidth`` either side across the line of
+    sight, at ``height``) inside ``camera``'s image; 0 behind the camera or beyond ``max_range``."""
+    xy = np.asarray(xy, dtype=float).reshape(-1, 2)
+    rng = np.hypot(xy[:, 0], xy[:, 1])
+    across = np.column_stack([-xy[:, 1], xy[:, 0]]) / np.maximum(rng, 1e-6)[:, None] * halfwidth
+    u = [camera.robot_to_pixel(np.column_stack([side, np.full(len(xy), height)]))[:, 0]
+         for side in (xy - across, xy + across)]
+    lo, hi = np.minimum(u[0], u[1]), np.maximum(u[0], u[1])
+    inside = np.minimum(hi, camera.width - 1) - np.maximum(lo, 1)
+    share = np.clip(inside / np.maximum(hi - lo, 1e-6), 0.0, 1.0)
+    ok = np.isfinite(share) & (xy[:, 0] - halfwidth > 0) & (rng <= max_range)
+    return np.where(ok, share, 0.0)
+
+
+def detect(xy: np.ndarray, visible: np.ndarray, params: PerceptionParams, rng: np.random.Generator,
+           facing: np.ndarray | None = None, partial: np.ndarray | None = None
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Detections of the robot-frame positions ``xy`` (n, 2) that are ``visible``: each missed with probability
+    ``miss_prob``, the rest moved by range noise ``range_std_m + range_std_per_m * r`` and bearing noise
+    ``bearing_std_deg`` (Gaussian). ``facing`` (n,): each person's true facing relative to their line of sight
+    (rad, 0: looking at the robot), measured with ``facing_std_deg`` within ``facing_front_deg`` of 0, else with
+    ``facing_back_std_deg`` (NaN where that is inf). ``partial`` (n,): completed beyond the image's side, with
+    ``partial_std_m`` more noise across the line of sight.
+    Returns the detections (k, 2), their measured facing (k,) and its std (k,) (NaN/inf: unknown). Draws the same
+    numbers whatever is visible (one miss, range, bearing and facing draw per person), so one person's visibility
+    does not change another's noise."""
+    xy = np.asarray(xy, dtype=float).reshape(-1, 2)
+    n = len(xy)
+    miss = rng.random(n) < params.miss_prob
+    z_range, z_bearing, z_facing = rng.standard_normal(n), rng.standard_normal(n), rng.standard_normal(n)
+    z_across = rng.standard_normal(n)
+    r = np.hypot(xy[:, 0], xy[:, 1])
+    b = np.arctan2(xy[:, 1], xy[:, 0])
+    across = 0.0 if partial is None else np.where(partial, params.partial_std_m, 0.0) / np.maximum(r, 0.1)
+    r = np.maximum(r + (params.range_std_m + params.range_std_per_m * r) * z_range, 0.05)
+    b = b + math.radians(params.bearing_std_deg) * z_bearing + across * z_across
+    phi = np.full(n, np.nan) if facing is None else np.asarray(facing, dtype=float)
+    front = np.abs(np.remainder(phi + math.pi, 2 * math.pi) - math.pi) <= math.radians(params.facing_front_deg)
+    sd = np.where(front, max(math.radians(params.facing_std_deg), 1e-3),
+                  max(math.radians(params.facing_back_std_deg), 1e-3))
+    known = np.isfinite(phi) & np.isfinite(sd)
+    measured = np.where(known, phi + np.where(known, sd, 0.0) * z_facing, np.nan)
+    std = np.where(known, sd, np.inf)
+    keep = np.asarray(visible, dtype=bool) & ~miss
+    return np.column_stack([r * np.cos(b), r * np.sin(b)])[keep], measured[keep], std[keep]
+
+
+# (share of ``sidestep_s``, share of ``sidestep_clearance``) tried in turn where walls or furniture leave no room
+# for the whole step: in a map room, a robot whose 0.8 m step had no room either side turned on the spot for the
+# whole episode, one member hidden behind the other (small room, 13 % of 200 starts); the last keeps the clearance
+# at which a step under way stops
+SIDESTEP_SHARES = ((1.0, 1.0), (2 / 3, 1.0), (1 / 3, 0.5))
+# ... and directions (rad from the line to the person, left positive): across it, else across and back (never
+# toward the person)
+SIDESTEP_ANGLES = (math.pi / 2, 3 * math.pi / 4)
+
+
+class CopyPerception:
+    """One copy's pipeline: its generator, deploy's tracker with its memory, and deploy's group model."""
+
+    def __init__(self, robot: RobotParams, social: SocialParams, keep: float, paper: bool,
+                 params: PerceptionParams) -> None:
+        from ...deploy.group import BODY_HEIGHT, GroupModel, GroupTracker
+        from ...deploy.perceive import MIN_VISIBLE, TORSO_HALF, TRACKER
+        from .sim_eval import sim_camera
+
+        self.torso_halfwidth = TORSO_HALF[1]
+        self.apparent_halfwidth = 2.0 * sum(TORSO_HALF) / math.pi  # the mean over facings
+        self.body_height, self.min_visible = BODY_HEIGHT, MIN_VISIBLE  # deploy's: the torso's middle, cut boxes
+        self.params, self.paper = params, paper
+        self.model = GroupModel(social, keep, paper=paper)
+        self.tracker = GroupTracker(sim_camera(robot, *IMAGE_SIZE), TRACKER, social=social, model=self.model)
+        self.rng = np.random.default_rng()
+        self.approaching = False
+        self.search_side = 0.0
+        self.turned, self.last_yaw, self.sidestep_left = 0.0, None, 0  # the search's progress
+        self.sidestep_angle, self.sidesteps = math.pi / 2, 0  # the sidestep's direction, sidesteps in a row
+        self.members: list[Any] = []
+        self.group: tuple[np.ndarray, float, float, np.ndarray] | None = None  # centre, radius, joining, slot
+
+    def seed(self, seed: int | None) -> None:
+        self.rng = np.random.default_rng(None if seed is None else [int(seed), 37])
+
+    def reset(self) -> None:
+        """A new episode: nothing known (the generator goes on)."""
+        self.tracker.tracker.reset()
+        self.tracker.members.clear()
+        self.tracker.centre0 = None
+        self.model.reset()
+        self.approaching, self.search_side, self.members, self.group = False, 0.0, [], None
+        self.turned, self.last_yaw, self.sidestep_left, self.sidesteps = 0.0, None, 0, 0
+
+    def frame(self, pose: np.ndarray, members: np.ndarray, dt: float, yaw: np.ndarray | None = None) -> None:
+        """One camera frame at the robot's ``pose`` (room frame, used as the odometry frame) with the true
+        ``members`` (n, 2) facing ``yaw`` (n,; None: facing unknown): detect, track, and, with two or more people
+        known, the group as deploy's loop computes it (a new approach resets the model, as ``DeployLoop._act``
+        does)."""
+        c, s = math.cos(pose[2]), math.sin(pose[2])
+        rel = np.asarray(members, dtype=float).reshape(-1, 2) - pose[:2]
+        xy = np.column_stack([c * rel[:, 0] + s * rel[:, 1], -s * rel[:, 0] + c * rel[:, 1]])
+        share = image_share(xy, self.tracker.camera, self.apparent_halfwidth, self.body_height,
+                            self.tracker.p.max_range_m)
+        can = (share >= self.min_visible) & (hidden_share(xy, self.torso_halfwidth) <= self.params.hidden_fraction)
+        phi = None
+        if yaw is not None:  # facing relative to the line of sight: 0 when looking at the robot
+            phi = np.asarray(yaw, dtype=float) - np.arctan2(-rel[:, 1], -rel[:, 0])
+        seen, facing, std = detect(xy, can, self.params, self.rng, phi, share < 1.0)
+        self.members = self.tracker.update(seen, dt, np.asarray(pose, dtype=float), facing, std)
+        if len(self.members) < 2:
+            self.approaching, self.group = False, None
+            self.tracker.centre0 = None
+            return
+        if not self.approaching:
+            self.model.reset()
+            self.approaching, self.search_side = True, 0.0  # the next search starts afresh
+        from ...deploy.group import member_arrays
+
+        pos, rest, facing, facing_std = member_arrays(self.members)
+        self.group = self.model.update(pos, np.asarray(pose[:2], dtype=float), rest, facing, facing_std)
+        self.tracker.centre0 = self.model.centre
+
+    def search(self, pose: np.ndarray, heading_gain: float, dt: float,
+               clearance: Callable[[np.ndarray], float] | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Deploy's search (``DeployLoop._search``) as the engine's aim and body action: turn in place at
+        ``search_turn`` rad/s under the env's proportional heading control, toward the one known person's side
+        first; after a full turn with still one person known, ``sidestep_s`` sideways at ``sidestep_speed``
+        (``sidestep_repeats`` times in a row while that person stays the only one)
+        facing that person, to whichever side keeps ``sidestep_clearance`` from walls and furniture all the way
+        (``clearance``: the footprint's static clearance at a pose), or a shorter step (``SIDESTEP_SHARES``) where
+        neither side has room for the whole one, or across and back (``SIDESTEP_ANGLES``); none free: it keeps
+        turning. Returns the aim
+        (2,) and the action's (forward, left) in m/s."""
+        p = self.params
+        if self.search_side == 0.0:  # a new search
+            side = 1.0
+            if self.members:
+                d = self.members[0].pos - pose[:2]
+                side = 1.0 if math.remainder(math.atan2(d[1], d[0]) - pose[2], 2 * math.pi) >= 0 else -1.0
+            self.search_side, self.turned, self.last_yaw, self.sidestep_left, self.sidesteps = side, 0.0, None, 0, 0
+        if self.last_yaw is not None:
+            self.turned += abs(math.remainder(pose[2] - self.last_yaw, 2 * math.pi))
+        self.last_yaw = float(pose[2])
+        one = len(self.members) == 1
+        if one:  # a sidestep moves across the line to that person: the action's frame faces them
+            d = self.members[0].pos - pose[:2]
+            toward = d / max(float(np.hypot(*d)), 1e-6)
+            across = np.array([-toward[1], toward[0]])
+
+            def free_at(angle: float, length: float) -> float:
+                q = np.asarray(pose[:2], dtype=float) + length * (math.cos(angle) * toward + math.sin(angle) * across)
+                return clearance(np.array([q[0], q[1], pose[2]])) if clearance is not None else math.inf
+        again = self.sidestep_left == 0 and 0 < self.sidesteps < p.sidestep_repeats
+        if one and (self.turned >= 2 * math.pi or again):  # the whole step where there is room, else a shorter one
+            self.turned, self.sidestep_left, self.sidesteps = 0.0, 0, self.sidesteps + 1 if again else 1
+            tries = [(share, room, side * angle) for share, room in SIDESTEP_SHARES for angle in SIDESTEP_ANGLES
+                     for side in (self.search_side, -self.search_side)]
+            for share, room, angle in tries:
+                step = share * p.sidestep_s * p.sidestep_speed + 0.2  # the step and the base's braking
+                if free_at(angle, step) >= room * p.sidestep_clearance:
+                    self.search_side = 1.0 if angle > 0 else -1.0
+                    self.sidestep_angle, self.sidestep_left = angle, int(round(share * p.sidestep_s / dt))
+                    break
+        if self.sidestep_left > 0 and one and free_at(self.sidestep_angle, 0.3) < p.sidestep_clearance / 2:
+            self.sidestep_left = 0  # it turns as it goes: what is across changes; looked at again each step
+        if self.sidestep_left > 0 and one:
+            self.sidestep_left -= 1
+            a = self.sidestep_angle
+            return self.members[0].pos.copy(), p.sidestep_speed * np.array([math.cos(a), math.sin(a)])
+        turn = self.search_side * p.search_turn / heading_gain
+        aim = np.asarray(pose[:2], dtype=float) + np.array([math.cos(pose[2] + turn), math.sin(pose[2] + turn)])
+        return aim, np.zeros(2)
+
+
+class PerceivedGroups:
+    """N copies' perceived groups in the engine's array layout (``env.formulas.humans.GroupArrays``' ``count``, ``pos``,
+    ``vel``, ``centre``, ``scalars[:, RADIUS]``, and the slot), which ``env.engine.kernels.observations`` turns into the
+    Vector observation in place of the true ones; ``known``: two or more people known (else the robot
+    searches, and the observation's group is empty: its centre just ahead of the robot, its place at it)."""
+
+    def __init__(self, num: int, robot: RobotParams, social: SocialParams, keep: float, paper: bool,
+                 params: PerceptionParams) -> None:
+        from ...env.formulas.humans import MAX_HUMANS, N_SCALARS
+
+        self.params = params
+        self.copies = [CopyPerception(robot, social, keep, paper, params) for _ in range(num)]
+        self.count = np.zeros(num, dtype=np.int64)
+        self.pos = np.zeros((num, MAX_HUMANS, 2))
+        self.vel = np.zeros((num, MAX_HUMANS, 2))
+        self.centre = np.zeros((num, 2))
+        self.scalars = np.zeros((num, N_SCALARS))
+        self.slot = np.zeros((num, 2))
+        self.known = np.zeros(num, dtype=bool)
+
+    def seed(self, i: int, seed: int | None) -> None:
+        self.copies[i].seed(seed)
+
+    def reset(self, i: int, pose: np.ndarray, members: np.ndarray, yaw: np.ndarray, dt: float) -> None:
+        """Copy ``i``'s new episode and its first frame."""
+        self.copies[i].reset()
+        self.frame(i, pose, members, yaw, dt)
+
+    def frame(self, i: int, pose: np.ndarray, members: np.ndarray, yaw: np.ndarray, dt: float) -> None:
+        """Copy ``i``'s frame after a step (the true members (n, 2) facing ``yaw`` (n,)), into the arrays."""
+        from ...env.formulas.humans import MAX_HUMANS, RADIUS
+
+        cp = self.copies[i]
+        cp.frame(pose, members, dt, yaw)
+        people = cp.members
+        if cp.group is not None and len(people) > MAX_HUMANS:  # the observation holds the nearest few anyway
+            d = [float(np.hypot(*(m.pos - cp.group[0]))) for m in people]
+            people = [people[k] for k in np.argsort(d, kind="stable")[:MAX_HUMANS]]
+        n = min(len(people), MAX_HUMANS)
+        self.count[i] = n
+        self.pos[i], self.vel[i] = 0.0, 0.0
+        for k, m in enumerate(people[:n]):
+            self.pos[i, k], self.vel[i, k] = m.pos, m.vel
+        self.known[i] = cp.group is not None
+        if cp.group is not None:
+            centre, radius, _, slot = cp.group
+            self.centre[i], self.scalars[i, RADIUS], self.slot[i] = centre, radius, slot
+        else:
+            ahead = np.array([math.cos(pose[2]), math.sin(pose[2])])
+            self.centre[i], self.scalars[i, RADIUS], self.slot[i] = pose[:2] + 1e-3 * ahead, 0.0, pose[:2]
+
+    def steer(self, pose: np.ndarray, heading_gain: float, dt: float,
+              clearance: Callable[[int, np.ndarray], float] | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """(N, 2) each robot's aim (``kernels.step``: the perceived centre, or its search's) and (N, 2) the body
+        action (forward, left; m/s) of the copies that search (the others' rows are unused); ``clearance(i,
+        pose)``: copy i's footprint's static clearance at a pose (for the sidestep)."""
+        aim, act = self.centre.copy(), np.zeros((len(self.known), 2))
+        for i in np.flatnonzero(~self.known).tolist():
+            free = None if clearance is None else (lambda q, i=i: clearance(i, q))
+            aim[i], act[i] = self.copies[i].search(pose[i], heading_gain, dt, free)
+        return aim, act
