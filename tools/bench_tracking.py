@@ -112,12 +112,9 @@ def main(argv: list[str] | None = None) -> int:
     if args.report_only:
         write_text(args.doc, markdown(json.loads((out / "bench.json").read_text())))
         return 0
-    video, gt_path = data / "vtest.avi", data / "PETS2009-S2L1.xml"
-    calib = data / "View_001_tsai_calibration.xml"
-    for f in (video, gt_path, calib):
-        if not f.is_file():
-            print(f"error: {f}: not found (the PETS data lives in ../shared/data/video)", file=sys.stderr)
-            return 2
+    video, gt_path, calib = pets_files(data)
+    if missing(video, gt_path, calib):
+        return 2
     cam = TsaiCamera.from_xml(calib)
     gt = load_ground_truth(gt_path)
     report: dict = {"command": command_line("tools/bench_tracking.py", argv),
@@ -184,6 +181,19 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
+def pets_files(data: Path) -> tuple[Path, Path, Path]:
+    """The PETS S2L1 video, ground truth and calibration in ``data``."""
+    return data / "vtest.avi", data / "PETS2009-S2L1.xml", data / "View_001_tsai_calibration.xml"
+
+
+def missing(*files: Path) -> bool:
+    """True (after one error line naming the first) when any of ``files`` is not there."""
+    gone = [f for f in files if not f.is_file()]
+    if gone:
+        print(f"error: {gone[0]}: not found (the PETS data lives in ../shared/data/video)", file=sys.stderr)
+    return bool(gone)
+
+
 def parse_size(text: str) -> tuple[int, int]:
     """``"WxH"`` -> (w, h); a ``UserError`` naming the option otherwise."""
     try:
@@ -210,11 +220,9 @@ def tune_detector(data: Path, out: Path, args: argparse.Namespace, argv: list[st
         init = init.with_value("ssd.input_size", parse_size(args.input_size))
     if args.rounds < 1:
         raise UserError(f"--rounds {args.rounds}: expected >= 1")
-    video, gt_path, calib = data / "vtest.avi", data / "PETS2009-S2L1.xml", data / "View_001_tsai_calibration.xml"
-    for f in (video, gt_path, calib):
-        if not f.is_file():
-            print(f"error: {f}: not found (the PETS data lives in ../shared/data/video)", file=sys.stderr)
-            return 2
+    video, gt_path, calib = pets_files(data)
+    if missing(video, gt_path, calib):
+        return 2
     cam = TsaiCamera.from_xml(calib)
     gt = load_ground_truth(gt_path)
     t_all = time.time()
@@ -302,11 +310,12 @@ def compare(data: Path, out: Path, doc: Path, argv: list[str] | None, variants: 
     ``variants``: more rows, ``LABEL=PARAMS.json`` (pipeline parameters as ``--tune`` writes them)."""
     import cv2
 
-    video, gt_path, calib = data / "vtest.avi", data / "PETS2009-S2L1.xml", data / "View_001_tsai_calibration.xml"
-    for f in (video, gt_path, calib, doc):
-        if not f.is_file():
-            print(f"error: {f}: not found", file=sys.stderr)
-            return 2
+    video, gt_path, calib = pets_files(data)
+    if missing(video, gt_path, calib):
+        return 2
+    if not doc.is_file():
+        print(f"error: {doc}: not found (the page the comparison table goes into)", file=sys.stderr)
+        return 2
     text = doc.read_text()
     if COMPARE_BEGIN not in text or COMPARE_END not in text:
         print(f"error: {doc}: lacks the markers {COMPARE_BEGIN} / {COMPARE_END} around the comparison section",
