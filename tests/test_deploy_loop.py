@@ -293,6 +293,10 @@ def test_a_success_is_claimed_only_when_every_member_was_seen_lately_else_it_loo
     assert loop._confirm(members, pos, np.array([0.0, 0.0, -1.0]), now=12.0, claim=False) == pytest.approx(
         [0.0, 0.0, -0.5])  # 2.0 * (-90 + 57 deg), capped
     loop._seen_at[3] = 12.1
+    # seen while the rule still holds: no claim yet, member 2 is not backed; the look moves on to it
+    assert loop._confirm(members, pos, np.zeros(3), now=12.2, claim=True) == pytest.approx([0.0, 0.0, 0.5])
+    assert loop._look == (2, 12.2)
+    loop._look = (3, 10.0)
     assert loop._confirm(members, pos, np.zeros(3), now=12.2, claim=False) is None  # seen: the policy turns back
     assert loop._look is None
     # back at the group 6 s later: member 3 still backs the claim (seen since the first try), member 2 does not

@@ -332,8 +332,9 @@ class DeployLoop:
 
     def _confirm(self, members: list[Any], pos: np.ndarray, pose: np.ndarray, now: float, claim: bool
                  ) -> np.ndarray | None:
-        """None when the claim (``claim``: the success rule holds on the estimate) can be backed or no look is under
-        way; else the command that turns in place (at most ``search_turn`` rad/s) toward the member looked at.
+        """None when the claim (``claim``: the success rule has held on the estimate for ``CLAIM_HOLD_S``) can be
+        backed, or when no claim is tried and no look is under way; else the command that turns in place (at most
+        ``search_turn`` rad/s) toward the member looked at.
 
         A member backs the claim when detected at or after ``confirm_s`` before the claim was first tried at this
         place (``_claim_from``, reset by ``tick`` when the robot leaves the place). A look at the one detected
@@ -349,7 +350,8 @@ class DeployLoop:
         if self._look is not None and (now - self._look[1] > LOOK_S
                                        or all(members[k].id != self._look[0] for k in stale)):
             self._look = None  # seen (or given up on): the policy turns back; the next try looks at the next one
-            return None
+            if not claim:
+                return None
         if not stale:
             return None
         if self._look is None:
