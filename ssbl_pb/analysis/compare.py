@@ -68,8 +68,8 @@ def compare_rows(learned: list[dict[str, float]], baseline: list[dict[str, float
         shift = test["mean_diff"] if test["test"] == "mcnemar" else test["effect"]
         better = None
         directed = key in LOWER_IS_BETTER or key in HIGHER_IS_BETTER
-        agree = math.isfinite(shift) and shift != 0 and (test["mean_diff"] < 0) == (shift < 0) \
-            and test["mean_diff"] != 0
+        md = test["mean_diff"]
+        agree = math.isfinite(shift) and math.isfinite(md) and shift * md > 0  # the test's side and the means' side
         if directed and test["p"] < alpha and agree:
             better = "learned" if (shift < 0) == (key in LOWER_IS_BETTER) else "baseline"
         out[key] = {"learned": ma, "baseline": mb, "test": test, "better": better}
