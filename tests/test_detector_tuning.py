@@ -152,7 +152,7 @@ def test_bench_deploy_hands_its_detector_to_deploy(monkeypatch, tmp_path):
     monkeypatch.setattr(bench, "virtual_pepper", pepper)
     monkeypatch.setattr(bench, "start_deploy", deploy)
     with pytest.raises(RuntimeError, match="stop here"):
-        bench.run_approach(tmp_path / "run", 0, detector="ssd")
+        bench.run_approach(tmp_path / "run", 0, detector="ssd", room_map=False)
     assert seen and list(seen[0][seen[0].index("--detector"):][:2]) == ["--detector", "ssd"]
     spec = importlib.util.spec_from_file_location("_bench_deploy", ROOT / "tools" / "bench_deploy.py")
     tool = importlib.util.module_from_spec(spec)

@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from ssbl_pb.deploy.frames import Frames, transform_points
+from ssbl_pb.deploy.frames import transform_points
 from ssbl_pb.deploy.perception_errors import (
     ErrorParams,
     analyse,
@@ -204,10 +204,12 @@ def test_observations_rebuilt_from_the_log_are_the_ones_the_policy_saw(tmp_path)
     policy = Recording()
     res = lockstep_approach(tmp_path, 11, policy, "default", duration=6.0)
     assert res["outcome"] == "duration" and policy.seen
+    from ssbl_pb.deploy.perception_errors import deploy_frames
+
     rows = [r for r in read_log(tmp_path / "deploy") if r.get("centre") is not None]
     assert len(rows) == len(policy.seen)
-    fr = Frames()
-    fr.room_from_odom = np.zeros(3)
+    fr = deploy_frames(tmp_path / "deploy", read_log(tmp_path / "deploy"))  # the room's map, as deploy had it
+    assert fr.room is not None and fr.walls(fr.room_pose(np.zeros(3))).min() < 4.0  # a wall nearer than none
     for row, obs in zip(rows, policy.seen, strict=True):
         xy = np.array([[h["x"], h["y"]] for h in row["humans"]])
         vel = np.array([[h["vx"], h["vy"]] for h in row["humans"]])

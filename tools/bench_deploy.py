@@ -56,6 +56,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--soak", type=float_in(0.0, 86400.0), default=600.0, help="soak seconds (0: none)")
     ap.add_argument("--detector", choices=("auto", *DETECTORS), default="auto",
                     help="deploy's --detector (default auto: colour on the virtual Pepper)")
+    ap.add_argument("--no-map", action="store_true", help="run deploy without the room's map (default: with it, "
+                    "--map and --start-pose as a user who mapped the room; without it the policy cannot see walls)")
     ap.add_argument("--lockstep", action="store_true", help="approaches in this process on a simulated clock "
                     "(deterministic, no qi)")
     ap.add_argument("--out", type=Path, default=ROOT / "results" / "bench_deploy",
@@ -91,12 +93,13 @@ def main(argv: list[str] | None = None) -> int:
     logs.mkdir(parents=True, exist_ok=True)
     (logs / MARKER).write_text("runs of tools/bench_deploy.py; a rerun replaces them\n")
     res = {"environment": bench.environment(), "scenario": args.scenario, "policy": args.policy, "groups": args.groups,
-           "lockstep": args.lockstep, "detector": args.detector, "approaches": [], "faults": []}
+           "lockstep": args.lockstep, "detector": args.detector, "map": not args.no_map, "approaches": [], "faults": []}
     approach = bench.lockstep_approach if args.lockstep else bench.run_approach
     with progress_bar(args.runs, "approaches", "run") as bar:
         for i in range(args.runs):
             res["approaches"].append(approach(logs / f"run{i:02d}", args.seed + i, args.policy, args.scenario,
-                                              groups=args.groups, detector=args.detector))
+                                              groups=args.groups, detector=args.detector,
+                                              room_map=not args.no_map))
             bar(1)
     if args.runs:
         per_run, pooled = bench.perception_report([logs / f"run{i:02d}" for i in range(args.runs)], args.policy, figure)

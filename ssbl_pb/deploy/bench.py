@@ -123,16 +123,28 @@ def truth_score(vp_log: Path, deploy_dir: Path, task: TaskParams | None = None) 
             "true_min_clearance_m": clearance, "collision": any(s["collision"] for s in during)}
 
 
+def _map_flags(proc: subprocess.Popen, timeout: float = 60.0) -> tuple[str, ...]:
+    """Deploy's ``--map ... --start-pose ...`` from a virtual Pepper started with ``--write-map``."""
+    while True:
+        line = _first_line(proc, timeout)
+        if line.startswith("map:"):
+            return tuple(line.split()[1:])
+
+
 def run_approach(folder: Path, seed: int, policy: str = "vector", scenario: str = "default",
-                 duration: float = 60.0, groups: str | None = None, detector: str = "auto") -> dict[str, Any]:
+                 duration: float = 60.0, groups: str | None = None, detector: str = "auto",
+                 room_map: bool = True) -> dict[str, Any]:
     """One approach against a fresh virtual Pepper: the deploy summary plus the ground-truth score. ``groups``:
-    the group model of both (default: each one's own, the policy's); ``detector``: deploy's ``--detector``."""
+    the group model of both (default: each one's own, the policy's); ``detector``: deploy's ``--detector``;
+    ``room_map``: deploy gets the room's map (``--map``, ``--start-pose``), as a user who mapped the room runs it."""
     folder.mkdir(parents=True, exist_ok=True)
     vp_log = folder / "virtual_pepper.jsonl"
     flag = () if groups is None else ("--groups", groups)
-    with virtual_pepper(vp_log, seed, scenario, *flag) as (_, url):
+    written = ("--write-map", str(folder / "map")) if room_map else ()
+    with virtual_pepper(vp_log, seed, scenario, *flag, *written) as (vp, url):
+        on_map = _map_flags(vp) if room_map else ()
         proc = start_deploy(url, folder / "deploy", policy, "--duration", str(duration), "--detector", detector,
-                            *flag)
+                            *flag, *on_map)
         _, err = proc.communicate(timeout=duration + 120)
     summary = json.loads((folder / "deploy" / SUMMARY).read_text())
     return {"seed": seed, "exit_code": proc.returncode, **summary, **truth_score(vp_log, folder / "deploy"),
@@ -141,23 +153,23 @@ def run_approach(folder: Path, seed: int, policy: str = "vector", scenario: str 
 
 def lockstep_approach(folder: Path, seed: int, policy: Any = "vector", scenario: str = "default",
                       duration: float = 60.0, groups: str | None = None, fps: float = 15.0,
-                      detector: str = "auto") -> dict[str, Any]:
+                      detector: str = "auto", room_map: bool = True) -> dict[str, Any]:
     """One approach in this process, deterministic (no qi): deploy's loop on a ``SimRobot`` in lockstep
     (``SimClock``, the camera at ``fps``, perception inline), writing the two logs ``run_approach`` leaves
     (``folder/deploy/log.jsonl``, ``folder/virtual_pepper.jsonl``); ``wall`` in both is the simulated time, and
     each tick's ground truth is logged at its tick's time. ``policy``: a spec as deploy's ``--policy`` or a
-    policy object (``predict``). Returns the outcome and the ground-truth score."""
+    policy object (``predict``); ``room_map`` as ``run_approach``. Returns the outcome and the ground-truth score."""
     from ..agents.trained import policy_env_kwargs
     from ..env.formulas.task import TaskParams
     from ..params import RobotParams, SocialParams
     from .__main__ import _policy
-    from .frames import Frames
+    from .frames import Frames, load_room
     from .group import policy_groups
-    from .log import RunLog, write_summary
+    from .log import RunLog, write_run, write_summary
     from .loop import DeployLoop, DeployParams, Setup
     from .perceive import Perception
     from .sim_robot import SimClock, SimRobot
-    from .virtual_robot import state_row
+    from .virtual_robot import state_row, write_room_map
 
     spec = isinstance(policy, str)
     groups = groups or (policy_groups(policy) if spec else "calibrated")
@@ -170,6 +182,10 @@ def lockstep_approach(folder: Path, seed: int, policy: Any = "vector", scenario:
     vp_log = folder / "virtual_pepper.jsonl"
     robot = SimRobot(scenario, seed, groups=groups)
     clock = SimClock(robot, fps)
+    frames = Frames()
+    if room_map:
+        room_yaml, start = write_room_map(folder / "map", robot)
+        frames = Frames(load_room(room_yaml), start)
     with open(vp_log, "w") as fh:
         fh.write(json.dumps({"kind": "start", "wall": robot.t, "start_pose": robot.start_pose.tolist(),
                              **robot.info}) + "\n")
@@ -183,7 +199,7 @@ def lockstep_approach(folder: Path, seed: int, policy: Any = "vector", scenario:
         log = Log(folder / "deploy")
         perception = Perception(robot, clock.now, "colour" if detector == "auto" else detector, robot_params,
                                 social=social, threaded=False)
-        loop = DeployLoop(Setup(robot, pol, perception, Frames(), robot_params, social, task, groups,
+        loop = DeployLoop(Setup(robot, pol, perception, frames, robot_params, social, task, groups,
                                 bool(seen.get("waypoints", False)), bool(seen.get("waypoints_near_group", False))),
                           params, log, now=clock.now, sleep=clock.sleep)
         try:
@@ -193,6 +209,8 @@ def lockstep_approach(folder: Path, seed: int, policy: Any = "vector", scenario:
             robot.close()
     summary = log.summary(outcome, loop.exit_code, message, {})
     write_summary(folder / "deploy", summary)
+    write_run(folder / "deploy", {"policy": policy if spec else type(policy).__name__, "groups": groups,
+                                  "lockstep": True, **frames.info()})
     return {"seed": seed, **summary, **truth_score(vp_log, folder / "deploy", task)}
 
 
