@@ -2,8 +2,9 @@
 centre, the o-space radius and the free slot, all in the odometry frame.
 
 Pepper's camera sees 56 deg: at the free slot the members stand 60-90 deg to either side, so tracks of people
-who leave the view are kept as *remembered* members (moved by the group's model) until their place comes back
-into view, unoccluded and within detection range, and nobody is found there for ``forget_frames`` frames.
+who leave the view are kept as *remembered* members, standing where last estimated (``GroupTracker.hold``), until
+their place comes back into view, unoccluded and within detection range, and nobody is found there for
+``forget_frames`` frames.
 The group's geometry is the simulator's (``env.formulas.humans.measured_group``: the centre, the o-space radius, the
 joining weight and the free slot come from the same functions the env steps), spawned where the members stood
 before the robot came to join (their *rest* positions) and then moved to where they stand now, as in the env.
@@ -41,8 +42,6 @@ class GroupParams:
     #   (urdf/human.urdf) plus 0.07 m for the estimate's error. Hides what lies behind it, and a person is
     #   expected to be detected only when both sides project inside the image (``perceive`` drops boxes cut by
     #   the image's side: close to the group, a member 20 deg off the axis is cut and goes undetected)
-    coast_tau_s: float = 1.0  # before a group is known, a remembered member's last velocity decays with this
-    #                           time constant (once it is known, the social force model moves them)
     facing_turn_std: float = 0.3  # rad/s: how fast a conversing person's facing may change (the facing filter's
     #   process noise; people in a group turn their body slowly, their head faster: ours)
 
@@ -256,7 +255,6 @@ class GroupTracker:
         self.social = social or SocialParams()
         self.model = model or default_model(self.social)
         self.members: dict[int, Member] = {}
-        self.centre0: np.ndarray | None = None  # the group's centre before joining (the loop's ``GroupModel``)
         self.alias: dict[int, int] = {}  # tracker id -> member id, for tracks that took over a member
         self._known: set[int] = set()  # tracker ids reported before
 
@@ -280,26 +278,16 @@ class GroupTracker:
             ok &= ~hidden
         return ok
 
-    def predict(self, seen: list[Member], gone: list[Member], robot_xy: np.ndarray, dt: float) -> None:
-        """Move the members out of view by ``dt``: by the social force model around the group (as tracking with
-        social-force motion priors does, Luber et al., ICRA 2010), the group spawned at the members' rest
-        positions as in the env (so the rings they keep do not follow them), or, before a group is known, with
-        their last velocity decaying over ``coast_tau_s``."""
-        if not gone:
-            return
-        if self.centre0 is None or not 2 <= len(seen) + len(gone) <= MAX_HUMANS:  # no group model: coast
-            decay = math.exp(-dt / self.p.coast_tau_s)
-            for m in gone:
-                m.pos = m.pos + m.vel * (self.p.coast_tau_s * (1.0 - decay))  # exact for v(t) = v0 exp(-t / tau)
-                m.vel = m.vel * decay
-            return
-        everyone = seen + gone
-        group = self.model.group(np.array([m.pos for m in everyone]), self.centre0,
-                                 np.array([m.pos if m.rest is None else m.rest for m in everyone]))
-        group.vel[:] = np.array([m.vel for m in everyone])
-        group.step(np.asarray(robot_xy, dtype=float), dt)
-        for m, q, v in zip(gone, group.pos[len(seen):], group.vel[len(seen):], strict=True):
-            m.pos, m.vel = q, v
+    @staticmethod
+    def hold(gone: list[Member]) -> None:
+        """Members out of view stay where they were last estimated, standing. Measured against the virtual
+        Pepper's ground truth (20 `mixed` lockstep runs, 4,618 member-ticks out of view): median error 0.13 m, p90
+        0.30 m; moved by the social force model around the group (Luber et al., ICRA 2010, spawned at their rest
+        positions as in the env) 0.21 / 0.50 m; coasting on their last velocity 0.23 / 0.44 m. Conversing people
+        barely move, and a model fed estimated rests and velocities drifts: on five-member groups that drift
+        turned the widest gap, and the free slot with it."""
+        for m in gone:
+            m.vel = np.zeros(2)
 
     def _take_over(self, states: list[Any], rot: np.ndarray, t: np.ndarray) -> list[Any]:
         """A track reported for the first time, detected now, within ``same_person_m`` of a member not detected
@@ -383,7 +371,7 @@ class GroupTracker:
         gone = [m for k, m in self.members.items() if k not in seen]
         for m in gone:
             m.seen = False
-        self.predict(list(seen.values()), gone, pose[:2], dt)
+        self.hold(gone)
         if gone:
             local = (np.array([m.pos for m in gone]) - t) @ rot  # odometry -> robot frame
             # anyone known may hide a remembered member: a person cut by the image's side is not detected (perceive

@@ -155,7 +155,7 @@ class DeployLoop:
         self.group = GroupModel(setup.social, slot_keep(setup.social, setup.robot_params.reach,
                                                         setup.task.intimate_zone, setup.task.route_margin),
                                 paper=setup.groups == "paper")
-        setup.perception.group_model = self.group  # people out of view move by the same model
+        setup.perception.group_model = self.group  # the tracker records rests by its joining weight
         self._last_status, self._ticks_since = -math.inf, 0
 
     # -- one tick --------------------------------------------------------------------------------------------

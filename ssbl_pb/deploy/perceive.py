@@ -191,7 +191,7 @@ class Perception:
         self.tracker_params = tracker
         self.social = social or SocialParams()
         self.centre0: np.ndarray | None = None  # set by the loop: the group's centre before joining (odometry)
-        self.group_model: Any = None  # set by the loop: its ``group.GroupModel`` (moves people out of view)
+        self.group_model: Any = None  # set by the loop: its ``group.GroupModel`` (its joining weight marks rests)
         self.odometry: collections.deque = collections.deque(maxlen=200)  # (local time, pose), from the loop
         self.offset = math.inf
         self.newest: Frame | None = None
@@ -232,7 +232,6 @@ class Perception:
             cam = self.calibrated.scaled(w, h) if self.calibrated is not None else sim_camera(self.robot_params, w, h)
             params = self.tracker_params or TRACKER
             self._group = GroupTracker(cam, params, social=self.social, model=self.group_model)
-        self._group.centre0 = self.centre0
         boxes = self.detect(frame.image)
         # each person's facing, where the detector tells it (the virtual Pepper's colour detector), from every box:
         # a person cut by the image's side still hides part of whoever stands behind them

@@ -211,7 +211,6 @@ class CopyPerception:
         """A new episode: nothing known (the generator goes on)."""
         self.tracker.tracker.reset()
         self.tracker.members.clear()
-        self.tracker.centre0 = None
         self.model.reset()
         self.approaching, self.search_side, self.members, self.group = False, 0.0, [], None
         self.turned, self.last_yaw, self.sidestep_left, self.sidesteps = 0.0, None, 0, 0
@@ -234,7 +233,6 @@ class CopyPerception:
         self.members = self.tracker.update(seen, dt, np.asarray(pose, dtype=float), facing, std)
         if len(self.members) < 2:
             self.approaching, self.group = False, None
-            self.tracker.centre0 = None
             return
         if not self.approaching:
             self.model.reset()
@@ -243,7 +241,6 @@ class CopyPerception:
 
         pos, rest, facing, facing_std = member_arrays(self.members)
         self.group = self.model.update(pos, np.asarray(pose[:2], dtype=float), rest, facing, facing_std)
-        self.tracker.centre0 = self.model.centre
 
     def search(self, pose: np.ndarray, heading_gain: float, dt: float,
                clearance: Callable[[np.ndarray], float] | None = None) -> tuple[np.ndarray, np.ndarray]:
