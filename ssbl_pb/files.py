@@ -17,6 +17,8 @@ from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
+import yaml
+
 from .errors import UserError
 
 
@@ -174,3 +176,21 @@ def output_dir(path: str | Path, flag: str = "--out") -> Iterator[Path]:
         for d in created:  # deepest first
             shutil.rmtree(d, ignore_errors=True)
         raise
+
+
+class _Dumper(yaml.SafeDumper):
+    """Block mappings, flow lists (as ROS camera_info files are written)."""
+
+
+def _list_flow(dumper: yaml.SafeDumper, data: list) -> yaml.Node:
+    return dumper.represent_sequence("tag:yaml.org,2002:seq", data, flow_style=True)
+
+
+_Dumper.add_representer(list, _list_flow)
+
+
+def write_yaml(path: str | Path, data: dict[str, Any], header: str = "") -> Path:
+    """Write a mapping as block-style YAML (lists inline) atomically, with an optional ``#`` comment header."""
+    body = yaml.dump(data, Dumper=_Dumper, sort_keys=False, default_flow_style=False, width=100)
+    head = "".join(f"# {line}\n" for line in header.splitlines()) if header else ""
+    return write_text(path, head + body)

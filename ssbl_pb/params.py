@@ -22,6 +22,10 @@ class ConfigError(UserError):
     """A configuration value or file is invalid; the message names the field and what was expected."""
 
 
+class CalibrationError(ConfigError):
+    """Bad calibration input (a file, a field, too few usable samples); the message names the file."""
+
+
 def _check(cond: bool, owner: str, field: str, value: Any, expected: str) -> None:
     if not cond:
         raise ConfigError(f"{owner}.{field} = {plain(value)!r}: expected {expected}")

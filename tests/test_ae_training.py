@@ -1,4 +1,4 @@
-"""Frames files, autoencoder training and checkpoints (perception/autoencoding/frames.py, ae_train.py,
+"""Frames files, autoencoder training and checkpoints (analysis/frames.py, ae_train.py,
 tools/train_ae.py)."""
 
 from __future__ import annotations
@@ -9,6 +9,13 @@ import numpy as np
 import pytest
 import torch
 
+from ssbl_pb.analysis.frames import (
+    FramesError,
+    collect,
+    frames_hfov,
+    load_frames,
+    save_frames,
+)
 from ssbl_pb.errors import UserError
 from ssbl_pb.perception.autoencoding import autoencoders as A
 from ssbl_pb.perception.autoencoding.ae_losses import LossWeights, triplet_centres
@@ -19,13 +26,6 @@ from ssbl_pb.perception.autoencoding.ae_train import (
     save_checkpoint,
     split_centres,
     train_autoencoder,
-)
-from ssbl_pb.perception.autoencoding.frames import (
-    FramesError,
-    collect,
-    frames_hfov,
-    load_frames,
-    save_frames,
 )
 
 TINY = A.AESize("tiny", 24, (4, 6, 5), (3, 3, 3), 2, 12, (4, 4), 8, 6)
@@ -315,7 +315,7 @@ def test_ctrl_c_keeps_the_snapshots_and_prints_the_resume_command(tmp_path: Path
 
 
 def test_load_frames_refuses_a_truncated_archive_for_every_caller(tmp_path: Path) -> None:
-    from ssbl_pb.perception.autoencoding.frames import FramesError, load_frames
+    from ssbl_pb.analysis.frames import FramesError, load_frames
 
     whole = save_frames(tmp_path / "f.npz", moving_square(10, 5, size=64)).read_bytes()
     (tmp_path / "tail.npz").write_bytes(whole[:-40])  # bench_camera and Table I read frames this way too

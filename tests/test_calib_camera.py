@@ -6,9 +6,8 @@ import numpy as np
 import pybullet as p
 import pytest
 
-from ssbl_pb.calib.io import CalibrationError
 from ssbl_pb.env.view import cameras
-from ssbl_pb.params import RobotParams
+from ssbl_pb.params import CalibrationError, RobotParams
 from ssbl_pb.perception.camera import PinholeCamera, sim_projection_from_yaml
 
 DIST = np.array([-0.28, 0.09, 0.0012, -0.0008, 0.0])

@@ -9,8 +9,7 @@ import pytest
 
 from ssbl_pb.calib.dynamics import identify, simulate_axis
 from ssbl_pb.calib.dynamics_log import excitation_plan, read_log, simulate_log, write_log
-from ssbl_pb.calib.io import CalibrationError
-from ssbl_pb.params import RobotParams, from_dict
+from ssbl_pb.params import CalibrationError, RobotParams, from_dict
 
 ROOT = Path(__file__).resolve().parents[1]
 FIELDS = ("latency_s", "time_constant_s", "max_accel", "max_speed", "max_yaw_rate", "max_yaw_accel")

@@ -8,8 +8,7 @@ import numpy as np
 import pytest
 
 from ssbl_pb.calib.humans import fit_social, load_scene, real_stats, scene_stats, sim_stats
-from ssbl_pb.calib.io import CalibrationError
-from ssbl_pb.params import SocialParams, from_dict, load_yaml
+from ssbl_pb.params import CalibrationError, SocialParams, from_dict, load_yaml
 
 ROOT = Path(__file__).resolve().parents[1]
 

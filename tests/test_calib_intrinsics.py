@@ -11,7 +11,7 @@ import pytest
 
 from ssbl_pb.calib.extrinsics import pose_from_image
 from ssbl_pb.calib.intrinsics import _fit, board_points, calibrate, leave_k_out, parse_board
-from ssbl_pb.calib.io import CalibrationError
+from ssbl_pb.params import CalibrationError
 from ssbl_pb.perception.camera import PinholeCamera
 
 BOARD, SQUARE = (9, 6), 0.025

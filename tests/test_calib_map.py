@@ -8,9 +8,8 @@ import cv2
 import numpy as np
 import pytest
 
-from ssbl_pb.calib.io import CalibrationError
 from ssbl_pb.calib.room_map import extract_room, read_map, room_to_map, room_yaml
-from ssbl_pb.params import load_yaml
+from ssbl_pb.params import CalibrationError, load_yaml
 
 ROOT = Path(__file__).resolve().parents[1]
 

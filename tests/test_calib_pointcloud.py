@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from ssbl_pb.calib.io import CalibrationError
 from ssbl_pb.calib.pointcloud import analyse, load_points, parse_up, synthetic_room
+from ssbl_pb.params import CalibrationError
 
 
 def test_synthetic_scan_recovers_height_tilt_and_width():

@@ -8,11 +8,12 @@ import math
 import numpy as np
 import pytest
 
-from ssbl_pb.deploy.group import GroupModel, GroupTracker, group_circle, policy_groups
+from ssbl_pb.agents.trained import policy_groups
 from ssbl_pb.env.formulas.humans import Group
 from ssbl_pb.env.formulas.layouts import free_layout, paper_layout, slot_keep
 from ssbl_pb.env.formulas.task import TaskParams
 from ssbl_pb.params import RobotParams, SocialParams
+from ssbl_pb.perception.tracking.group import GroupModel, GroupTracker, group_circle
 from ssbl_pb.perception.tracking.sim_eval import sim_camera
 from ssbl_pb.perception.tracking.tracker import TrackerParams
 

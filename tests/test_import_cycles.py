@@ -107,3 +107,25 @@ def test_the_env_sub_packages_are_layered():
                 packages[sub(m)].add(sub(t))
     assert cycles(packages) == [], packages
     assert "gymenv" not in set().union(*packages.values())
+
+
+def package_of(module: str, edges: dict[str, set[str]]) -> str:
+    """The package (folder) a module lies in: itself for a package's ``__init__``."""
+    return module if any(t.startswith(module + ".") for t in edges) else module.rpartition(".")[0]
+
+
+def test_the_packages_have_no_import_cycle():
+    """Each package (folder) as one node: no cycle between them. env/ and perception/ interleave by layer (docs/
+    decisions.md, "Package layers"): env.formulas and env.view sit below perception, whose group estimate the
+    engine's observation model runs (env.engine) and whose autoencoders the encoded env wraps (env.gymenv)."""
+    edges = import_graph(PACKAGE)
+    packages: dict[str, set[str]] = {}
+    for m, targets in edges.items():
+        a = package_of(m, edges)
+        packages.setdefault(a, set()).update(b for b in (package_of(t, edges) for t in targets) if b != a)
+        for t in targets:
+            packages.setdefault(package_of(t, edges), set())
+    assert {"ssbl_pb.perception.tracking", "ssbl_pb.deploy", "ssbl_pb.calib"} <= set(packages)
+    assert "ssbl_pb.perception.tracking" in packages["ssbl_pb.env.engine"]  # the observation model
+    found = cycles(packages)
+    assert found == [], "package cycles: " + "; ".join(" <-> ".join(c) for c in found)

@@ -81,7 +81,7 @@ def test_mlp_probe_reads_depth_from_a_torso_row_where_a_linear_map_cannot() -> N
 
 
 def test_keypoint_precision_feet_tolerate_noise_that_torso_rows_do_not() -> None:
-    from ssbl_pb.perception.autoencoding.camera_bench import keypoint_precision
+    from ssbl_pb.analysis.camera_bench import keypoint_precision
 
     rng = np.random.default_rng(1)
     n = 1200

@@ -114,7 +114,7 @@ def test_the_share_of_a_torso_hidden_behind_nearer_people_by_hand():
 
 
 def test_the_search_steps_sideways_after_a_full_turn_with_one_person_known():
-    from ssbl_pb.deploy.group import Member
+    from ssbl_pb.perception.tracking.group import Member
 
     cp = _copy()
     cp.members = [Member(1, np.array([2.0, 1.0]), np.zeros(2), np.eye(2))]  # to the left: turn left first
@@ -146,7 +146,7 @@ def test_facing_is_measured_from_the_front_finely_and_from_behind_coarsely():
 
 
 def test_facing_rays_that_cross_fix_the_centre_and_facing_each_other_do_not():
-    from ssbl_pb.deploy.group import facing_centre
+    from ssbl_pb.perception.tracking.group import facing_centre
 
     c = np.array([1.0, 2.0])
     members = c + np.array([[0.8, 0.0], [0.0, 0.8], [-0.8, 0.0]])
@@ -192,7 +192,7 @@ def test_searching_adds_its_time_to_the_episode_up_to_one_episode_more():
 
 
 def test_the_sidestep_goes_to_the_side_with_room_or_not_at_all():
-    from ssbl_pb.deploy.group import Member
+    from ssbl_pb.perception.tracking.group import Member
 
     def full_turn(cp, clearance):
         yaw, act = 0.0, np.zeros(2)
@@ -230,7 +230,8 @@ def test_a_turn_that_would_swing_a_corner_into_the_wall_is_held():
 
 
 def test_a_torso_cut_by_the_image_side_is_completed_beyond_it():
-    from ssbl_pb.deploy.perceive import MIN_VISIBLE, TORSO_HALF, TORSO_HEIGHT, complete_cut_torsos
+    from ssbl_pb.deploy.perceive import complete_cut_torsos
+    from ssbl_pb.perception.tracking.group import MIN_VISIBLE, TORSO_HALF, TORSO_HEIGHT
 
     full = 60.0 * (4.0 * sum(TORSO_HALF) / math.pi) / TORSO_HEIGHT  # a 60 px tall torso is ~45.8 px wide
     boxes = np.array([[100.0, 80, 40, 60, 1], [0.0, 80, 30, 60, 1], [300.0, 80, 20, 60, 1], [0.0, 80, 10, 60, 1]])
@@ -255,7 +256,7 @@ def test_the_share_of_a_torso_inside_the_image_by_hand():
 
 
 def _one_known(cp):
-    from ssbl_pb.deploy.group import Member
+    from ssbl_pb.perception.tracking.group import Member
 
     cp.members = [Member(1, np.array([2.0, 1.0]), np.zeros(2), np.eye(2))]  # to the left: it would step left
 

@@ -62,7 +62,7 @@ def main(argv: list[str] | None = None) -> int:
     check_output_path(args.out, "--out", is_dir=False)
     frames = None
     if args.frames is not None and {"probe", "precision", "jitter", "tracking"} & set(parts):
-        from ssbl_pb.perception.autoencoding.frames import load_frames
+        from ssbl_pb.analysis.frames import load_frames
 
         frames = load_frames(args.frames, 64)
 
@@ -70,7 +70,7 @@ def main(argv: list[str] | None = None) -> int:
 
     import torch
 
-    from ssbl_pb.perception.autoencoding import camera_bench as cb
+    from ssbl_pb.analysis import camera_bench as cb
 
     torch.set_num_threads(args.threads)
     res: dict = {"threads": args.threads, "load_average_at_start": [round(v, 2) for v in os.getloadavg()]}

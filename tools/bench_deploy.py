@@ -74,7 +74,7 @@ def main(argv: list[str] | None = None) -> int:
     ScenarioMix(args.scenario)  # a bad name fails here, before any folder exists
     check_policy_spec(args.policy)
     if args.groups is None:
-        from ssbl_pb.deploy.group import policy_groups
+        from ssbl_pb.agents.trained import policy_groups
 
         args.groups = policy_groups(args.policy)
     check_output_path(args.out.with_suffix(".json"), is_dir=False)

@@ -13,8 +13,9 @@ from pathlib import Path
 
 from ssbl_pb.calib import reports
 from ssbl_pb.calib.humans import SCENES, fit_social, real_stats, sim_stats
-from ssbl_pb.calib.io import check_outputs, write_yaml
+from ssbl_pb.calib.io import check_outputs
 from ssbl_pb.cli import ArgumentParser, UserError, command_line, int_at_least, run
+from ssbl_pb.files import write_yaml
 from ssbl_pb.params import SocialParams, from_dict
 
 DEFAULT_DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "trajectories" / "eth_ucy_raw"

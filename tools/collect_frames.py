@@ -4,7 +4,7 @@
 Each episode is driven by one policy of a mix (default random, sffm, straight, vector, in turn) so the frames
 cover the task from far away to standing in the group. Every frame comes with the robot's speed and, for
 evaluation only, each member's position relative to the robot and its pixel when visible (layout:
-ssbl_pb/perception/autoencoding/frames.py).
+ssbl_pb/analysis/frames.py).
 
 Examples:
     python tools/collect_frames.py --episodes 120 --out results/frames/frames.npz
@@ -34,9 +34,9 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
 
     from ssbl_pb.analysis.evaluation import check_policy_spec
+    from ssbl_pb.analysis.frames import check_hfov, collect, save_frames
     from ssbl_pb.errors import UserError
     from ssbl_pb.files import check_output_path
-    from ssbl_pb.perception.autoencoding.frames import check_hfov, collect, save_frames
 
     if args.out.suffix != ".npz":
         raise UserError(f"--out {args.out}: expected a .npz file name")

@@ -11,9 +11,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ssbl_pb.calib.io import check_outputs, write_text, write_yaml
+from ssbl_pb.calib.io import check_outputs
 from ssbl_pb.calib.pointcloud import analyse, load_points, parse_up, scan_figure, scan_yaml
 from ssbl_pb.cli import ArgumentParser, command_line, run
+from ssbl_pb.files import write_text, write_yaml
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -15,8 +15,9 @@ from pathlib import Path
 from ssbl_pb.calib import reports
 from ssbl_pb.calib.dynamics import identify
 from ssbl_pb.calib.dynamics_log import excitation_plan, read_log, simulate_log, write_log
-from ssbl_pb.calib.io import check_outputs, write_yaml
+from ssbl_pb.calib.io import check_outputs
 from ssbl_pb.cli import ArgumentParser, command_line, run
+from ssbl_pb.files import write_yaml
 from ssbl_pb.params import RobotParams, from_dict, load_yaml
 
 

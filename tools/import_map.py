@@ -15,9 +15,10 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from ssbl_pb.calib.io import check_outputs, write_yaml
+from ssbl_pb.calib.io import check_outputs
 from ssbl_pb.calib.room_map import extract_room, read_map, room_figure, room_yaml
 from ssbl_pb.cli import ArgumentParser, UserError, run
+from ssbl_pb.files import write_yaml
 
 
 def main(argv: list[str] | None = None) -> int:

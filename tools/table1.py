@@ -51,10 +51,10 @@ def main(argv: list[str] | None = None) -> int:
     add_run_options(ap)
     args = ap.parse_args(argv)
 
+    from ssbl_pb.analysis.frames import check_hfov
     from ssbl_pb.analysis.table1 import check_given_encoders, find_row, get_budget
     from ssbl_pb.env.gymenv.encoded import check_feature_smoothing
     from ssbl_pb.errors import UserError
-    from ssbl_pb.perception.autoencoding.frames import check_hfov
     from ssbl_pb.sweep.cli import TrialsRoot
 
     budget = get_budget(args.budget)

@@ -51,11 +51,11 @@ def main(argv: list[str] | None = None) -> int:
                          "is that of an uninterrupted run")
     args = ap.parse_args(argv)
 
+    from ssbl_pb.analysis.frames import FramesError, load_frames
     from ssbl_pb.errors import UserError
     from ssbl_pb.perception.autoencoding.ae_losses import LossWeights
     from ssbl_pb.perception.autoencoding.ae_train import AETrainParams, resume_state, split_centres
     from ssbl_pb.perception.autoencoding.autoencoders import build, get_size
-    from ssbl_pb.perception.autoencoding.frames import FramesError, load_frames
 
     model_size = build(args.arch, args.size).size.name  # unknown arch / size: exit 2 before reading anything
     params = AETrainParams(steps=args.steps, batch=args.batch, lr=args.lr, seed=args.seed,
@@ -81,9 +81,9 @@ def main(argv: list[str] | None = None) -> int:
 
     import torch
 
+    from ssbl_pb.analysis.ae_report import write_report
     from ssbl_pb.cli import make_bar
     from ssbl_pb.files import check_output_path, output_dir
-    from ssbl_pb.perception.autoencoding.ae_report import write_report
     from ssbl_pb.perception.autoencoding.ae_train import save_checkpoint, train_autoencoder
 
     torch.set_num_threads(max(1, args.threads))

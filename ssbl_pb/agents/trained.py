@@ -279,3 +279,16 @@ def load_trained(spec: str, observation_space: gym.Space | None = None, shield: 
         shield_params = ShieldParams.from_env(RobotParams(), SocialParams(), TaskParams(), shield_at_place(spec))
     return TrainedPolicy(model, normalizer, recurrent, float(config.get("action_smoothing", 1.0)), shield,
                          shield_params)
+
+
+def policy_groups(spec: str) -> str:
+    """The group model (``env.formulas.layouts.GROUP_MODELS``) the policy ``spec`` was trained on: its run config's
+    ``env.groups``; a baseline, or a config without one, the env's default."""
+    from ..env.formulas.layouts import GroupModel as EnvGroups
+    from .policies import BASELINES
+
+    if spec in BASELINES:
+        return EnvGroups().name
+    env = resolve_model(spec)[2].get("env") or {}
+    groups = env.get("groups") if isinstance(env, dict) else None
+    return EnvGroups(str(groups)).name if groups else EnvGroups().name

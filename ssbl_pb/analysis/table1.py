@@ -169,10 +169,10 @@ def prepare_encoders(budget: Budget, out: Path, archs: set[str], given: dict[str
     Pepper's), reusing what an earlier run of the table left there. An encoder that learned through another
     camera than ``camera_hfov_deg`` (when given) is refused."""
     from ..env.gymenv.encoded import encoder_hfov
-    from ..perception.autoencoding.ae_report import write_report
     from ..perception.autoencoding.ae_train import AETrainParams, train_autoencoder
     from ..perception.autoencoding.autoencoders import SIZES
-    from ..perception.autoencoding.frames import collect, load_frames, save_frames
+    from .ae_report import write_report
+    from .frames import collect, load_frames, save_frames
 
     paths: dict[str, str] = {}
     frames_file = out / "frames.npz"

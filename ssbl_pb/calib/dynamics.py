@@ -15,9 +15,8 @@ import math
 import numpy as np
 from scipy.optimize import least_squares
 
-from ..params import RobotParams
+from ..params import CalibrationError, RobotParams
 from .dynamics_log import AXES, DynamicsLog
-from .io import CalibrationError
 
 NAMES = ("latency_s", "time_constant_s", "max_accel", "max_speed")
 LOWER = np.array([0.0, 0.0, 0.01, 0.01])

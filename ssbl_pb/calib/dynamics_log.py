@@ -24,8 +24,8 @@ from pathlib import Path
 import numpy as np
 
 from ..env.formulas.base import HolonomicBase
-from ..params import RobotParams
-from .io import CalibrationError, write_text
+from ..files import write_text
+from ..params import CalibrationError, RobotParams
 
 CMD = ("cmd_vx", "cmd_vy", "cmd_wz")
 POSE = ("odom_x", "odom_y", "odom_yaw")

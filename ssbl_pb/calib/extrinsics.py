@@ -14,9 +14,9 @@ import math
 import cv2
 import numpy as np
 
+from ..params import CalibrationError
 from ..perception.camera import PinholeCamera
 from .intrinsics import board_points, find_corners
-from .io import CalibrationError
 
 
 @dataclasses.dataclass

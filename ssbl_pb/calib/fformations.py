@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from .io import CalibrationError
+from ..params import CalibrationError
 
 CM = 0.01  # the files' unit (centimetres) in metres
 FEATURES, GROUNDTRUTH = "features.mat", "groundtruth.mat"

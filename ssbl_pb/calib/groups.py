@@ -21,9 +21,8 @@ from collections.abc import Iterable
 import numpy as np
 
 from ..env.formulas.layouts import GroupModel
-from ..params import SocialParams
+from ..params import CalibrationError, SocialParams
 from .fformations import Dataset
-from .io import CalibrationError
 
 QUANTILES = tuple(range(0, 101, 5))  # percent levels stored in the YAML
 STATS = ("centroid_distance_m", "nearest_neighbour_m", "irregularity", "orientation_offset_deg")

@@ -24,8 +24,7 @@ import numpy as np
 
 from ..env.formulas.humans import Group
 from ..env.formulas.layouts import paper_layout
-from ..params import FORMATIONS, SocialParams
-from .io import CalibrationError
+from ..params import FORMATIONS, CalibrationError, SocialParams
 
 SCENES = ("ewap_seq_eth", "ewap_seq_hotel", "ucy_zara01", "ucy_zara02", "ucy_students03")
 

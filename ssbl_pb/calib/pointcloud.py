@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from .io import CalibrationError
+from ..params import CalibrationError
 
 AXES = {"x": 0, "y": 1, "z": 2}
 

@@ -7,11 +7,12 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from ..files import write_text
 from ..params import RobotParams
 from .dynamics import NAMES, DynamicsResult, simulate_axis
 from .dynamics_log import AXES, DynamicsLog, body_velocity_from_pose, simulate_log
 from .intrinsics import IntrinsicsResult
-from .io import save_figure, write_image, write_text
+from .io import save_figure, write_image
 
 
 def _tile(img: np.ndarray, title: str) -> np.ndarray:

@@ -23,8 +23,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from ..params import WorldParams, from_dict, load_yaml
-from .io import CalibrationError
+from ..params import CalibrationError, WorldParams, from_dict, load_yaml
 
 
 @dataclasses.dataclass

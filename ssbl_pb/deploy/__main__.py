@@ -113,7 +113,7 @@ def _params(args: argparse.Namespace) -> Any:
     frames.check_start()
     policy = _policy(args.policy, robot, social, task, params.stop_distance)
     if args.groups is None:
-        from .group import policy_groups
+        from ..agents.trained import policy_groups
 
         args.groups = policy_groups(args.policy)
     return params, robot, social, task, policy, frames

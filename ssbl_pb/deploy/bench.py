@@ -159,12 +159,11 @@ def lockstep_approach(folder: Path, seed: int, policy: Any = "vector", scenario:
     (``folder/deploy/log.jsonl``, ``folder/virtual_pepper.jsonl``); ``wall`` in both is the simulated time, and
     each tick's ground truth is logged at its tick's time. ``policy``: a spec as deploy's ``--policy`` or a
     policy object (``predict``); ``room_map`` as ``run_approach``. Returns the outcome and the ground-truth score."""
-    from ..agents.trained import policy_env_kwargs
+    from ..agents.trained import policy_env_kwargs, policy_groups
     from ..env.formulas.task import TaskParams
     from ..params import RobotParams, SocialParams
     from .__main__ import _policy
     from .frames import Frames, load_room
-    from .group import policy_groups
     from .log import RunLog, write_run, write_summary
     from .loop import DeployLoop, DeployParams, Setup
     from .perceive import Perception

@@ -30,9 +30,9 @@ from ..env.formulas.shield import ShieldParams, footprint_clearance
 from ..env.formulas.task import TaskParams
 from ..errors import Terminated
 from ..params import RobotParams, SocialParams, _check, _positive
+from ..perception.tracking.group import GroupModel, member_arrays
 from .faults import EXIT_CODES, DeployFault, HumanTooClose, StaleFrame, StaleOdometry
 from .frames import Frames
-from .group import GroupModel, member_arrays
 from .log import RunLog, dynamics_columns
 from .perceive import Perception
 from .robot import Robot, clamp_command

@@ -22,13 +22,12 @@ from ..errors import UserError
 from ..params import RobotParams, SocialParams
 from ..perception.camera import PinholeCamera
 from ..perception.tracking.facing import Facing, estimate_facing
+from ..perception.tracking.group import MIN_VISIBLE, TORSO_HALF, TORSO_HEIGHT, TRACKER, GroupTracker, Member
 from ..perception.tracking.sim_eval import ProxyGeometry, boxes_to_ground, sim_camera
 from ..perception.tracking.tracker import TrackerParams
-from .group import GroupTracker, Member
 from .robot import Frame, Robot
 
 DETECTORS = ("colour", "hog", "ssd")
-TORSO_HALF = (0.13, 0.23)  # m: half-depth (along the facing) and half-width of the torso box (urdf/human.urdf)
 
 
 def torso_depth(xy: np.ndarray, centre: np.ndarray | None) -> np.ndarray:
@@ -51,9 +50,6 @@ def torso_depth(xy: np.ndarray, centre: np.ndarray | None) -> np.ndarray:
     return a * np.abs(cos) + b * np.sqrt(1.0 - cos * cos)
 
 
-# the colour detector's ground error is ~0.05 m median (docs/benchmarks_tracking.md); people in a group stand or
-# step slowly, so a lower acceleration noise than the street-tracking default keeps coasting tracks in place
-TRACKER = TrackerParams(meas_std=0.1, birth_hits=2, accel_std=0.7)
 
 
 def one_per_colour(palette: list[Any]) -> Callable[[np.ndarray], np.ndarray]:
@@ -105,8 +101,6 @@ def one_per_colour(palette: list[Any]) -> Callable[[np.ndarray], np.ndarray]:
     return OnePerColour(palette)
 
 
-TORSO_HEIGHT = 0.60  # m: the proxy's torso box (urdf/human.urdf)
-MIN_VISIBLE = 0.35  # share of a torso's width that must show inside the image for a cut box to count
 
 
 def complete_cut_torsos(boxes: np.ndarray, width: int) -> tuple[np.ndarray, np.ndarray]:

@@ -221,8 +221,8 @@ def write_room_map(folder: Path, robot: SimRobot, resolution: float = 0.05,
     """The simulated room as a ROS map (``map.pgm``, ``map.yaml``) and its room YAML (``room.yaml``, as
     ``tools/import_map.py`` makes it), the room's centre at ``centre`` on the map (so the frames differ); returns
     the room YAML and the robot's start pose on the map (x, y, yaw)."""
-    from ..calib.io import write_yaml
     from ..calib.room_map import extract_room, read_map, room_yaml
+    from ..files import write_yaml
 
     sx, sy = robot.world.params.room_size
     wall = robot.world.params.wall_thickness
@@ -381,7 +381,7 @@ def main(argv: list[str] | None = None) -> int:
     qi = import_qi()
     groups = args.groups
     if groups is None:
-        from .group import policy_groups
+        from ..agents.trained import policy_groups
 
         groups = policy_groups("vector")
     robot = SimRobot(args.scenario, args.seed, groups=groups)

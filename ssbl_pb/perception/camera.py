@@ -25,8 +25,8 @@ from typing import Any
 import cv2
 import numpy as np
 
-from ..calib.io import CalibrationError, write_yaml
-from ..params import RobotParams, load_yaml
+from ..files import write_yaml
+from ..params import CalibrationError, RobotParams, load_yaml
 
 _REQUIRED = ("image_width", "image_height", "camera_matrix", "distortion_coefficients")
 

@@ -3,9 +3,9 @@
 On the robot the policy does not read the true state: deploy's perception detects the people in Pepper's 56 deg
 camera, projects them to the ground, tracks them (``perception.tracking.tracker``, ego-motion compensated), remembers
 the ones out of view and moves them by the group's model, and computes the group's centre, o-space radius and free
-slot from those estimates (``deploy.group``). This module runs that same pipeline from the simulator's state,
-with the camera replaced by a model of the detector: a member can be detected when it is in range with at least
-``deploy.perceive.MIN_VISIBLE`` of its torso's width inside the image (deploy completes torsos cut by the image's
+slot from those estimates (``perception.tracking.group``). This module runs that same pipeline from the simulator's
+state, with the camera replaced by a model of the detector: a member can be detected when it is in range with at least
+``group.MIN_VISIBLE`` of its torso's width inside the image (deploy completes torsos cut by the image's
 side, ``deploy.perceive.complete_cut_torsos``; such a detection gets ``partial_std_m`` more noise across the line
 of sight) and no more than ``hidden_fraction`` of it hidden behind nearer people; it is then missed with
 probability ``miss_prob`` and placed with range and bearing noise that grows with distance. Its facing (relative to
@@ -13,7 +13,7 @@ its line of sight) is measured with ``facing_std_deg`` of noise when its front i
 ``facing_front_deg``: the virtual Pepper's people wear a marker on their chest), and with ``facing_back_std_deg``
 from further round (the torso's outline).
 Everything after the detections is deploy's code itself: ``GroupTracker.update`` (the Kalman tracker with deploy's
-settings, ``deploy.perceive.TRACKER``, and its memory of people out of view) and ``GroupModel.update`` (centre,
+settings, ``group.TRACKER``, and its memory of people out of view) and ``GroupModel.update`` (centre,
 radius, joining weight, free slot), called as ``deploy.loop.DeployLoop`` calls them.
 
 While fewer than two people are known, deploy does not run the policy: it turns in place to find the group, and
@@ -186,8 +186,7 @@ class CopyPerception:
 
     def __init__(self, robot: RobotParams, social: SocialParams, keep: float, paper: bool,
                  params: PerceptionParams) -> None:
-        from ...deploy.group import BODY_HEIGHT, GroupModel, GroupTracker
-        from ...deploy.perceive import MIN_VISIBLE, TORSO_HALF, TRACKER
+        from .group import BODY_HEIGHT, MIN_VISIBLE, TORSO_HALF, TRACKER, GroupModel, GroupTracker
         from .sim_eval import sim_camera
 
         self.torso_halfwidth = TORSO_HALF[1]
@@ -237,7 +236,7 @@ class CopyPerception:
         if not self.approaching:
             self.model.reset()
             self.approaching, self.search_side = True, 0.0  # the next search starts afresh
-        from ...deploy.group import member_arrays
+        from .group import member_arrays
 
         pos, rest, facing, facing_std = member_arrays(self.members)
         self.group = self.model.update(pos, np.asarray(pose[:2], dtype=float), rest, facing, facing_std)

@@ -23,12 +23,19 @@ from typing import Any
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from ..env.formulas.humans import MAX_HUMANS, measured_group
-from ..params import SocialParams
-from ..perception.camera import PinholeCamera
-from ..perception.tracking.tracker import Tracker, TrackerParams
+from ...env.formulas.humans import MAX_HUMANS, measured_group
+from ...params import SocialParams
+from ..camera import PinholeCamera
+from .tracker import Tracker, TrackerParams
 
 BODY_HEIGHT = 1.14  # m: the point of a person checked against the view (torso middle, urdf/human.urdf)
+
+TORSO_HALF = (0.13, 0.23)  # m: half-depth (along the facing) and half-width of the torso box (urdf/human.urdf)
+# the colour detector's ground error is ~0.05 m median (docs/benchmarks_tracking.md); people in a group stand or
+# step slowly, so a lower acceleration noise than the street-tracking default keeps coasting tracks in place
+TRACKER = TrackerParams(meas_std=0.1, birth_hits=2, accel_std=0.7)
+TORSO_HEIGHT = 0.60  # m: the proxy's torso box (urdf/human.urdf)
+MIN_VISIBLE = 0.35  # share of a torso's width that must show inside the image for a cut box to count
 
 
 @dataclasses.dataclass(frozen=True)
@@ -213,25 +220,11 @@ class GroupModel:
         return g.centre.copy(), g.radius, g.join_weight, g.free_slot(robot_xy)
 
 
-def policy_groups(spec: str) -> str:
-    """The group model (``env.formulas.layouts.GROUP_MODELS``) the policy ``spec`` was trained on: its run config's
-    ``env.groups``; a baseline, or a config without one, the env's default."""
-    from ..agents.policies import BASELINES
-    from ..agents.trained import resolve_model
-    from ..env.formulas.layouts import GroupModel as EnvGroups
-
-    if spec in BASELINES:
-        return EnvGroups().name
-    env = resolve_model(spec)[2].get("env") or {}
-    groups = env.get("groups") if isinstance(env, dict) else None
-    return EnvGroups(str(groups)).name if groups else EnvGroups().name
-
-
 def default_model(social: SocialParams) -> GroupModel:
     """``GroupModel`` with the robot's place as the default robot and task keep it (``layouts.slot_keep``)."""
-    from ..env.formulas.layouts import slot_keep
-    from ..env.formulas.task import TaskParams
-    from ..params import RobotParams
+    from ...env.formulas.layouts import slot_keep
+    from ...env.formulas.task import TaskParams
+    from ...params import RobotParams
 
     task = TaskParams()
     return GroupModel(social, slot_keep(social, RobotParams().reach, task.intimate_zone, task.route_margin))

@@ -9,14 +9,14 @@ from typing import Any
 
 import numpy as np
 
-from ...analysis.video import save_png
-from ...errors import UserError
-from ...files import write_json, write_text
-from .ae_losses import triplet_centres
-from .ae_plots import keypoint_overlay, plot_losses, reconstructions
-from .ae_train import save_checkpoint, split_centres
-from .autoencoders import SAEV, Autoencoder
+from ..errors import UserError
+from ..files import write_json, write_text
+from ..perception.autoencoding.ae_losses import triplet_centres
+from ..perception.autoencoding.ae_plots import keypoint_overlay, plot_losses, reconstructions
+from ..perception.autoencoding.ae_train import save_checkpoint, split_centres
+from ..perception.autoencoding.autoencoders import SAEV, Autoencoder
 from .frames import frames_hfov
+from .video import save_png
 
 
 def example_frames(data: dict[str, np.ndarray], n: int = 6) -> np.ndarray:
