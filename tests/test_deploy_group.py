@@ -106,8 +106,8 @@ def test_a_person_cut_by_the_side_of_the_image_is_not_expected_to_be_detected():
 
 def test_members_out_of_view_stay_where_last_estimated_while_the_robot_joins():
     # a real-sized pair 3 m ahead, walking slowly; the robot sees it, then stands at its place looking away for
-    # 10 s: the members it remembers (coasting tracks, then remembered members) stand where it last estimated
-    # them, not drifting on by their last velocity
+    # 10 s: once the tracker stops coasting them, the members it remembers stand where it last estimated them,
+    # not drifting on by their last velocity
     gt = _tracker()
     model = gt.model
     g = Group(SOCIAL, np.array([3.0, 0.0]), free_layout(np.array([[0.0, -0.45], [0.0, 0.45]])), model.keep)
@@ -128,7 +128,7 @@ def test_members_out_of_view_stay_where_last_estimated_while_the_robot_joins():
     for k in range(100):
         g.step(slot, 0.1)
         members = frame(np.zeros((0, 2)), away)
-        if k == 0:  # the first frame without them: the tracker coasts them, then gives up; they stay put
+        if k == 20:  # the tracker has given up coasting them: remembered, they stay put
             last = np.array([m.pos for m in members])
     assert len(members) == 2 and not any(m.seen for m in members)
     assert np.array([m.pos for m in members]) == pytest.approx(last, abs=1e-12)
