@@ -38,6 +38,8 @@ BASELINES = ("sffm", "straight", "random")
 
 
 def _parser() -> argparse.ArgumentParser:
+    from .loop import DeployParams
+
     ap = ArgumentParser(prog="python -m ssbl_pb.deploy", description=__doc__)
     ap.add_argument("--robot-ip", help="the robot's address (NAOqi 2.5: tcp://IP:PORT)")
     ap.add_argument("--port", type=int, default=9559, help="NAOqi port (default 9559)")
@@ -62,7 +64,8 @@ def _parser() -> argparse.ArgumentParser:
     ap.add_argument("--rate", type=float, help="control rate in Hz (default: the policy's own, 10 Hz for every "
                     "shipped one; a learned policy runs only at the rate it was trained at, since its action "
                     "smoothing and shield assume that period)")
-    ap.add_argument("--duration", type=float, default=60.0, help="give up after this many seconds (default 60)")
+    ap.add_argument("--duration", type=float, default=DeployParams.duration_s,
+                    help="give up after this many seconds (default %(default)g)")
     ap.add_argument("--stop-distance", type=float, default=0.45,
                     help="stop when a tracked person is this close to the footprint (m, default 0.45)")
     ap.add_argument("--stale", type=float, default=0.5, help="stop when frame or odometry is older (s, default 0.5)")

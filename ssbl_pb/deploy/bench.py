@@ -132,7 +132,7 @@ def _map_flags(proc: subprocess.Popen, timeout: float = 60.0) -> tuple[str, ...]
 
 
 def run_approach(folder: Path, seed: int, policy: str = "vector", scenario: str = "default",
-                 duration: float = 60.0, groups: str | None = None, detector: str = "auto",
+                 duration: float = 90.0, groups: str | None = None, detector: str = "auto",
                  room_map: bool = True) -> dict[str, Any]:
     """One approach against a fresh virtual Pepper: the deploy summary plus the ground-truth score. ``groups``:
     the group model of both (default: each one's own, the policy's); ``detector``: deploy's ``--detector``;
@@ -152,7 +152,7 @@ def run_approach(folder: Path, seed: int, policy: str = "vector", scenario: str 
 
 
 def lockstep_approach(folder: Path, seed: int, policy: Any = "vector", scenario: str = "default",
-                      duration: float = 60.0, groups: str | None = None, fps: float = 15.0,
+                      duration: float = 90.0, groups: str | None = None, fps: float = 15.0,
                       detector: str = "auto", room_map: bool = True) -> dict[str, Any]:
     """One approach in this process, deterministic (no qi): deploy's loop on a ``SimRobot`` in lockstep
     (``SimClock``, the camera at ``fps``, perception inline), writing the two logs ``run_approach`` leaves

@@ -46,7 +46,9 @@ class DeployParams:
     max_speed: float = 0.35  # m/s clamp on the planar speed (NAOqi default, RobotParams.max_speed)
     stale_s: float = 0.5  # newest frame / odometry older than this stops the run (ROS cmd_vel muxes, lerobot)
     stop_distance: float = 0.45  # m between bodies: Hall's intimate zone (TaskParams.intimate_zone)
-    duration_s: float = 60.0  # twice the simulated episode (30 s) to leave time for the search
+    duration_s: float = 90.0  # s: three simulated episodes (30 s). Deploy also searches (a full turn: 12.6 s), looks
+    #   at members before a claim (up to LOOK_S each) and docks slowly: `mixed` lockstep joins took up to 57 s, and
+    #   a five-person group approached from 6 m behind reached its place at 55 s, unclaimed when 60 s ran out
     settle_s: float = 0.5  # s standing still at start while the tracker confirms what is in view
     search_turn: float = 0.5  # rad/s in place while fewer than two people are known (half NAOqi's default)
     sidestep_s: float = 3.0  # s stepping sideways when one person hides the others (after a full turn) ...
