@@ -5,6 +5,7 @@ that cannot be used. Whole approaches over qi are the benchmark's (tools/bench_d
 from __future__ import annotations
 
 import json
+import math
 import socket
 import subprocess
 import sys
@@ -194,3 +195,17 @@ def test_the_command_the_virtual_pepper_prints_joins_its_group(tmp_path):
     assert json.loads((run / "run.json").read_text())["detector"] == "colour"
     score = truth_score(log, run)
     assert score["true_success"], score
+
+
+def test_the_benchmark_gives_deploy_the_virtual_rooms_map(tmp_path):
+    """``bench.run_approach`` reads the virtual Pepper's ``--write-map`` line: deploy's ``--map`` and
+    ``--start-pose``, the room YAML written, the start pose on a free cell of its map."""
+    from ssbl_pb.deploy.bench import _map_flags
+    from ssbl_pb.deploy.frames import Frames, load_room
+
+    with virtual_pepper(tmp_path / "vp.jsonl", 0, "default", "--write-map", str(tmp_path / "map")) as (vp, _):
+        flags = _map_flags(vp)
+    assert flags[0] == "--map" and flags[2] == "--start-pose" and len(flags) == 6
+    frames = Frames(load_room(flags[1]), [float(v) for v in flags[3:5]] + [math.radians(float(flags[5]))])
+    frames.check_start()  # raises on an occupied or unknown cell
+    assert frames.room.room_size == (10.0, 10.0)
