@@ -345,3 +345,36 @@ def test_deploy_docks_the_last_centimetres_when_the_policy_stops_short_of_its_ma
     # facing the centre at 90 deg to the odometry frame, the same place is ahead-left in the approach frame
     turned = loop._dock(obs, np.zeros(2), pose, np.array([0.0, 2.0]), np.array([0.25, 0.0]), 0.25)
     assert turned == pytest.approx([0.0, -DOCK_SPEED / RobotParams().max_speed])
+
+
+def test_standing_away_from_its_place_it_looks_at_the_member_seen_longest_ago():
+    from types import SimpleNamespace
+
+    from ssbl_pb.deploy.loop import LOOK_S, STALL_S
+
+    loop = DeployLoop.__new__(DeployLoop)  # only the look's state
+    loop.p = DeployParams(confirm_s=4.0, search_turn=0.5)
+    loop.s = SimpleNamespace(task=SimpleNamespace(heading_gain=2.0))
+    loop._still_since, loop._stall_look = None, None
+    members = [SimpleNamespace(id=1, seen=True), SimpleNamespace(id=2, seen=False), SimpleNamespace(id=3, seen=False)]
+    pos = np.array([[2.0, 0.0], [0.0, 1.5], [0.0, -1.5]])  # 2 to the left, 3 to the right
+    loop._seen_at = {1: 10.0, 2: 3.0, 3: 5.0}
+    assert loop._unstick(members, pos, np.zeros(3), 10.0, stalled=True) is None  # stands from now on
+    assert loop._unstick(members, pos, np.zeros(3), 10.0 + STALL_S - 0.1, stalled=True) is None
+    assert loop._unstick(members, pos, np.zeros(3), 12.0, stalled=False) is None  # moved: the wait starts again
+    assert loop._unstick(members, pos, np.zeros(3), 12.1, stalled=True) is None
+    look = loop._unstick(members, pos, np.zeros(3), 12.1 + STALL_S, stalled=True)
+    assert look == pytest.approx([0.0, 0.0, 0.5]) and loop._stall_look == (2, 12.1 + STALL_S)  # 2: seen at 3.0
+    # the look goes on, stalled or not, until 2 is detected, then the policy gets STALL_S again
+    assert loop._unstick(members, pos, np.array([0.0, 0.0, 1.0]), 18.0, stalled=False) is not None
+    members[1].seen = True
+    assert loop._unstick(members, pos, np.zeros(3), 18.5, stalled=True) is None and loop._stall_look is None
+    loop._seen_at[2] = 18.5
+    assert loop._unstick(members, pos, np.zeros(3), 18.5 + STALL_S, stalled=True) is not None
+    assert loop._stall_look[0] == 3  # next: 3, seen at 5.0
+    assert loop._unstick(members, pos, np.zeros(3), 18.5 + STALL_S + LOOK_S + 0.1, stalled=True) is None  # gave up
+    # everyone seen lately: no look
+    loop._seen_at = {1: 34.0, 2: 34.0, 3: 34.0}  # seen within confirm_s of 36.0
+    loop._still_since = None
+    assert loop._unstick(members, pos, np.zeros(3), 30.0, stalled=True) is None
+    assert loop._unstick(members, pos, np.zeros(3), 30.0 + STALL_S + 1, stalled=True) is None

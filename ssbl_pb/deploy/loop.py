@@ -102,6 +102,9 @@ CLAIM_HOLD_S = 1.0  # s the success rule must hold on the estimate, tick after t
 #   when seen again moved it by 0.18 m in one tick; claimed on the first tick under the margin, 3 of 20 `mixed`
 #   lockstep claims were 0.29-0.31 m from the true place or 24 deg off the true centre
 DOCK_SPEED = 0.06  # m/s: below the success rule's stop speed (0.1), so the robot may stop any tick
+STALL_S = 5.0  # s the robot may stand (slower than the stop speed) away from its estimated place before deploy
+#   looks at the member seen longest ago (``_unstick``): over qi, a run stood 60 s at the true place while two
+#   remembered members, never looked at again, put its estimated place 1.96 m away
 
 
 def deploy_shield(robot: RobotParams, social: SocialParams, task: TaskParams, stop_distance: float,
@@ -153,6 +156,8 @@ class DeployLoop:
         self._seen_at: dict[int, float] = {}  # member id -> when it was last detected (``_confirm``)
         self._claim_from: float | None = None  # when the claim was first tried at this place (``_confirm``)
         self._look: tuple[int, float] | None = None  # the member looked at and since when
+        self._still_since: float | None = None  # since when the robot stands away from its place (``_unstick``)
+        self._stall_look: tuple[int, float] | None = None  # the member ``_unstick`` looks at and since when
         self._success_since: float | None = None  # since when the success rule has held on the estimate
         self.group = GroupModel(setup.social, slot_keep(setup.social, setup.robot_params.reach,
                                                         setup.task.intimate_zone, setup.task.route_margin),
@@ -179,7 +184,7 @@ class DeployLoop:
             if hasattr(s.policy, "reset"):
                 s.policy.reset()
             self._policy_state, self._approaching = None, True
-            self._claim_from, self._look = None, None
+            self._claim_from, self._look, self._still_since, self._stall_look = None, None, None, None
         centre, radius, joining, slot = self.group.update(pos, pose[:2], rest, facing, facing_std)
         s.perception.centre0 = self.group.centre
         room = fr.room_pose(pose)
@@ -283,6 +288,12 @@ class DeployLoop:
             look = self._confirm(members, pos, odo.pose, now, held)
             if look is not None:  # a claim it cannot back yet: look first
                 state, cmd = "confirm", look
+            else:
+                away = info["slot_distance_m"] >= s.task.slot_tolerance
+                look = self._unstick(members, pos, odo.pose, now,
+                                     away and math.hypot(*odo.velocity[:2]) < s.task.stop_speed)
+                if look is not None:  # standing away from its place: refresh the members it has not seen
+                    state, cmd = "look", look
         t_send = self.now()
         sent = s.robot.send(clamp_command(cmd, self.limits))
         t_sent = self.now()
@@ -359,10 +370,38 @@ class DeployLoop:
         if self._look is None:
             self._look = (members[min(stale, key=lambda k: seen[k])].id, now)
         k = next(k for k in stale if members[k].id == self._look[0])
-        d = pos[k] - pose[:2]
+        return self._turn_to(pos[k], pose)
+
+    def _turn_to(self, point: np.ndarray, pose: np.ndarray) -> np.ndarray:
+        """The command that turns in place toward ``point`` (at most ``search_turn`` rad/s)."""
+        d = point - pose[:2]
         heading = math.remainder(math.atan2(d[1], d[0]) - pose[2], 2 * math.pi)
         turn = float(np.clip(self.s.task.heading_gain * heading, -self.p.search_turn, self.p.search_turn))
         return np.array([0.0, 0.0, turn])
+
+    def _unstick(self, members: list[Any], pos: np.ndarray, pose: np.ndarray, now: float, stalled: bool
+                 ) -> np.ndarray | None:
+        """The command that turns toward the member seen longest ago (not within ``confirm_s``) once the robot has
+        stood away from its estimated place (``stalled``) for ``STALL_S``; the look goes on until they are detected
+        (or forgotten) or for ``LOOK_S``, then the policy has ``STALL_S`` again. None otherwise."""
+        if self._stall_look is not None:
+            k = next((k for k, m in enumerate(members) if m.id == self._stall_look[0]), None)
+            if k is not None and not members[k].seen and now - self._stall_look[1] <= LOOK_S:
+                return self._turn_to(pos[k], pose)
+            self._stall_look, self._still_since = None, now
+            return None
+        if not stalled:
+            self._still_since = None
+            return None
+        if self._still_since is None:
+            self._still_since = now
+        seen = [self._seen_at.get(m.id, -math.inf) for m in members]
+        stale = [k for k, t in enumerate(seen) if t < now - self.p.confirm_s]
+        if now - self._still_since < STALL_S or not stale:
+            return None
+        k = min(stale, key=lambda k: seen[k])
+        self._stall_look = (members[k].id, now)
+        return self._turn_to(pos[k], pose)
 
     def _search(self, pose: np.ndarray, pos: np.ndarray) -> tuple[str, np.ndarray]:
         """Fewer than two people known: turn in place (toward the one known person's side first); after a full
