@@ -241,7 +241,8 @@ class GroupTracker:
     def __init__(self, camera: PinholeCamera, tracker: TrackerParams | None = None,
                  params: GroupParams | None = None, social: SocialParams | None = None,
                  model: GroupModel | None = None) -> None:
-        """``model``: the group model moving remembered members (default: the env's defaults)."""
+        """``model``: the loop's group model, whose joining weight tells when members stand at rest (default: the
+        env's defaults)."""
         self.camera = camera
         self.tracker = Tracker(tracker)
         self.p = params or GroupParams()

@@ -2,7 +2,7 @@
 
 On the robot the policy does not read the true state: deploy's perception detects the people in Pepper's 56 deg
 camera, projects them to the ground, tracks them (``perception.tracking.tracker``, ego-motion compensated), remembers
-the ones out of view and moves them by the group's model, and computes the group's centre, o-space radius and free
+the ones out of view where it last estimated them, and computes the group's centre, o-space radius and free
 slot from those estimates (``perception.tracking.group``). This module runs that same pipeline from the simulator's
 state, with the camera replaced by a model of the detector: a member can be detected when it is in range with at least
 ``group.MIN_VISIBLE`` of its torso's width inside the image (deploy completes torsos cut by the image's
