@@ -103,10 +103,23 @@ def test_collision_protection_events_are_logged(tmp_path):
     assert sum(c["call"] == "MoveFailed" for c in calls) >= len(events)
 
 
-def _deploy(*argv: str, timeout: float = 30) -> subprocess.CompletedProcess:
+def _deploy(*argv: str, timeout: float = 30, watchdog: bool = False) -> subprocess.CompletedProcess:
     policy = () if "--policy" in argv else ("--policy", "sffm")
-    return subprocess.run([sys.executable, "-m", "ssbl_pb.deploy", *policy, "--detector", "colour", *argv],
+    dog = () if watchdog else ("--no-watchdog",)
+    return subprocess.run([sys.executable, "-m", "ssbl_pb.deploy", *policy, "--detector", "colour", *dog, *argv],
                           capture_output=True, text=True, timeout=timeout)
+
+
+def test_deploy_refuses_a_robot_without_the_watchdog_unless_told_no_watchdog(tmp_path):
+    with virtual_pepper(tmp_path / "vp.jsonl", 35, "default") as (_, url):
+        res = _deploy("--url", url, "--duration", "1", "--quiet", "--log-dir", str(tmp_path / "run"), watchdog=True)
+        lines = res.stderr.strip().splitlines()
+        assert res.returncode == 2 and len(lines) == 1, res.stderr
+        assert "no SSBLWatchdog service" in lines[0] and f"python -m ssbl_pb.deploy.watchdog --robot {url}" in lines[0]
+        assert "--no-watchdog" in lines[0] and not (tmp_path / "run").exists()  # nothing written
+        res = _deploy("--url", url, "--duration", "1", "--quiet", "--log-dir", str(tmp_path / "run"))
+    assert res.returncode == 3 and "warning: --no-watchdog" in res.stderr, res.stderr
+    assert (tmp_path / "run" / "log.jsonl").is_file()
 
 
 def test_a_port_where_nothing_speaks_qi_is_one_line_within_5_s(tmp_path):
@@ -187,7 +200,7 @@ def test_the_command_the_virtual_pepper_prints_joins_its_group(tmp_path):
     with virtual_pepper(log, seed=0) as (vp, url):
         lines = [vp.stdout.readline().strip() for _ in range(2)]
         command = next(line.removeprefix("deploy: ") for line in lines if line.startswith("deploy: "))
-        assert command == f"python -m ssbl_pb.deploy --robot-ip 127.0.0.1 --port {url.rsplit(':', 1)[1]}"
+        assert command == f"python -m ssbl_pb.deploy --robot-ip 127.0.0.1 --port {url.rsplit(':', 1)[1]} --no-watchdog"
         argv = shlex.split(command)[1:]
         res = subprocess.run([sys.executable, *argv], capture_output=True, text=True, timeout=150, cwd=tmp_path)
     assert res.returncode == 0, res.stderr

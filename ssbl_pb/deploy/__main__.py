@@ -2,14 +2,15 @@
 
     python -m ssbl_pb.deploy --robot-ip 192.168.1.20 --policy vector --log-dir runs/deploy1        # NAOqi 2.5
     python -m ssbl_pb.deploy --url tcps://192.168.1.20:9503 --user nao --token PASS ...           # NAOqi 2.9
-    python -m ssbl_pb.deploy --robot-ip 127.0.0.1 --port 9559 --log-dir runs/vp   # the virtual Pepper
+    python -m ssbl_pb.deploy --robot-ip 127.0.0.1 --port 9559 --no-watchdog --log-dir runs/vp   # the virtual Pepper
     python -m ssbl_pb.deploy ... --map room.yaml --start-pose 3.2 1.5 90   # paths on the map, the real walls
 
 Ends on success (joined the group), on --duration, or on a fault; the base is stopped first in every case and the
 exit code says which (0 success, 1 a bug, 2 bad input, 3 duration, 4 person too close, 5 stale frame, 6 stale
 odometry, 7 connection lost, 8 robot not responding, 130 Ctrl-C, 143 SIGTERM; docs/deploy.md). DIR gets
 log.jsonl (one line per tick), run.json, summary.json and paths.png. Start ``python -m ssbl_pb.deploy.watchdog``
-beside the robot first, so the base stops even if this process dies.
+beside the robot first, so the base stops even if this process dies: deploy refuses to start without it unless
+told ``--no-watchdog``.
 """
 
 from __future__ import annotations
@@ -70,7 +71,9 @@ def _parser() -> argparse.ArgumentParser:
                     help="stop when a tracked person is this close to the footprint (m, default 0.45)")
     ap.add_argument("--stale", type=float, default=0.5, help="stop when frame or odometry is older (s, default 0.5)")
     ap.add_argument("--continue-after-success", action="store_true", help="hold the slot until --duration")
-    ap.add_argument("--require-watchdog", action="store_true", help="refuse to run without deploy.watchdog")
+    ap.add_argument("--no-watchdog", action="store_true",
+                    help="run without python -m ssbl_pb.deploy.watchdog beside the robot (default: refuse to start "
+                         "without it, since NAOqi keeps the base's last command if this process dies)")
     ap.add_argument("--quiet", action="store_true", help="no status line")
     return ap
 
@@ -204,10 +207,11 @@ def main(argv: list[str] | None = None) -> int:
     robot = NaoqiRobot(url, limits, user=args.user, token=args.token)
     try:
         if robot.watchdog is None:
-            if args.require_watchdog:
-                raise UserError(f"{url}: no SSBLWatchdog service; start python -m ssbl_pb.deploy.watchdog --robot "
-                                f"{url} first (or drop --require-watchdog)")
-            print("warning: no watchdog on the robot: if this process dies the base keeps its last command "
+            if not args.no_watchdog:
+                raise UserError(f"{url}: no SSBLWatchdog service: if this process died the base would keep its last "
+                                f"command. Start python -m ssbl_pb.deploy.watchdog --robot {url} first "
+                                f"(docs/deploy.md), or pass --no-watchdog")
+            print("warning: --no-watchdog: if this process dies the base keeps its last command "
                   "(docs/deploy.md, python -m ssbl_pb.deploy.watchdog)", file=sys.stderr)
         folder.mkdir(parents=True, exist_ok=True)
     except BaseException:

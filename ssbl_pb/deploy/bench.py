@@ -66,10 +66,13 @@ def virtual_pepper(log: Path, seed: int = 0, scenario: str = "default", *extra: 
                 proc.wait()
 
 
-def start_deploy(url: str, folder: Path, policy: str = "vector", *extra: str) -> subprocess.Popen:
-    """Deploy as a user starts it against the virtual Pepper (its detector chosen by ``--detector auto``)."""
+def start_deploy(url: str, folder: Path, policy: str = "vector", *extra: str, watchdog: bool = False
+                 ) -> subprocess.Popen:
+    """Deploy as a user starts it against the virtual Pepper (its detector chosen by ``--detector auto``);
+    ``watchdog``: one runs beside the virtual Pepper (else deploy is told ``--no-watchdog``)."""
+    dog = () if watchdog else ("--no-watchdog",)
     return subprocess.Popen(_module("ssbl_pb.deploy", "--url", url, "--policy", policy, "--log-dir", str(folder),
-                                    "--quiet", *extra),
+                                    "--quiet", *dog, *extra),
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
@@ -277,7 +280,8 @@ def run_fault(fault: str, folder: Path, seed: int = 11, policy: str = "straight"
                                    stderr=subprocess.DEVNULL, text=True)
             _first_line(dog, 30.0)
         try:
-            proc = start_deploy(url, folder / "deploy", policy, "--duration", "60", "--stale", str(stale))
+            proc = start_deploy(url, folder / "deploy", policy, "--duration", "60", "--stale", str(stale),
+                                watchdog=dog is not None)
             wait_moving(vp_log)
             t_event = time.time()
             target = {"robot_killed": (vp, signal.SIGKILL), "camera_frozen": (vp, signal.SIGUSR1),

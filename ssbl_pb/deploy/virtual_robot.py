@@ -1,7 +1,7 @@
 """A virtual Pepper: ALMotion and ALVideoDevice served over libqi, backed by the simulated world (``SimRobot``).
 
     python -m ssbl_pb.deploy.virtual_robot --listen tcp://127.0.0.1:9559 --seed 3 --log vp.jsonl
-    python -m ssbl_pb.deploy --robot-ip 127.0.0.1 --port 9559 --log-dir runs/deploy1   # the line it prints
+    python -m ssbl_pb.deploy --robot-ip 127.0.0.1 --port 9559 --no-watchdog --log-dir runs/deploy1   # as it prints
 
 The group moves by the social force model; frames are TinyRenderer renders from CameraTop. Like a real Pepper
 it keeps executing the last ``move`` until told otherwise and clamps commands to its limits. It binds loopback
@@ -345,7 +345,7 @@ class Identity:
 def deploy_command(url: str, groups: str | None = None, on_map: tuple[Path, np.ndarray] | None = None) -> str:
     """The deploy command line that fits a virtual Pepper listening on ``url``."""
     host, _, port = url.removeprefix("tcp://").rpartition(":")
-    cmd = f"python -m ssbl_pb.deploy --robot-ip {host} --port {port}"
+    cmd = f"python -m ssbl_pb.deploy --robot-ip {host} --port {port} --no-watchdog"  # a simulated base
     if groups is not None:
         cmd += f" --groups {groups}"
     if on_map is not None:
