@@ -378,3 +378,33 @@ def test_standing_away_from_its_place_it_looks_at_the_member_seen_longest_ago():
     loop._still_since = None
     assert loop._unstick(members, pos, np.zeros(3), 30.0, stalled=True) is None
     assert loop._unstick(members, pos, np.zeros(3), 30.0 + STALL_S + 1, stalled=True) is None
+
+
+def test_members_out_of_view_are_kept_at_a_clearance_growing_with_the_time_unseen():
+    from types import SimpleNamespace
+
+    from ssbl_pb.deploy.loop import UNSEEN_GROWTH, UNSEEN_MARGIN
+    from ssbl_pb.env.formulas.shield import ShieldParams
+    from ssbl_pb.env.formulas.task import TaskParams
+
+    loop = DeployLoop.__new__(DeployLoop)
+    loop.shield = ShieldParams.from_env(RobotParams(), SocialParams(), TaskParams())
+    loop.guard_clearance = 0.55
+    reach = math.hypot(loop.shield.half_length, loop.shield.half_width) + loop.shield.human_radius
+    pose = np.array([1.0, 2.0, math.pi / 2])  # facing +y in the odometry frame
+    pos = np.array([[1.0, 2.0 + reach + 0.75]])  # straight ahead, 0.75 m between footprint and body
+    cmd = np.array([0.3, 0.1, 0.2])
+    loop._seen_at = {7: 10.0}
+    seen = [SimpleNamespace(id=7, seen=True)]
+    assert np.array_equal(loop._guard_unseen(cmd, seen, pos, pose, 20.0), cmd)  # detected now: the policy's shield
+    gone = [SimpleNamespace(id=7, seen=False)]
+    for unseen, margin in ((1.0, UNSEEN_GROWTH), (20.0, UNSEEN_MARGIN)):
+        out = loop._guard_unseen(cmd, gone, pos, pose, 10.0 + unseen)
+        allow = math.sqrt(2 * loop.shield.brake_accel * (0.75 - 0.55 - margin))
+        assert out == pytest.approx([min(0.3, allow), 0.1, 0.2])  # sideways and turning untouched
+    assert loop._guard_unseen(cmd, gone, pos, pose, 10.0 + 20.0)[0] < 0.3
+    assert np.array_equal(loop._guard_unseen(cmd, gone, pos, pose, 10.0), cmd)  # lost this instant: no margin yet
+    # near its estimated place the margin fades out (the shield's place clearance takes over)
+    assert np.array_equal(loop._guard_unseen(cmd, gone, pos, pose, 30.0, slot_distance=0.3), cmd)
+    half = loop._guard_unseen(cmd, gone, pos, pose, 30.0, slot_distance=0.45)[0]
+    assert half == pytest.approx(math.sqrt(2 * loop.shield.brake_accel * (0.75 - 0.55 - UNSEEN_MARGIN / 2)))

@@ -7,7 +7,14 @@ import numpy as np
 import pytest
 
 from ssbl_pb.env.formulas.observation import MEMBER_X, MEMBER_Y, MEMBERS, OBS_SIZE, POS_SCALE
-from ssbl_pb.env.formulas.shield import SafetyShield, ShieldParams, footprint_clearance, shield_action, shield_actions
+from ssbl_pb.env.formulas.shield import (
+    SafetyShield,
+    ShieldParams,
+    brake_closing,
+    footprint_clearance,
+    shield_action,
+    shield_actions,
+)
 from ssbl_pb.env.gymenv.approach import ApproachGroupEnv
 from ssbl_pb.env.view.world import box_circle_distance
 from ssbl_pb.errors import UserError
@@ -59,6 +66,17 @@ def test_closing_speed_is_limited_to_what_the_base_can_still_brake():
     # a member walking toward the robot: the robot must back off
     out = shield_action(obs_with(at_limit, np.array([[-0.1, 0.0]])), np.zeros(2), P)
     assert out[0] == pytest.approx(-0.1 / 0.35)
+
+
+def test_brake_closing_gives_each_point_its_own_clearance():
+    ahead, left = [REACH + 0.28 + 0.8, 0.0], [0.0, REACH + 0.28 + 0.7]
+    v = brake_closing(np.array([0.3, 0.3]), np.array([ahead, left]), np.array([0.6, 0.5]), P)
+    # ahead: 0.8 m of gap, braked for 0.6 -> sqrt(2 * 0.2 * 0.2) = 0.283 m/s; left: 0.7 for 0.5 -> the same
+    assert v == pytest.approx([math.sqrt(0.08), math.sqrt(0.08)])
+    v = brake_closing(np.array([0.3, 0.3]), np.array([ahead, left]), np.array([0.75, 0.5]), P)
+    assert v == pytest.approx([math.sqrt(0.02), math.sqrt(0.08)])  # 0.05 m to go ahead: 0.141 m/s
+    assert brake_closing(np.array([-0.3, 0.1]), np.array([ahead]), np.array([2.0]), P) == pytest.approx([-0.3, 0.1])
+    assert brake_closing(np.array([0.3, 0.1]), np.zeros((0, 2)), np.zeros(0), P) == pytest.approx([0.3, 0.1])
 
 
 def test_every_sector_keeps_its_limit_between_obstacles_on_two_sides():

@@ -26,7 +26,7 @@ import numpy as np
 
 from ..env.formulas import observation as ob
 from ..env.formulas.layouts import member_keep_out, slot_keep
-from ..env.formulas.shield import ShieldParams, footprint_clearance
+from ..env.formulas.shield import PLACE_FAR, PLACE_NEAR, ShieldParams, brake_closing, footprint_clearance
 from ..env.formulas.task import TaskParams
 from ..errors import Terminated
 from ..params import RobotParams, SocialParams, _check, _positive
@@ -106,6 +106,10 @@ STALL_S = 5.0  # s the robot may stand (slower than the stop speed) away from it
 #   looks at the member seen longest ago (``_unstick``): over qi, a run stood 60 s at the true place while two
 #   remembered members, never looked at again, put its estimated place 1.96 m away
 
+UNSEEN_GROWTH, UNSEEN_MARGIN = 0.05, 0.15  # m/s, m: the clearance deploy keeps from a member out of view grows by
+#   this for each second since it was last detected, up to this (``_guard_unseen``). Remembered members stay where
+#   last estimated (``GroupTracker.hold``: 0.13 m median error, 0.30 m p90 against the virtual Pepper's ground
+#   truth); over qi one made room 0.15 m out of view while the robot strafed toward it and came 0.42 m from them
 
 def deploy_shield(robot: RobotParams, social: SocialParams, task: TaskParams, stop_distance: float,
                   at_place: bool = False) -> ShieldParams:
@@ -140,6 +144,8 @@ class DeployLoop:
         self.s, self.p, self.log, self.now, self.sleep = setup, params or DeployParams(), log, now, sleep
         self.status = status
         self.shield = ShieldParams.from_env(setup.robot_params, setup.social, setup.task)
+        self.guard_clearance = deploy_shield(setup.robot_params, setup.social, setup.task,
+                                             self.p.stop_distance).clearance_min  # ``_guard_unseen``'s base
         self.period = 1.0 / self.p.rate_hz
         # the clamp of every command sent, whatever the robot implementation clamps itself
         self.limits = dataclasses.replace(setup.robot_params, max_speed=min(setup.robot_params.max_speed,
@@ -294,6 +300,7 @@ class DeployLoop:
                                      away and math.hypot(*odo.velocity[:2]) < s.task.stop_speed)
                 if look is not None:  # standing away from its place: refresh the members it has not seen
                     state, cmd = "look", look
+        cmd = self._guard_unseen(cmd, members, pos, odo.pose, now, info.get("slot_distance_m", math.inf))
         t_send = self.now()
         sent = s.robot.send(clamp_command(cmd, self.limits))
         t_sent = self.now()
@@ -315,6 +322,26 @@ class DeployLoop:
                 "late": late, "events": events})
         self._report(now, elapsed, state, len(members), sum(m.seen for m in members), info)
         return state == "joined"
+
+    def _guard_unseen(self, cmd: np.ndarray, members: list[Any], pos: np.ndarray, pose: np.ndarray, now: float,
+                      slot_distance: float = math.inf) -> np.ndarray:
+        """``cmd`` with its closing speed on each member not detected now braked for a clearance that grows with the
+        time since the member was last detected (``UNSEEN_GROWTH``, ``UNSEEN_MARGIN``) beyond the policy's shield's
+        (``deploy_shield``): a person out of view may have moved from where deploy remembers them. The margin fades
+        out near the estimated place (``slot_distance``) as the shield's place clearance fades in (``PLACE_FAR`` to
+        ``PLACE_NEAR``): there the neighbours are out of view by design and the shield keeps its place's clearance;
+        kept there too, the margin held the robot 0.2 m from its place for 45 s (virtual Pepper, lockstep)."""
+        unseen = np.array([0.0 if m.seen else now - self._seen_at.get(m.id, now) for m in members])
+        far = min(max((slot_distance - PLACE_NEAR) / (PLACE_FAR - PLACE_NEAR), 0.0), 1.0)
+        margin = np.minimum(UNSEEN_GROWTH * unseen, UNSEEN_MARGIN) * far
+        keep = margin > 0
+        if not keep.any():
+            return cmd
+        c, sn = math.cos(pose[2]), math.sin(pose[2])
+        local = (pos[keep] - pose[:2]) @ np.array([[c, -sn], [sn, c]])  # odometry -> robot frame
+        out = np.array(cmd, dtype=float)
+        out[:2] = brake_closing(out[:2], local, self.guard_clearance + margin[keep], self.shield)
+        return out
 
     def _check_odometry(self, odo: Any, now: float) -> None:
         """``StaleOdometry`` when the reading is older than ``stale_s`` by its stamp, or frozen: its pose has not

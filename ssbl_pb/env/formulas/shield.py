@@ -162,6 +162,19 @@ def _brake(vx: float, vy: float, ux: float, uy: float, other_vx: float, other_vy
     return vx, vy
 
 
+def brake_closing(velocity: np.ndarray, points: np.ndarray, clearance_min: np.ndarray, p: ShieldParams
+                  ) -> np.ndarray:
+    """The body velocity (vx, vy) with its closing speed on each standing body circle at robot-frame ``points``
+    (k, 2) cut to ``sqrt(2 a (c - c_min))``, each point with its own ``clearance_min`` (k,), nearest first (the
+    shield's member rule, ``_brake``, outside the observation)."""
+    vx, vy = (float(v) for v in np.asarray(velocity, dtype=float)[:2])
+    clear, toward = footprint_clearance(points, 0.0, p)
+    for j in np.argsort(clear):
+        vx, vy = _brake(vx, vy, float(toward[j, 0]), float(toward[j, 1]), 0.0, 0.0, float(clear[j]),
+                        float(clearance_min[j]), p.brake_accel)
+    return np.array([vx, vy])
+
+
 RAY_PASSES = 4  # rounds of braking sector by sector: each keeps the motion along the obstacles (no dead stop)
 
 
