@@ -312,6 +312,11 @@ def test_a_success_is_claimed_only_when_every_member_was_seen_lately_else_it_loo
     assert loop._confirm(members, pos, np.zeros(3), now=20.0, claim=True) is not None and loop._look == (4, 20.0)
     assert loop._confirm(members, pos, np.zeros(3), now=20.0 + LOOK_S + 0.1, claim=False) is None
     assert loop._look is None
+    # looked at in vain (hidden behind someone nearer): it holds the claim back no more at this place
+    assert loop._confirm(members, pos, np.zeros(3), now=20.0 + LOOK_S + 0.2, claim=True) is None
+    # a new claim (the robot left the place and came back) looks at it again
+    loop._claim_from = None
+    assert loop._confirm(members, pos, np.zeros(3), now=40.0, claim=True) is not None and loop._look == (4, 40.0)
 
 
 def test_a_claim_waits_until_the_success_rule_has_held_for_a_second():

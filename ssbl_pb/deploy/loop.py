@@ -162,6 +162,7 @@ class DeployLoop:
         self._seen_at: dict[int, float] = {}  # member id -> when it was last detected (``_confirm``)
         self._claim_from: float | None = None  # when the claim was first tried at this place (``_confirm``)
         self._look: tuple[int, float] | None = None  # the member looked at and since when
+        self._looked: set[int] = set()  # members looked at in vain since the claim was first tried
         self._still_since: float | None = None  # since when the robot stands away from its place (``_unstick``)
         self._stall_look: tuple[int, float] | None = None  # the member ``_unstick`` looks at and since when
         self._success_since: float | None = None  # since when the success rule has held on the estimate
@@ -379,16 +380,22 @@ class DeployLoop:
         A member backs the claim when detected at or after ``confirm_s`` before the claim was first tried at this
         place (``_claim_from``, reset by ``tick`` when the robot leaves the place). A look at the one detected
         longest ago goes on until they are detected or for ``LOOK_S``, whether or not the rule still holds as the
-        robot turns; the policy then turns it back to the group."""
+        robot turns; the policy then turns it back to the group. A member looked at for ``LOOK_S`` in vain holds
+        the claim back no more at this place: the tracker forgets one whose place is in clear view, so they stand
+        hidden behind someone nearer. Over qi a look at such a member, straight ahead, began again every
+        ``LOOK_S`` for 60 s, and a run that had joined never claimed it."""
         if self._look is None and not claim:
             return None
         if self._claim_from is None:
-            self._claim_from = now
+            self._claim_from, self._looked = now, set()
         since = self._claim_from - self.p.confirm_s
         seen = [self._seen_at.get(m.id, -math.inf) for m in members]
-        stale = [k for k, t in enumerate(seen) if t < since]
+        stale = [k for k, t in enumerate(seen) if t < since and members[k].id not in self._looked]
         if self._look is not None and (now - self._look[1] > LOOK_S
                                        or all(members[k].id != self._look[0] for k in stale)):
+            if now - self._look[1] > LOOK_S:
+                self._looked.add(self._look[0])
+                stale = [k for k in stale if members[k].id != self._look[0]]
             self._look = None  # seen (or given up on): the policy turns back; the next try looks at the next one
             if not claim:
                 return None
