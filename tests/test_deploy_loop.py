@@ -19,6 +19,7 @@ from ssbl_pb.deploy.loop import DeployLoop, DeployParams, Setup, deploy_shield
 from ssbl_pb.deploy.perceive import Perception
 from ssbl_pb.deploy.sim_robot import SimClock, SimRobot
 from ssbl_pb.params import RobotParams, SocialParams
+from ssbl_pb.perception.tracking.looks import Looks
 
 
 class FrozenCamera(SimClock):
@@ -71,7 +72,7 @@ def test_joins_the_group_and_logs_a_dynamics_log(tmp_path, groups):
     assert robot._cmd.tolist() == [0.0, 0.0, 0.0] and robot.closed
     rows = read_log(tmp_path)
     assert [r["state"] for r in rows][:3] == ["settle"] * 3 and rows[-1]["state"] == "joined"
-    # deploy judges arrival on its estimate 0.1 m inside the tolerance (loop.ARRIVAL_MARGIN)
+    # deploy judges arrival on its estimate 0.1 m inside the tolerance (looks.ARRIVAL_MARGIN)
     assert rows[-1]["slot_distance_m"] < 0.2
     assert {"t", "cmd_vx", "odom_x", "humans", "tick_ms", "estimate_age_ms", "room_pose"} <= set(rows[-1])
     dyn = read_dynamics_log(tmp_path / "log.jsonl")  # the calibration tool reads the same file
@@ -271,70 +272,12 @@ def test_deploy_params_name_the_field_that_is_wrong():
         DeployParams(settle_s=-1.0)
 
 
-def test_a_success_is_claimed_only_when_every_member_was_seen_lately_else_it_looks_at_each_in_turn():
-    from types import SimpleNamespace
-
-    loop = DeployLoop.__new__(DeployLoop)  # only the claim's state: no robot, camera or policy needed
-    loop.p = DeployParams(confirm_s=4.0, search_turn=0.5)
-    loop.s = SimpleNamespace(task=SimpleNamespace(heading_gain=2.0))
-    loop._claim_from, loop._look = None, None
-    members = [SimpleNamespace(id=1), SimpleNamespace(id=2), SimpleNamespace(id=3)]
-    pos = np.array([[2.0, 0.0], [0.0, 1.5], [0.0, -1.5]])  # 2 to the left (+90 deg), 3 to the right, out of view
-    loop._seen_at = {1: 10.0, 2: 7.0, 3: 6.5}
-    assert loop._confirm(members, pos, np.zeros(3), now=10.0, claim=False) is None  # no claim, no look
-    # claim first tried at 10.0: seen at or after 6.0 backs it (all three)
-    assert loop._confirm(members, pos, np.zeros(3), now=10.0, claim=True) is None
-    loop._claim_from = None
-    loop._seen_at = {1: 10.0, 2: 5.0, 3: 4.0}
-    look = loop._confirm(members, pos, np.zeros(3), now=10.0, claim=True)  # 3 seen longest ago: right first
-    assert look == pytest.approx([0.0, 0.0, -0.5])  # 2.0 * -90 deg, capped at search_turn
-    assert loop._claim_from == 10.0 and loop._look == (3, 10.0)
-    # the look goes on while turning breaks the rule (claim False), until member 3 is detected
-    assert loop._confirm(members, pos, np.array([0.0, 0.0, -1.0]), now=12.0, claim=False) == pytest.approx(
-        [0.0, 0.0, -0.5])  # 2.0 * (-90 + 57 deg), capped
-    loop._seen_at[3] = 12.1
-    # seen while the rule still holds: no claim yet, member 2 is not backed; the look moves on to it
-    assert loop._confirm(members, pos, np.zeros(3), now=12.2, claim=True) == pytest.approx([0.0, 0.0, 0.5])
-    assert loop._look == (2, 12.2)
-    loop._look = (3, 10.0)
-    assert loop._confirm(members, pos, np.zeros(3), now=12.2, claim=False) is None  # seen: the policy turns back
-    assert loop._look is None
-    # back at the group 6 s later: member 3 still backs the claim (seen since the first try), member 2 does not
-    assert loop._confirm(members, pos, np.zeros(3), now=18.0, claim=True) == pytest.approx([0.0, 0.0, 0.5])
-    loop._seen_at[2] = 19.0
-    assert loop._confirm(members, pos, np.zeros(3), now=19.5, claim=True) is None
-    assert loop._confirm(members, pos, np.zeros(3), now=19.6, claim=True) is None  # claimed with all backed
-    # a member never detected under this id cannot back a claim; a look at it ends after LOOK_S
-    from ssbl_pb.deploy.loop import LOOK_S
-
-    members.append(SimpleNamespace(id=4))
-    pos = np.vstack([pos, [[-2.0, 0.0]]])
-    assert loop._confirm(members, pos, np.zeros(3), now=20.0, claim=True) is not None and loop._look == (4, 20.0)
-    assert loop._confirm(members, pos, np.zeros(3), now=20.0 + LOOK_S + 0.1, claim=False) is None
-    assert loop._look is None
-    # looked at in vain (hidden behind someone nearer): it holds the claim back no more at this place
-    assert loop._confirm(members, pos, np.zeros(3), now=20.0 + LOOK_S + 0.2, claim=True) is None
-    # a new claim (the robot left the place and came back) looks at it again
-    loop._claim_from = None
-    assert loop._confirm(members, pos, np.zeros(3), now=40.0, claim=True) is not None and loop._look == (4, 40.0)
-
-
-def test_a_claim_waits_until_the_success_rule_has_held_for_a_second():
-    from ssbl_pb.deploy.loop import CLAIM_HOLD_S
-
-    loop = DeployLoop.__new__(DeployLoop)
-    loop._success_since = None
-    assert CLAIM_HOLD_S == 1.0
-    assert not loop._held(True, 10.0) and not loop._held(True, 10.5)
-    assert not loop._held(False, 10.6)  # one tick out: the hold starts again
-    assert [loop._held(True, 10.7 + 0.1 * k) for k in range(12)] == [False] * 10 + [True] * 2
-
-
 def test_deploy_docks_the_last_centimetres_when_the_policy_stops_short_of_its_margin():
     from types import SimpleNamespace
 
-    from ssbl_pb.deploy.loop import ARRIVAL_MARGIN, DOCK_SPEED
+    from ssbl_pb.deploy.loop import DOCK_SPEED
     from ssbl_pb.env.formulas.task import TaskParams
+    from ssbl_pb.perception.tracking.looks import ARRIVAL_MARGIN
 
     loop = DeployLoop.__new__(DeployLoop)
     loop.s = SimpleNamespace(task=TaskParams(), robot_params=RobotParams(), policy=SimpleNamespace())
@@ -352,39 +295,6 @@ def test_deploy_docks_the_last_centimetres_when_the_policy_stops_short_of_its_ma
     assert turned == pytest.approx([0.0, -DOCK_SPEED / RobotParams().max_speed])
 
 
-def test_standing_away_from_its_place_it_looks_at_the_member_seen_longest_ago():
-    from types import SimpleNamespace
-
-    from ssbl_pb.deploy.loop import LOOK_S, STALL_S
-
-    loop = DeployLoop.__new__(DeployLoop)  # only the look's state
-    loop.p = DeployParams(confirm_s=4.0, search_turn=0.5)
-    loop.s = SimpleNamespace(task=SimpleNamespace(heading_gain=2.0))
-    loop._still_since, loop._stall_look = None, None
-    members = [SimpleNamespace(id=1, seen=True), SimpleNamespace(id=2, seen=False), SimpleNamespace(id=3, seen=False)]
-    pos = np.array([[2.0, 0.0], [0.0, 1.5], [0.0, -1.5]])  # 2 to the left, 3 to the right
-    loop._seen_at = {1: 10.0, 2: 3.0, 3: 5.0}
-    assert loop._unstick(members, pos, np.zeros(3), 10.0, stalled=True) is None  # stands from now on
-    assert loop._unstick(members, pos, np.zeros(3), 10.0 + STALL_S - 0.1, stalled=True) is None
-    assert loop._unstick(members, pos, np.zeros(3), 12.0, stalled=False) is None  # moved: the wait starts again
-    assert loop._unstick(members, pos, np.zeros(3), 12.1, stalled=True) is None
-    look = loop._unstick(members, pos, np.zeros(3), 12.1 + STALL_S, stalled=True)
-    assert look == pytest.approx([0.0, 0.0, 0.5]) and loop._stall_look == (2, 12.1 + STALL_S)  # 2: seen at 3.0
-    # the look goes on, stalled or not, until 2 is detected, then the policy gets STALL_S again
-    assert loop._unstick(members, pos, np.array([0.0, 0.0, 1.0]), 18.0, stalled=False) is not None
-    members[1].seen = True
-    assert loop._unstick(members, pos, np.zeros(3), 18.5, stalled=True) is None and loop._stall_look is None
-    loop._seen_at[2] = 18.5
-    assert loop._unstick(members, pos, np.zeros(3), 18.5 + STALL_S, stalled=True) is not None
-    assert loop._stall_look[0] == 3  # next: 3, seen at 5.0
-    assert loop._unstick(members, pos, np.zeros(3), 18.5 + STALL_S + LOOK_S + 0.1, stalled=True) is None  # gave up
-    # everyone seen lately: no look
-    loop._seen_at = {1: 34.0, 2: 34.0, 3: 34.0}  # seen within confirm_s of 36.0
-    loop._still_since = None
-    assert loop._unstick(members, pos, np.zeros(3), 30.0, stalled=True) is None
-    assert loop._unstick(members, pos, np.zeros(3), 30.0 + STALL_S + 1, stalled=True) is None
-
-
 def test_members_out_of_view_are_kept_at_a_clearance_growing_with_the_time_unseen():
     from types import SimpleNamespace
 
@@ -395,11 +305,12 @@ def test_members_out_of_view_are_kept_at_a_clearance_growing_with_the_time_unsee
     loop = DeployLoop.__new__(DeployLoop)
     loop.shield = ShieldParams.from_env(RobotParams(), SocialParams(), TaskParams())
     loop.guard_clearance = 0.55
+    loop.looks = Looks()
     reach = math.hypot(loop.shield.half_length, loop.shield.half_width) + loop.shield.human_radius
     pose = np.array([1.0, 2.0, math.pi / 2])  # facing +y in the odometry frame
     pos = np.array([[1.0, 2.0 + reach + 0.75]])  # straight ahead, 0.75 m between footprint and body
     cmd = np.array([0.3, 0.1, 0.2])
-    loop._seen_at = {7: 10.0}
+    loop.looks.seen_at = {7: 10.0}
     seen = [SimpleNamespace(id=7, seen=True)]
     assert np.array_equal(loop._guard_unseen(cmd, seen, pos, pose, 20.0), cmd)  # detected now: the policy's shield
     gone = [SimpleNamespace(id=7, seen=False)]
@@ -413,3 +324,53 @@ def test_members_out_of_view_are_kept_at_a_clearance_growing_with_the_time_unsee
     assert np.array_equal(loop._guard_unseen(cmd, gone, pos, pose, 30.0, slot_distance=0.3), cmd)
     half = loop._guard_unseen(cmd, gone, pos, pose, 30.0, slot_distance=0.45)[0]
     assert half == pytest.approx(math.sqrt(2 * loop.shield.brake_accel * (0.75 - 0.55 - UNSEEN_MARGIN / 2)))
+
+
+def test_a_look_turns_in_place_toward_the_member_at_most_at_the_search_turn():
+    from types import SimpleNamespace
+
+    loop = DeployLoop.__new__(DeployLoop)
+    loop.p = DeployParams(search_turn=0.5)
+    loop.s = SimpleNamespace(task=SimpleNamespace(heading_gain=2.0))
+    assert loop._turn_to(np.array([0.0, -1.5]), np.zeros(3)) == pytest.approx([0.0, 0.0, -0.5])  # -90 deg, capped
+    assert loop._turn_to(np.array([2.0, 0.2]), np.zeros(3)) == pytest.approx([0.0, 0.0, 2.0 * math.atan2(0.2, 2.0)])
+    # facing +y: a member ahead-left in the odometry frame's -x is to the left
+    assert loop._turn_to(np.array([-0.2, 2.0]), np.array([0.0, 0.0, math.pi / 2]))[2] > 0
+
+
+def test_the_dock_may_graze_the_places_clearance_but_not_the_shields():
+    from types import SimpleNamespace
+
+    from ssbl_pb.deploy.loop import DOCK_SLACK, DOCK_SPEED
+    from ssbl_pb.env.formulas import observation as ob
+    from ssbl_pb.env.formulas.shield import SafetyShield, footprint_clearance
+    from ssbl_pb.env.formulas.task import TaskParams
+
+    task = TaskParams()
+    shield = SafetyShield(deploy_shield(RobotParams(), SocialParams(), task, 0.45, at_place=True))
+    p = shield.params
+    assert p.place_clearance == pytest.approx(0.6, abs=0.01) and p.clearance_min == pytest.approx(0.55)
+    loop = DeployLoop.__new__(DeployLoop)
+    loop.s = SimpleNamespace(task=task, robot_params=RobotParams(), policy=SimpleNamespace(shield=shield))
+    reach = math.hypot(p.half_length, p.half_width) + p.human_radius
+
+    def obs_at(gap):  # the place 0.2 m ahead, a member 45 deg to either side ``gap`` m from the footprint
+        obs = np.zeros(ob.OBS_SIZE, dtype=np.float32)
+        obs[ob.SLOT_X] = 0.2 / ob.POS_SCALE
+        for j, side in enumerate((1.0, -1.0)):
+            b = ob.MEMBERS + ob.MEMBER_FIELDS * j
+            xy = (reach + gap) * np.array([math.cos(side * math.pi / 4), math.sin(side * math.pi / 4)])
+            obs[b + ob.MEMBER_X], obs[b + ob.MEMBER_Y] = xy / ob.POS_SCALE
+            obs[b + ob.MEMBER_PRESENT] = 1.0
+            assert footprint_clearance(xy[None], 0.0, p)[0][0] == pytest.approx(gap, abs=1e-6)
+        return obs
+
+    pose, centre, slot = np.zeros(3), np.array([2.0, 0.0]), np.array([0.2, 0.0])
+    obs = obs_at(0.5998)  # on the place's clearance line from both: the plain shield stops the dock dead
+    assert np.allclose(shield(obs, np.array([DOCK_SPEED / p.max_speed, 0.0])), 0.0, atol=1e-6)
+    dock = loop._dock(obs, np.zeros(2), pose, centre, slot, 0.2)
+    # within DOCK_SLACK it goes on, at the place's speed cap (half the stop speed)
+    assert dock == pytest.approx([min(DOCK_SPEED, task.stop_speed / 2) / p.max_speed, 0.0], abs=1e-6)
+    assert shield.last is not None and np.allclose(shield.last.after, dock)  # logged as sent
+    obs = obs_at(p.clearance_min - 0.2 * DOCK_SLACK)  # inside the shield's own clearance: it does not
+    assert np.allclose(loop._dock(obs, np.zeros(2), pose, centre, slot, 0.2), 0.0, atol=1e-6)

@@ -309,3 +309,59 @@ def test_deploys_search_repeats_its_sidesteps_as_the_observation_model_does():
     first = states.index("sidestep")
     assert first == 126  # a full turn at 0.5 rad/s, 0.05 rad a tick
     assert states[first:first + 60] == ["sidestep"] * 60 and states[first + 60:] == ["search"] * 10
+
+
+def test_at_its_estimated_place_the_robot_looks_at_a_member_not_seen_lately_as_deploy_does():
+    from ssbl_pb.env.formulas.task import TaskParams
+    from ssbl_pb.perception.tracking.looks import CLAIM_HOLD_S, STALL_S
+    from ssbl_pb.perception.tracking.simulated import PerceivedGroups
+
+    task = TaskParams()
+    groups = PerceivedGroups(1, RobotParams(), SocialParams(), 0.8, False, EXACT)
+    cp = groups.copies[0]
+    cp.seed(0)
+    members = np.array([[3.0, 0.6], [3.0, -0.6]])
+    for _ in range(5):  # facing each other: the place opens on the robot's side
+        groups.frame(0, np.zeros(3), members, np.array([-math.pi / 2, math.pi / 2]), 0.1)
+    centre, _, _, slot = cp.group
+    assert slot[0] < 3.0
+    left = next(k for k, m in enumerate(cp.members) if m.pos[1] > 0)
+    cp.looks.seen_at[cp.members[left].id] = -10.0  # not seen for a long while
+    d = centre - slot
+    at_place = np.array([slot[0], slot[1], math.atan2(d[1], d[0])])  # standing at it, facing the centre
+    looks = []
+    for _ in range(int(CLAIM_HOLD_S * 10) + 2):
+        cp.t += 0.1
+        looks.append(cp.look(at_place, 0.0, task))
+    assert looks[:int(CLAIM_HOLD_S * 10)] == [None] * int(CLAIM_HOLD_S * 10)  # the rule holds a second first
+    assert looks[-1] == left
+    # the engine turns it in place toward that member, at most at the search's turn rate
+    aim, act, looking = groups.steer(at_place[None], task.heading_gain, 0.1, None, np.zeros(1), task)
+    assert looking.tolist() == [True] and act[0].tolist() == [0.0, 0.0]
+    turn = math.remainder(math.atan2(aim[0, 1] - at_place[1], aim[0, 0] - at_place[0]) - at_place[2], 2 * math.pi)
+    assert turn == pytest.approx(EXACT.search_turn / task.heading_gain)  # to the left, capped
+    # moving, or without the robot's speed: the policy drives
+    cp.looks = type(cp.looks)(EXACT.confirm_s, seen_at=dict(cp.looks.seen_at))
+    assert all(cp.look(at_place, 0.2, task) is None for _ in range(20))
+    assert groups.steer(at_place[None], task.heading_gain, 0.1)[2].tolist() == [False]
+    # standing 1 m short of its place, it looks after STALL_S
+    back = at_place - np.array([math.cos(at_place[2]), math.sin(at_place[2]), 0.0])
+    stalled = []
+    for _ in range(int(STALL_S * 10) + 2):
+        cp.t += 0.1
+        stalled.append(cp.look(back, 0.0, task))
+    assert stalled[0] is None and stalled[-1] == left
+
+
+def test_the_engine_lets_the_policy_drive_while_no_look_is_due():
+    env = ApproachGroupEnv("default", perception=True)
+    env.reset(seed=11)
+    sim = env.sim
+    for _ in range(200):  # find the group first (a full search turn: 126 steps)
+        env.step(np.array([0.0, 0.0]))
+        if sim.perceived.known[0]:
+            break
+    assert sim.perceived.known[0]
+    before = sim.pose[0].copy()
+    env.step(np.array([1.0, 0.0]))
+    assert np.hypot(*(sim.pose[0, :2] - before[:2])) > 0.01  # moving toward the group: no look

@@ -26,11 +26,19 @@ import numpy as np
 
 from ..env.formulas import observation as ob
 from ..env.formulas.layouts import member_keep_out, slot_keep
-from ..env.formulas.shield import PLACE_FAR, PLACE_NEAR, ShieldParams, brake_closing, footprint_clearance
+from ..env.formulas.shield import (
+    PLACE_FAR,
+    PLACE_NEAR,
+    SafetyShield,
+    ShieldParams,
+    brake_closing,
+    footprint_clearance,
+)
 from ..env.formulas.task import TaskParams
 from ..errors import Terminated
 from ..params import RobotParams, SocialParams, _check, _positive
 from ..perception.tracking.group import GroupModel, member_arrays
+from ..perception.tracking.looks import ARRIVAL_MARGIN, Looks, claim_rule
 from .faults import EXIT_CODES, DeployFault, HumanTooClose, StaleFrame, StaleOdometry
 from .frames import Frames
 from .log import RunLog, dynamics_columns
@@ -58,12 +66,7 @@ class DeployParams:
     # episode); the camera faces that person, and so the one behind, all the way
     sidestep_repeats: int = 3
     # s: success is claimed only when every member known was seen within this of the claim's first try (or since,
-    # while the robot stays within the place's tolerance); else it first turns to look at each one not seen, one
-    # after another, before the policy turns it back. Ours: at its place the neighbours stand outside the 56 deg
-    # camera, remembered and predicted (0.18 m median error), and the place computed from them; against the
-    # virtual Pepper 4 of 19 claims on `mixed` were 0.28-0.44 m from the true place (tools/bench_deploy.py
-    # --lockstep). Asking instead for every member within 4 s of now, a look at one neighbour outlasted the
-    # other's 4 s, and 3 of 20 runs that had joined never claimed it
+    # while the robot stays within the place's tolerance); else it looks at each one first (``looks.Looks``)
     confirm_s: float = 4.0
     first_frame_s: float = 5.0  # s allowed for the camera's first frame
     continue_after_success: bool = False  # hold the slot (policy running) until --duration instead of ending
@@ -86,30 +89,19 @@ ESTIMATE_MARGIN = 0.1  # m the policy's shield keeps beyond --stop-distance: the
 #   person just out of view) must not turn the policy's closest pass (0.5 m by the training shield) into a stop
 MOVING = 0.02  # m/s and rad/s: a reported velocity above this must move the pose within ``stale_s`` (odometry at
 #   10 Hz moves 2 mm a tick at this speed; a standing base's pose may not change at all, and is not stale)
-ARRIVAL_MARGIN = 0.1  # m inside the success rule's slot tolerance that deploy asks of its estimate: the shield's
-#   speed cap brings the robot in slowly right where the tolerance begins, and the slot estimated from tracked
-#   people errs by a few centimetres (virtual Pepper: 6 of 20 arrivals judged on the estimate were 0.31-0.33 m out)
-HEADING_MARGIN = 10.0  # deg inside the success rule's heading tolerance (at most half of it) likewise: turning
-#   back to the group after a look (``DeployParams.confirm_s``) it claimed at 19 deg from its estimated centre, 23
-#   deg from the true one
-LOOK_S = 8.0  # s a look at a member not seen lately may take (``_confirm``): a half turn at the search's 0.5
-#   rad/s and 1.7 s to detect them; one not seen by then (gone, or a track of nobody) is looked for again later
 DOCK_REACH = 0.1  # m beyond the slot tolerance within which, the policy having stopped, deploy takes the robot the
 #   last centimetres to its estimated place (``_dock``): trained to stop within the tolerance (the episode ends
 #   there), the policy stood 0.2-0.27 m from it, short of ``ARRIVAL_MARGIN``, until the run's time ran out
-CLAIM_HOLD_S = 1.0  # s the success rule must hold on the estimate, tick after tick, before a claim: the slot
-#   estimated from tracked people jitters by +-0.05 m between ticks, and a person's position corrected by 0.27 m
-#   when seen again moved it by 0.18 m in one tick; claimed on the first tick under the margin, 3 of 20 `mixed`
-#   lockstep claims were 0.29-0.31 m from the true place or 24 deg off the true centre
 DOCK_SPEED = 0.06  # m/s: below the success rule's stop speed (0.1), so the robot may stop any tick
-STALL_S = 5.0  # s the robot may stand (slower than the stop speed) away from its estimated place before deploy
-#   looks at the member seen longest ago (``_unstick``): over qi, a run stood 60 s at the true place while two
-#   remembered members, never looked at again, put its estimated place 1.96 m away
-
+DOCK_SLACK = 0.05  # m the dock may pass inside the place's clearance (0.6 m from the members, ``shield_at_place``),
+#   not inside the shield's 0.55 m: the estimated place lies on that clearance's line from its neighbours
+#   (``layouts.slot_keep``), and braking to it exactly the shield held a docking robot 0.5998 m from a member and
+#   0.20 m from its place, just short of its claim, for 65 s (over qi)
 UNSEEN_GROWTH, UNSEEN_MARGIN = 0.05, 0.15  # m/s, m: the clearance deploy keeps from a member out of view grows by
 #   this for each second since it was last detected, up to this (``_guard_unseen``). Remembered members stay where
 #   last estimated (``GroupTracker.hold``: 0.13 m median error, 0.30 m p90 against the virtual Pepper's ground
 #   truth); over qi one made room 0.15 m out of view while the robot strafed toward it and came 0.42 m from them
+
 
 def deploy_shield(robot: RobotParams, social: SocialParams, task: TaskParams, stop_distance: float,
                   at_place: bool = False) -> ShieldParams:
@@ -159,13 +151,7 @@ class DeployLoop:
         self._approaching = False
         self._search_side = 0.0
         self._turned, self._last_yaw, self._sidestep_left, self._sidesteps = 0.0, None, 0, 0
-        self._seen_at: dict[int, float] = {}  # member id -> when it was last detected (``_confirm``)
-        self._claim_from: float | None = None  # when the claim was first tried at this place (``_confirm``)
-        self._look: tuple[int, float] | None = None  # the member looked at and since when
-        self._looked: set[int] = set()  # members looked at in vain since the claim was first tried
-        self._still_since: float | None = None  # since when the robot stands away from its place (``_unstick``)
-        self._stall_look: tuple[int, float] | None = None  # the member ``_unstick`` looks at and since when
-        self._success_since: float | None = None  # since when the success rule has held on the estimate
+        self.looks = Looks(self.p.confirm_s)  # looks at members not seen lately: before a claim, when stalled
         self.group = GroupModel(setup.social, slot_keep(setup.social, setup.robot_params.reach,
                                                         setup.task.intimate_zone, setup.task.route_margin),
                                 paper=setup.groups == "paper")
@@ -191,7 +177,7 @@ class DeployLoop:
             if hasattr(s.policy, "reset"):
                 s.policy.reset()
             self._policy_state, self._approaching = None, True
-            self._claim_from, self._look, self._still_since, self._stall_look = None, None, None, None
+            self.looks.new_approach()
         centre, radius, joining, slot = self.group.update(pos, pose[:2], rest, facing, facing_std)
         s.perception.centre0 = self.group.centre
         room = fr.room_pose(pose)
@@ -222,9 +208,7 @@ class DeployLoop:
         shield = last.row() if last is not None else None  # what the policy's shield changed this tick
         if shield is not None:
             shield["cmd_before"] = self._command(np.asarray(shield["before"]), heading).tolist()
-        success = (slot_dist < s.task.slot_tolerance - ARRIVAL_MARGIN and math.hypot(vel[0], vel[1]) < s.task.stop_speed
-                   and abs(heading) < math.radians(s.task.heading_tolerance_deg
-                                                   - min(HEADING_MARGIN, s.task.heading_tolerance_deg / 2)))
+        success = claim_rule(slot_dist, math.hypot(vel[0], vel[1]), heading, s.task)
         return cmd, {"centre": centre, "radius": radius, "joining": joining, "slot": slot, "slot_distance_m": slot_dist,
                      "heading_error_deg": math.degrees(heading), "action": np.asarray(action).ravel(),
                      "shield": shield, "dock": dock is not None, "success": success}
@@ -246,7 +230,13 @@ class DeployLoop:
         dock = action.copy()
         dock[:2] = np.array([c * d[0] + sn * d[1], -sn * d[0] + c * d[1]]) * (DOCK_SPEED / top / max(slot_dist, 1e-9))
         shield = getattr(s.policy, "shield", None)
-        return dock if shield is None else np.asarray(shield(obs, dock), dtype=float)
+        if shield is None:
+            return dock
+        p = shield.params  # the place's clearance less DOCK_SLACK (below the shield's own it has no effect)
+        docking = SafetyShield(dataclasses.replace(p, place_clearance=max(p.place_clearance - DOCK_SLACK, 0.0)))
+        out = np.asarray(docking(obs, dock), dtype=float)
+        shield.last = docking.last  # the log shows what the shield did to the command sent
+        return out
 
     def _command(self, action: np.ndarray, heading: float) -> np.ndarray:
         """The body command (forward, left, turn) of a policy action, turning toward the group centre."""
@@ -273,7 +263,7 @@ class DeployLoop:
             raise StaleFrame(f"newest camera frame is {now - capture:.2f} s old (limit {p.stale_s:g} s): camera "
                              f"frozen or frames not arriving")
         pos, mvel, members, age, detections = self._members(now)
-        self._seen_at.update({m.id: now for m in members if m.seen})
+        self.looks.saw(members, now)
         clearance = (footprint_clearance(pos - odo.pose[:2], float(odo.pose[2]), self.shield)[0] if len(pos)
                      else np.zeros(0))
         if len(clearance) and clearance.min() < p.stop_distance:
@@ -288,19 +278,18 @@ class DeployLoop:
         else:
             _, rest, facing, facing_std = member_arrays(members)
             cmd, info = self._act(odo.pose, odo.velocity, pos, mvel, rest, facing, facing_std)
-            held = self._held(info["success"], now)
+            held = self.looks.held(info["success"], now)
             state = "joined" if held else "dock" if info["dock"] else "approach"
-            if info["slot_distance_m"] >= s.task.slot_tolerance:  # away from the place: a claim starts afresh
-                self._claim_from, self._look = None, None
-            look = self._confirm(members, pos, odo.pose, now, held)
-            if look is not None:  # a claim it cannot back yet: look first
-                state, cmd = "confirm", look
+            away = info["slot_distance_m"] >= s.task.slot_tolerance
+            if away:  # away from the place: a claim starts afresh
+                self.looks.left_place()
+            k = self.looks.confirm(members, now, held)
+            if k is not None:  # a claim it cannot back yet: look first
+                state, cmd = "confirm", self._turn_to(pos[k], odo.pose)
             else:
-                away = info["slot_distance_m"] >= s.task.slot_tolerance
-                look = self._unstick(members, pos, odo.pose, now,
-                                     away and math.hypot(*odo.velocity[:2]) < s.task.stop_speed)
-                if look is not None:  # standing away from its place: refresh the members it has not seen
-                    state, cmd = "look", look
+                k = self.looks.unstick(members, now, away and math.hypot(*odo.velocity[:2]) < s.task.stop_speed)
+                if k is not None:  # standing away from its place: refresh the members it has not seen
+                    state, cmd = "look", self._turn_to(pos[k], odo.pose)
         cmd = self._guard_unseen(cmd, members, pos, odo.pose, now, info.get("slot_distance_m", math.inf))
         t_send = self.now()
         sent = s.robot.send(clamp_command(cmd, self.limits))
@@ -332,7 +321,7 @@ class DeployLoop:
         out near the estimated place (``slot_distance``) as the shield's place clearance fades in (``PLACE_FAR`` to
         ``PLACE_NEAR``): there the neighbours are out of view by design and the shield keeps its place's clearance;
         kept there too, the margin held the robot 0.2 m from its place for 45 s (virtual Pepper, lockstep)."""
-        unseen = np.array([0.0 if m.seen else now - self._seen_at.get(m.id, now) for m in members])
+        unseen = np.array([0.0 if m.seen else now - self.looks.seen_at.get(m.id, now) for m in members])
         far = min(max((slot_distance - PLACE_NEAR) / (PLACE_FAR - PLACE_NEAR), 0.0), 1.0)
         margin = np.minimum(UNSEEN_GROWTH * unseen, UNSEEN_MARGIN) * far
         keep = margin > 0
@@ -362,80 +351,12 @@ class DeployLoop:
                                 f"reports moving at ({v[0]:.2f}, {v[1]:.2f}) m/s, {v[2]:.2f} rad/s (limit "
                                 f"{p.stale_s:g} s)")
 
-    def _held(self, success: bool, now: float) -> bool:
-        """Whether the success rule has held on the estimate for ``CLAIM_HOLD_S``, tick after tick, by ``now``."""
-        if not success:
-            self._success_since = None
-            return False
-        if self._success_since is None:
-            self._success_since = now
-        return now - self._success_since >= CLAIM_HOLD_S - 1e-9
-
-    def _confirm(self, members: list[Any], pos: np.ndarray, pose: np.ndarray, now: float, claim: bool
-                 ) -> np.ndarray | None:
-        """None when the claim (``claim``: the success rule has held on the estimate for ``CLAIM_HOLD_S``) can be
-        backed, or when no claim is tried and no look is under way; else the command that turns in place (at most
-        ``search_turn`` rad/s) toward the member looked at.
-
-        A member backs the claim when detected at or after ``confirm_s`` before the claim was first tried at this
-        place (``_claim_from``, reset by ``tick`` when the robot leaves the place). A look at the one detected
-        longest ago goes on until they are detected or for ``LOOK_S``, whether or not the rule still holds as the
-        robot turns; the policy then turns it back to the group. A member looked at for ``LOOK_S`` in vain holds
-        the claim back no more at this place: the tracker forgets one whose place is in clear view, so they stand
-        hidden behind someone nearer. Over qi a look at such a member, straight ahead, began again every
-        ``LOOK_S`` for 60 s, and a run that had joined never claimed it."""
-        if self._look is None and not claim:
-            return None
-        if self._claim_from is None:
-            self._claim_from, self._looked = now, set()
-        since = self._claim_from - self.p.confirm_s
-        seen = [self._seen_at.get(m.id, -math.inf) for m in members]
-        stale = [k for k, t in enumerate(seen) if t < since and members[k].id not in self._looked]
-        if self._look is not None and (now - self._look[1] > LOOK_S
-                                       or all(members[k].id != self._look[0] for k in stale)):
-            if now - self._look[1] > LOOK_S:
-                self._looked.add(self._look[0])
-                stale = [k for k in stale if members[k].id != self._look[0]]
-            self._look = None  # seen (or given up on): the policy turns back; the next try looks at the next one
-            if not claim:
-                return None
-        if not stale:
-            return None
-        if self._look is None:
-            self._look = (members[min(stale, key=lambda k: seen[k])].id, now)
-        k = next(k for k in stale if members[k].id == self._look[0])
-        return self._turn_to(pos[k], pose)
-
     def _turn_to(self, point: np.ndarray, pose: np.ndarray) -> np.ndarray:
         """The command that turns in place toward ``point`` (at most ``search_turn`` rad/s)."""
         d = point - pose[:2]
         heading = math.remainder(math.atan2(d[1], d[0]) - pose[2], 2 * math.pi)
         turn = float(np.clip(self.s.task.heading_gain * heading, -self.p.search_turn, self.p.search_turn))
         return np.array([0.0, 0.0, turn])
-
-    def _unstick(self, members: list[Any], pos: np.ndarray, pose: np.ndarray, now: float, stalled: bool
-                 ) -> np.ndarray | None:
-        """The command that turns toward the member seen longest ago (not within ``confirm_s``) once the robot has
-        stood away from its estimated place (``stalled``) for ``STALL_S``; the look goes on until they are detected
-        (or forgotten) or for ``LOOK_S``, then the policy has ``STALL_S`` again. None otherwise."""
-        if self._stall_look is not None:
-            k = next((k for k, m in enumerate(members) if m.id == self._stall_look[0]), None)
-            if k is not None and not members[k].seen and now - self._stall_look[1] <= LOOK_S:
-                return self._turn_to(pos[k], pose)
-            self._stall_look, self._still_since = None, now
-            return None
-        if not stalled:
-            self._still_since = None
-            return None
-        if self._still_since is None:
-            self._still_since = now
-        seen = [self._seen_at.get(m.id, -math.inf) for m in members]
-        stale = [k for k, t in enumerate(seen) if t < now - self.p.confirm_s]
-        if now - self._still_since < STALL_S or not stale:
-            return None
-        k = min(stale, key=lambda k: seen[k])
-        self._stall_look = (members[k].id, now)
-        return self._turn_to(pos[k], pose)
 
     def _search(self, pose: np.ndarray, pos: np.ndarray) -> tuple[str, np.ndarray]:
         """Fewer than two people known: turn in place (toward the one known person's side first); after a full

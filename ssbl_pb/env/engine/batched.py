@@ -278,12 +278,16 @@ class BatchedApproach:
         a = np.ascontiguousarray(actions, dtype=np.float64).reshape(self.num, self.n_act)
         b, g = self.bases, self.groups_state
         aim = g.centre
-        if self.perceived is not None:  # the robot faces the centre it perceives; knowing too few, it searches
-            aim, search = self.perceived.steer(self.pose, self.task.heading_gain, self.dt, self._static_clearance)
+        if self.perceived is not None:  # the robot faces the centre it perceives; knowing too few, it searches;
+            # before a claim or when stalled it looks at members not seen lately (``looks.Looks``)
+            speed = np.hypot(self.vel[:, 0], self.vel[:, 1])
+            aim, search, looking = self.perceived.steer(self.pose, self.task.heading_gain, self.dt,
+                                                        self._static_clearance, speed, self.task)
             aim = self._turn_guard(aim)
             a, lost = a.copy(), ~self.perceived.known
-            a[lost] = 0.0
-            a[lost, :2] = search[lost] / self.robot_params.max_speed
+            driven = lost | looking  # deploy drives these itself: its search, or a look at a member in place
+            a[driven] = 0.0
+            a[driven, :2] = search[driven] / self.robot_params.max_speed
             # searching is not approaching: its time is added to the episode, up to one episode more (deploy's
             # 60 s --duration is twice the simulated episode, for the search)
             more = lost & (self.search_steps < self.task.max_steps)

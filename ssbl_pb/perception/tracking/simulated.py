@@ -18,7 +18,10 @@ radius, joining weight, free slot), called as ``deploy.loop.DeployLoop`` calls t
 
 While fewer than two people are known, deploy does not run the policy: it turns in place to find the group, and
 after a full turn with one person in sight steps sideways for another line of sight (``DeployLoop._search``).
-``PerceivedGroups.steer`` gives the engine the same. Not modelled: deploy's 0.5 s settle at the start and the
+``PerceivedGroups.steer`` gives the engine the same, and deploy's looks (``looks.Looks``, the same code): at the
+place it estimates, before it would claim success, it turns in place toward each member not seen lately, and
+after standing away from that place for a while toward the one seen longest ago. Not modelled: deploy's docking
+the last centimetres, deploy's 0.5 s settle at the start and the
 estimate's latency (one frame, ~60 ms).
 Seeded per copy, apart from the env's own generator, so an episode's start is the same with the model on or off.
 """
@@ -33,6 +36,7 @@ from typing import Any
 import numpy as np
 
 from ...params import RobotParams, SocialParams, _check
+from .looks import Looks, claim_rule
 
 # QVGA, the resolution deploy subscribes (``deploy.naoqi.NaoqiParams.resolution``)
 IMAGE_SIZE = (320, 240)
@@ -63,6 +67,7 @@ class PerceptionParams:
     sidestep_speed: float = 0.2  # m/s ... (DeployParams.sidestep_speed)
     sidestep_repeats: int = 3  # ... up to this many in a row (DeployParams.sidestep_repeats)
     sidestep_clearance: float = 0.4  # m: a sidestep goes only where the footprint keeps this from walls and furniture
+    confirm_s: float = 4.0  # s: a claim is backed by members seen this long before it (DeployParams.confirm_s)
 
     def __post_init__(self) -> None:
         for name in ("range_std_m", "range_std_per_m", "bearing_std_deg", "facing_std_deg", "partial_std_m"):
@@ -87,6 +92,8 @@ class PerceptionParams:
                "sidestep_repeats", self.sidestep_repeats, "an integer >= 1")
         _check(isinstance(self.sidestep_clearance, int | float) and self.sidestep_clearance >= 0, "perception",
                "sidestep_clearance", self.sidestep_clearance, "metres >= 0")
+        _check(isinstance(self.confirm_s, int | float) and self.confirm_s > 0, "perception", "confirm_s",
+               self.confirm_s, "seconds > 0")
 
     @classmethod
     def of(cls, value: Any) -> PerceptionParams | None:
@@ -202,6 +209,7 @@ class CopyPerception:
         self.sidestep_angle, self.sidesteps = math.pi / 2, 0  # the sidestep's direction, sidesteps in a row
         self.members: list[Any] = []
         self.group: tuple[np.ndarray, float, float, np.ndarray] | None = None  # centre, radius, joining, slot
+        self.looks, self.t = Looks(params.confirm_s), 0.0  # deploy's looks, on the episode's clock (s)
 
     def seed(self, seed: int | None) -> None:
         self.rng = np.random.default_rng(None if seed is None else [int(seed), 37])
@@ -213,6 +221,7 @@ class CopyPerception:
         self.model.reset()
         self.approaching, self.search_side, self.members, self.group = False, 0.0, [], None
         self.turned, self.last_yaw, self.sidestep_left, self.sidesteps = 0.0, None, 0, 0
+        self.looks, self.t = Looks(self.params.confirm_s), 0.0
 
     def frame(self, pose: np.ndarray, members: np.ndarray, dt: float, yaw: np.ndarray | None = None) -> None:
         """One camera frame at the robot's ``pose`` (room frame, used as the odometry frame) with the true
@@ -230,16 +239,33 @@ class CopyPerception:
             phi = np.asarray(yaw, dtype=float) - np.arctan2(-rel[:, 1], -rel[:, 0])
         seen, facing, std = detect(xy, can, self.params, self.rng, phi, share < 1.0)
         self.members = self.tracker.update(seen, dt, np.asarray(pose, dtype=float), facing, std)
+        self.t += dt
+        self.looks.saw(self.members, self.t)
         if len(self.members) < 2:
             self.approaching, self.group = False, None
             return
         if not self.approaching:
             self.model.reset()
+            self.looks.new_approach()
             self.approaching, self.search_side = True, 0.0  # the next search starts afresh
         from .group import member_arrays
 
         pos, rest, facing, facing_std = member_arrays(self.members)
         self.group = self.model.update(pos, np.asarray(pose[:2], dtype=float), rest, facing, facing_std)
+
+    def look(self, pose: np.ndarray, speed: float, task: Any) -> int | None:
+        """The member (index into ``members``) deploy's loop would turn toward now, as ``DeployLoop.tick`` asks
+        ``looks``: before a claim on the estimated group (``looks.claim_rule``), or stalled away from its place;
+        None when the policy drives. Call once per step, after ``frame``, with the group known."""
+        centre, _, _, slot = self.group
+        slot_distance = float(np.hypot(*(slot - pose[:2])))
+        heading = math.remainder(math.atan2(centre[1] - pose[1], centre[0] - pose[0]) - pose[2], 2 * math.pi)
+        held = self.looks.held(claim_rule(slot_distance, speed, heading, task), self.t)
+        away = slot_distance >= task.slot_tolerance
+        if away:
+            self.looks.left_place()
+        k = self.looks.confirm(self.members, self.t, held)
+        return k if k is not None else self.looks.unstick(self.members, self.t, away and speed < task.stop_speed)
 
     def search(self, pose: np.ndarray, heading_gain: float, dt: float,
                clearance: Callable[[np.ndarray], float] | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -345,12 +371,29 @@ class PerceivedGroups:
             self.centre[i], self.scalars[i, RADIUS], self.slot[i] = pose[:2] + 1e-3 * ahead, 0.0, pose[:2]
 
     def steer(self, pose: np.ndarray, heading_gain: float, dt: float,
-              clearance: Callable[[int, np.ndarray], float] | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """(N, 2) each robot's aim (``kernels.step``: the perceived centre, or its search's) and (N, 2) the body
-        action (forward, left; m/s) of the copies that search (the others' rows are unused); ``clearance(i,
-        pose)``: copy i's footprint's static clearance at a pose (for the sidestep)."""
+              clearance: Callable[[int, np.ndarray], float] | None = None, speed: np.ndarray | None = None,
+              task: Any = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(N, 2) each robot's aim (``kernels.step``: the perceived centre, or its search's or look's), (N, 2) the
+        body action (forward, left; m/s) of the copies deploy would drive itself, and (N,) which of those copies
+        know the group and look at a member (``CopyPerception.look``; needs ``speed`` (N,), the robots' planar
+        speeds, and ``task``, the success rule; the others search); ``clearance(i, pose)``: copy i's footprint's
+        static clearance at a pose (for the sidestep). A look turns in place, at most ``search_turn`` rad/s under
+        the env's proportional heading control, as ``DeployLoop._turn_to``."""
         aim, act = self.centre.copy(), np.zeros((len(self.known), 2))
         for i in np.flatnonzero(~self.known).tolist():
             free = None if clearance is None else (lambda q, i=i: clearance(i, q))
             aim[i], act[i] = self.copies[i].search(pose[i], heading_gain, dt, free)
-        return aim, act
+        looking = np.zeros(len(self.known), dtype=bool)
+        if speed is None or task is None:
+            return aim, act, looking
+        for i in np.flatnonzero(self.known).tolist():
+            cp = self.copies[i]
+            k = cp.look(pose[i], float(speed[i]), task)
+            if k is None:
+                continue
+            d = cp.members[k].pos - pose[i, :2]
+            heading = math.remainder(math.atan2(d[1], d[0]) - pose[i, 2], 2 * math.pi)
+            turn = min(max(heading_gain * heading, -self.params.search_turn), self.params.search_turn) / heading_gain
+            aim[i] = pose[i, :2] + np.array([math.cos(pose[i, 2] + turn), math.sin(pose[i, 2] + turn)])
+            looking[i] = True
+        return aim, act, looking
