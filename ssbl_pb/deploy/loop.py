@@ -26,14 +26,7 @@ import numpy as np
 
 from ..env.formulas import observation as ob
 from ..env.formulas.layouts import member_keep_out, slot_keep
-from ..env.formulas.shield import (
-    PLACE_FAR,
-    PLACE_NEAR,
-    SafetyShield,
-    ShieldParams,
-    brake_closing,
-    footprint_clearance,
-)
+from ..env.formulas.shield import PLACE_FAR, PLACE_NEAR, ShieldParams, brake_closing, footprint_clearance
 from ..env.formulas.task import TaskParams
 from ..errors import Terminated
 from ..params import RobotParams, SocialParams, _check, _positive
@@ -93,10 +86,6 @@ DOCK_REACH = 0.1  # m beyond the slot tolerance within which, the policy having 
 #   last centimetres to its estimated place (``_dock``): trained to stop within the tolerance (the episode ends
 #   there), the policy stood 0.2-0.27 m from it, short of ``ARRIVAL_MARGIN``, until the run's time ran out
 DOCK_SPEED = 0.06  # m/s: below the success rule's stop speed (0.1), so the robot may stop any tick
-DOCK_SLACK = 0.05  # m the dock may pass inside the place's clearance (0.6 m from the members, ``shield_at_place``),
-#   not inside the shield's 0.55 m: the estimated place lies on that clearance's line from its neighbours
-#   (``layouts.slot_keep``), and braking to it exactly the shield held a docking robot 0.5998 m from a member and
-#   0.20 m from its place, just short of its claim, for 65 s (over qi)
 UNSEEN_GROWTH, UNSEEN_MARGIN = 0.05, 0.15  # m/s, m: the clearance deploy keeps from a member out of view grows by
 #   this for each second since it was last detected, up to this (``_guard_unseen``). Remembered members stay where
 #   last estimated (``GroupTracker.hold``: 0.13 m median error, 0.30 m p90 against the virtual Pepper's ground
@@ -230,13 +219,7 @@ class DeployLoop:
         dock = action.copy()
         dock[:2] = np.array([c * d[0] + sn * d[1], -sn * d[0] + c * d[1]]) * (DOCK_SPEED / top / max(slot_dist, 1e-9))
         shield = getattr(s.policy, "shield", None)
-        if shield is None:
-            return dock
-        p = shield.params  # the place's clearance less DOCK_SLACK (below the shield's own it has no effect)
-        docking = SafetyShield(dataclasses.replace(p, place_clearance=max(p.place_clearance - DOCK_SLACK, 0.0)))
-        out = np.asarray(docking(obs, dock), dtype=float)
-        shield.last = docking.last  # the log shows what the shield did to the command sent
-        return out
+        return dock if shield is None else np.asarray(shield(obs, dock), dtype=float)
 
     def _command(self, action: np.ndarray, heading: float) -> np.ndarray:
         """The body command (forward, left, turn) of a policy action, turning toward the group centre."""
