@@ -84,6 +84,20 @@ def test_kill_and_resume_continues_the_step_count(tmp_path):
     assert steps == sorted(steps) and steps[-1] > step
 
 
+def test_a_learning_rate_in_e_notation_is_a_number_in_files_and_on_the_command_line(tmp_path):
+    from ssbl_pb.params import parse_yaml
+    from ssbl_pb.training.config import parse_overrides
+
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text("ppo:\n  learning_rate: 3e-5\n  learning_rate_end: 1E-6\nn_envs: 2\nname: 1e3x\n")
+    loaded = load_config(cfg)
+    assert loaded.ppo.learning_rate == 3e-5 and loaded.ppo.learning_rate_end == 1e-6 and loaded.n_envs == 2
+    assert parse_overrides(["ppo.learning_rate=2e-4"]) == {"ppo": {"learning_rate": 2e-4}}
+    # YAML's own forms keep their meaning: integers, dotted floats, words that merely start with digits
+    assert parse_yaml("a: 3\nb: 3.0e-5\nc: 1e3x\nd: '3e-5'\ne: -2e+2") == {"a": 3, "b": 3e-5, "c": "1e3x",
+                                                                           "d": "3e-5", "e": -200.0}
+
+
 def test_resume_without_checkpoint(tmp_path):
     (tmp_path / "config.yaml").write_text("name: x\n")
     res = subprocess.run([*TRAIN, "--resume", str(tmp_path)], capture_output=True, text=True, timeout=60)

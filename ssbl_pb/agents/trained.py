@@ -14,6 +14,7 @@ import yaml
 
 from ..env.formulas.observation import BASE_SIZE, OBS_SIZE
 from ..errors import UserError
+from ..params import parse_yaml
 from ..policies import SHIPPED
 from .policies import Policy
 
@@ -54,7 +55,7 @@ def read_run_config(path: Path) -> dict[str, Any]:
     if not path.is_file():
         return {}
     try:
-        config = yaml.safe_load(path.read_text())
+        config = parse_yaml(path.read_text())
     except (yaml.YAMLError, UnicodeDecodeError) as exc:
         raise ModelError(f"{path}: not readable YAML ({' '.join(str(exc).split())})") from exc
     if config is not None and not isinstance(config, dict):

@@ -27,7 +27,7 @@ from typing import Any
 import yaml
 
 from ..errors import UserError
-from ..params import ConfigError, _check, from_dict, load_yaml
+from ..params import ConfigError, _check, from_dict, load_yaml, parse_yaml
 
 OBS_MODES = ("vector", "camera", "camera_speed")
 ENCODERS = ("none", "cnn", "conv", "saev")  # cnn: end-to-end NatureCNN; conv / saev: a frozen autoencoder
@@ -242,7 +242,7 @@ def parse_overrides(items: list[str]) -> dict[str, Any]:
         key, sep, raw = item.partition("=")
         if not sep or not key:
             raise ConfigError(f"--set {item!r}: expected KEY=VALUE, e.g. reward.w1=0.1")
-        pairs[key] = yaml.safe_load(raw)
+        pairs[key] = parse_yaml(raw)
     return nest_overrides(pairs)
 
 

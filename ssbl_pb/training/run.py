@@ -21,7 +21,7 @@ import numpy as np
 from ..env.gymenv.approach import make_env
 from ..errors import UserError
 from ..files import check_output_path, output_dir, remove_temporaries, write_text
-from ..params import ConfigError
+from ..params import ConfigError, parse_yaml
 from .config import TrainConfig, load_config, save_config
 
 # what a run directory holds: all that tools/train_pb.py writes there, and all --overwrite may remove
@@ -42,7 +42,7 @@ def is_run_dir(path: Path) -> bool:
     import yaml
 
     try:
-        cfg = yaml.safe_load((path / "config.yaml").read_text())
+        cfg = parse_yaml((path / "config.yaml").read_text())
     except (OSError, ValueError, yaml.YAMLError):
         return _only_checkpoints(path)
     return isinstance(cfg, dict) and {"obs_mode", "ppo"} <= set(cfg)
