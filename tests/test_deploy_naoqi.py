@@ -76,7 +76,11 @@ def test_each_fault_stops_the_base_and_names_itself(fault, tmp_path):
     if fault in ("deploy_killed", "watchdog_stop_hangs"):
         assert res["stop_commanded_s"] > 0.4  # by the watchdog's limit, not before
     if fault == "watchdog_stop_hangs":  # the first stopMove went unanswered: the watchdog lived on and sent again
-        assert any("sent again" in line for line in res["watchdog"]), res
+        # (on a loaded machine a heartbeat gap before the kill can draw, and spend, the hung call first: then the
+        # watchdog expired twice and the kill's stop went out afresh)
+        said = res["watchdog"]
+        again = any("sent again" in line for line in said)
+        assert again or sum("heartbeats stopped" in line for line in said) >= 2, res
         assert any("confirmed" in line for line in res["watchdog"]), res
         assert res["stop_commanded_s"] < 0.5 + 2.0  # well before the hung call's own 2 s
         assert "stopMove_hung" in [c["call"] for c in load_log(tmp_path / "virtual_pepper.jsonl")[2]]
