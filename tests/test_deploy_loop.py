@@ -72,6 +72,9 @@ def test_joins_the_group_and_logs_a_dynamics_log(tmp_path, groups):
     assert robot._cmd.tolist() == [0.0, 0.0, 0.0] and robot.closed
     rows = read_log(tmp_path)
     assert [r["state"] for r in rows][:3] == ["settle"] * 3 and rows[-1]["state"] == "joined"
+    # arrived by its estimate, it stands (turning only) while the success rule must hold (or looks), then claims
+    hold = [r for r in rows if r["state"] == "hold"]
+    assert hold and rows[-2]["state"] in ("hold", "confirm") and all(r["cmd_policy"][:2] == [0.0, 0.0] for r in hold)
     # deploy judges arrival on its estimate 0.1 m inside the tolerance (looks.ARRIVAL_MARGIN)
     assert rows[-1]["slot_distance_m"] < 0.2
     assert {"t", "cmd_vx", "odom_x", "humans", "tick_ms", "estimate_age_ms", "room_pose"} <= set(rows[-1])
