@@ -80,3 +80,25 @@ def test_standing_away_from_its_place_it_looks_at_the_member_seen_longest_ago():
     looks.still_since = None
     assert looks.unstick(members, 30.0, stalled=True) is None
     assert looks.unstick(members, 30.0 + STALL_S + 1, stalled=True) is None
+
+
+def test_decide_takes_one_period_as_deploys_loop_does():
+    task = SimpleNamespace(slot_tolerance=0.3, stop_speed=0.1, heading_tolerance_deg=20.0)
+    members = [SimpleNamespace(id=1, seen=True), SimpleNamespace(id=2, seen=False)]
+    looks = Looks(confirm_s=4.0)
+    looks.seen_at = {1: 20.0, 2: 3.0}
+    # at the place, the rule holding: after CLAIM_HOLD_S it looks at member 2 before claiming
+    assert looks.decide(members, 20.0, True, 0.1, 0.0, task) == (False, None, None)
+    assert looks.decide(members, 20.0 + CLAIM_HOLD_S, True, 0.1, 0.0, task) == (True, "confirm", 1)
+    # leaving the place ends the claim and its look; standing away, it looks at member 2 after STALL_S
+    assert looks.decide(members, 22.0, False, 0.8, 0.0, task) == (False, None, None)
+    assert looks.claim_from is None and looks.look is None
+    assert looks.decide(members, 22.0 + STALL_S, False, 0.8, 0.0, task) == (False, "look", 1)
+    # driving (faster than the stop speed) away from the place: no stall
+    fresh = Looks(confirm_s=4.0, seen_at={1: 20.0, 2: 3.0})
+    assert fresh.decide(members, 22.0, False, 0.8, 0.3, task) == (False, None, None)
+    assert fresh.decide(members, 22.0 + 2 * STALL_S, False, 0.8, 0.3, task) == (False, None, None)
+    # every member seen lately: the claim stands
+    backed = Looks(confirm_s=4.0, seen_at={1: 20.0, 2: 19.0})
+    backed.decide(members, 20.0, True, 0.1, 0.0, task)
+    assert backed.decide(members, 20.0 + CLAIM_HOLD_S, True, 0.1, 0.0, task) == (True, None, None)

@@ -31,7 +31,7 @@ from ..env.formulas.task import TaskParams
 from ..errors import Terminated
 from ..params import RobotParams, SocialParams, _check, _positive
 from ..perception.tracking.group import GroupModel, member_arrays
-from ..perception.tracking.looks import ARRIVAL_MARGIN, Looks, claim_rule
+from ..perception.tracking.looks import ARRIVAL_MARGIN, CONFIRM_S, Looks, claim_rule
 from .faults import EXIT_CODES, DeployFault, HumanTooClose, StaleFrame, StaleOdometry
 from .frames import Frames
 from .log import RunLog, dynamics_columns
@@ -60,7 +60,7 @@ class DeployParams:
     sidestep_repeats: int = 3
     # s: success is claimed only when every member known was seen within this of the claim's first try (or since,
     # while the robot stays within the place's tolerance); else it looks at each one first (``looks.Looks``)
-    confirm_s: float = 4.0
+    confirm_s: float = CONFIRM_S
     first_frame_s: float = 5.0  # s allowed for the camera's first frame
     continue_after_success: bool = False  # hold the slot (policy running) until --duration instead of ending
     status_s: float = 1.0  # seconds between status lines (0: none)
@@ -261,21 +261,14 @@ class DeployLoop:
         else:
             _, rest, facing, facing_std = member_arrays(members)
             cmd, info = self._act(odo.pose, odo.velocity, pos, mvel, rest, facing, facing_std)
-            held = self.looks.held(info["success"], now)
+            held, look, k = self.looks.decide(members, now, info["success"], info["slot_distance_m"],
+                                              math.hypot(*odo.velocity[:2]), s.task)
             state = "joined" if held else "dock" if info["dock"] else "approach"
             if info["success"] and not held:  # arrived by its estimate: it stands while the rule must hold
                 state, cmd = "hold", np.array([0.0, 0.0, cmd[2]])  # (over qi the policy, still driving at 0.05
                 #   m/s, took it back over the margin within the second, again and again: 3 of 20 joins unclaimed)
-            away = info["slot_distance_m"] >= s.task.slot_tolerance
-            if away:  # away from the place: a claim starts afresh
-                self.looks.left_place()
-            k = self.looks.confirm(members, now, held)
-            if k is not None:  # a claim it cannot back yet: look first
-                state, cmd = "confirm", self._turn_to(pos[k], odo.pose)
-            else:
-                k = self.looks.unstick(members, now, away and math.hypot(*odo.velocity[:2]) < s.task.stop_speed)
-                if k is not None:  # standing away from its place: refresh the members it has not seen
-                    state, cmd = "look", self._turn_to(pos[k], odo.pose)
+            if look is not None:  # a claim it cannot back yet ("confirm"), or stalled away from its place ("look")
+                state, cmd = look, self._turn_to(pos[k], odo.pose)
         cmd = self._guard_unseen(cmd, members, pos, odo.pose, now, info.get("slot_distance_m", math.inf))
         t_send = self.now()
         sent = s.robot.send(clamp_command(cmd, self.limits))

@@ -19,6 +19,7 @@ CLAIM_HOLD_S = 1.0  # s the success rule must hold on the estimate, tick after t
 #   lockstep claims were 0.29-0.31 m from the true place or 24 deg off the true centre
 LOOK_S = 8.0  # s a look at a member not seen lately may take: a half turn at the search's 0.5 rad/s and 1.7 s to
 #   detect them; one not seen by then (gone, or a track of nobody) is looked for again later
+CONFIRM_S = 4.0  # s: the default of ``Looks.confirm_s`` (``DeployParams.confirm_s``, ``PerceptionParams.confirm_s``)
 STALL_S = 5.0  # s the robot may stand (slower than the stop speed) away from its estimated place before it looks
 #   at the member seen longest ago (``Looks.unstick``): over qi, a run stood 60 s at the true place while two
 #   remembered members, never looked at again, put its estimated place 1.96 m away
@@ -43,7 +44,7 @@ class Looks:
     0.28-0.44 m from the true place (tools/bench_deploy.py --lockstep). Asking instead for every member within 4 s
     of now, a look at one neighbour outlasted the other's 4 s, and 3 of 20 runs that had joined never claimed it."""
 
-    confirm_s: float = 4.0
+    confirm_s: float = CONFIRM_S
     seen_at: dict[int, float] = dataclasses.field(default_factory=dict)  # member id -> when last detected
     success_since: float | None = None  # since when the success rule has held on the estimate
     claim_from: float | None = None  # when the claim was first tried at this place
@@ -72,6 +73,22 @@ class Looks:
         if self.success_since is None:
             self.success_since = now
         return now - self.success_since >= CLAIM_HOLD_S - 1e-9
+
+    def decide(self, members: list[Any], now: float, success: bool, slot_distance: float, speed: float, task: Any
+               ) -> tuple[bool, str | None, int | None]:
+        """One control period as deploy's loop takes it: whether the claim's rule (``success``, on the estimate)
+        has held for ``CLAIM_HOLD_S`` (``held``), and the look due now, ``"confirm"`` (before a claim) or ``"look"``
+        (stalled ``slot_distance`` away from the place, slower than the task's stop speed), with the index of the
+        member to turn toward; (held, None, None) when the policy drives or the claim stands."""
+        held = self.held(success, now)
+        away = slot_distance >= task.slot_tolerance
+        if away:  # away from the place: a claim starts afresh
+            self.left_place()
+        k = self.confirm(members, now, held)
+        if k is not None:
+            return held, "confirm", k
+        k = self.unstick(members, now, away and speed < task.stop_speed)
+        return held, None if k is None else "look", k
 
     def confirm(self, members: list[Any], now: float, claim: bool) -> int | None:
         """None when the claim (``claim``: the success rule has held for ``CLAIM_HOLD_S``) can be backed, or when no

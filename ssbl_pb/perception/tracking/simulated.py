@@ -36,7 +36,7 @@ from typing import Any
 import numpy as np
 
 from ...params import RobotParams, SocialParams, _check
-from .looks import Looks, claim_rule
+from .looks import CONFIRM_S, Looks, claim_rule
 
 # QVGA, the resolution deploy subscribes (``deploy.naoqi.NaoqiParams.resolution``)
 IMAGE_SIZE = (320, 240)
@@ -67,7 +67,7 @@ class PerceptionParams:
     sidestep_speed: float = 0.2  # m/s ... (DeployParams.sidestep_speed)
     sidestep_repeats: int = 3  # ... up to this many in a row (DeployParams.sidestep_repeats)
     sidestep_clearance: float = 0.4  # m: a sidestep goes only where the footprint keeps this from walls and furniture
-    confirm_s: float = 4.0  # s: a claim is backed by members seen this long before it (DeployParams.confirm_s)
+    confirm_s: float = CONFIRM_S  # s: a claim is backed by members seen this long before it (Looks.confirm_s)
 
     def __post_init__(self) -> None:
         for name in ("range_std_m", "range_std_per_m", "bearing_std_deg", "facing_std_deg", "partial_std_m"):
@@ -260,12 +260,8 @@ class CopyPerception:
         centre, _, _, slot = self.group
         slot_distance = float(np.hypot(*(slot - pose[:2])))
         heading = math.remainder(math.atan2(centre[1] - pose[1], centre[0] - pose[0]) - pose[2], 2 * math.pi)
-        held = self.looks.held(claim_rule(slot_distance, speed, heading, task), self.t)
-        away = slot_distance >= task.slot_tolerance
-        if away:
-            self.looks.left_place()
-        k = self.looks.confirm(self.members, self.t, held)
-        return k if k is not None else self.looks.unstick(self.members, self.t, away and speed < task.stop_speed)
+        success = claim_rule(slot_distance, speed, heading, task)
+        return self.looks.decide(self.members, self.t, success, slot_distance, speed, task)[2]
 
     def search(self, pose: np.ndarray, heading_gain: float, dt: float,
                clearance: Callable[[np.ndarray], float] | None = None) -> tuple[np.ndarray, np.ndarray]:
