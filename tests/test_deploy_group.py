@@ -184,6 +184,24 @@ def test_a_track_born_beside_a_coasting_one_takes_its_id():
     assert sorted(m.id for m in members) == [1, 3]
 
 
+def test_a_neighbour_half_a_metre_away_does_not_replace_a_member_out_of_view():
+    # five members stand 0.45-0.5 m apart, inside same_person_m: a member out of view beside a neighbour in view
+    # is remembered (it was deleted as the neighbour's duplicate, and its gap merged with the next)
+    gt = _tracker()
+    near, side = np.array([2.0, 0.4]), np.array([2.0, 0.9])  # 11 deg and 24 deg off the axis: side is out of view
+    assert gt.visible(near[None], np.zeros((0, 2)))[0] and not gt.visible(side[None], np.zeros((0, 2)))[0]
+    for _ in range(3):
+        gt.update(np.array([near, side]), 0.1, np.zeros(3))
+    for _ in range(30):  # the side one is no longer detected, longer than the tracker coasts
+        members = gt.update(near[None], 0.1, np.zeros(3))
+    assert sorted(m.id for m in members) == [1, 2] and gt.tracker.tracks[0].id == 1
+    assert next(m for m in members if m.id == 2).pos == pytest.approx(side, abs=0.05)
+    # a track born since then, first farther than same_person_m, that comes to stand where the member was is them
+    for y in (1.55, 1.55, 1.4, 1.25, 1.1):
+        members = gt.update(np.array([near, [2.0, y]]), 0.1, np.zeros(3))
+    assert sorted(m.id for m in members) == [1, 3]
+
+
 def test_someone_hidden_behind_a_remembered_person_is_not_forgotten():
     # a person cut by the image's side is not detected (perceive drops the box) yet hides whoever stands behind
     gt = _tracker()

@@ -67,6 +67,8 @@ class Member:
     rest: np.ndarray | None = None  # where the member stood while the robot was not joining (odometry frame)
     facing: float | None = None  # the direction the person faces (rad, odometry frame), where the detector tells
     facing_std: float = math.inf  # its standard deviation (rad)
+    born: int = 0  # the frame (``GroupTracker``'s count) this member was first reported
+    last_seen: int = 0  # the last frame it was detected
 
 
 FACING_MIN_SPREAD = 0.35  # rad: facing rays meeting at less than this do not fix a point by their crossing
@@ -251,6 +253,7 @@ class GroupTracker:
         self.members: dict[int, Member] = {}
         self.alias: dict[int, int] = {}  # tracker id -> member id, for tracks that took over a member
         self._known: set[int] = set()  # tracker ids reported before
+        self.frames = 0  # frames seen so far (``Member.born``, ``Member.last_seen``)
 
     def visible(self, xy_robot: np.ndarray, seen_robot: np.ndarray) -> np.ndarray:
         """Which robot-frame points (k, 2) a detector should find: in range, the whole body inside the image
@@ -348,6 +351,7 @@ class GroupTracker:
             std = np.full(len(xy), math.inf) if facing_std is None else np.asarray(facing_std, dtype=float)
             payloads = [(float(toward[k] + f), float(sd)) if np.isfinite(f) and np.isfinite(sd) else None
                         for k, (f, sd) in enumerate(zip(np.asarray(facing, dtype=float), std, strict=True))]
+        self.frames += 1
         states = self.tracker.update(xy, dt=dt, odom=pose, payloads=payloads)
         rot, t = _se2(pose)
         states = self._take_over(states, rot, t)
@@ -359,6 +363,8 @@ class GroupTracker:
                        st.misses == 0)
             old = self.members.get(mid)
             m.rest = m.pos.copy() if at_rest or old is None or old.rest is None else old.rest
+            m.born = self.frames if old is None else old.born
+            m.last_seen = self.frames if m.seen or old is None else old.last_seen
             if old is not None:
                 m.facing, m.facing_std = old.facing, old.facing_std
             self._filter_facing(m, st.payload if st.misses == 0 else None, dt)
@@ -373,10 +379,13 @@ class GroupTracker:
             # anyone known may hide a remembered member: a person cut by the image's side is not detected (perceive
             # drops the box) yet hides whoever stands behind them, who was then forgotten and came back under a new id
             in_view = self.visible(local, np.vstack([seen_robot, local]))
-            seen_xy = np.array([m.pos for m in seen.values()]).reshape(-1, 2)
             for m, vis in zip(gone, in_view, strict=True):
                 m.unseen_in_view = m.unseen_in_view + 1 if vis else 0
-                dup = len(seen_xy) and float(np.hypot(*(seen_xy - m.pos).T).min()) < self.p.same_person_m
+                # a member reported only since m was last detected, standing where m was, is m again; one
+                # reported while m was still detected is a neighbour (5 members stand 0.45-0.5 m apart, inside
+                # same_person_m): deleting m for it dropped a member out of view, and its gap joined the next
+                later = [o.pos for o in seen.values() if o.born > m.last_seen]
+                dup = bool(later) and float(np.hypot(*(np.array(later) - m.pos).T).min()) < self.p.same_person_m
                 if dup or m.unseen_in_view >= self.p.forget_frames:
                     del self.members[m.id]
         self.members.update(seen)
