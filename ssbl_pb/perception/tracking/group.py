@@ -379,13 +379,15 @@ class GroupTracker:
             # anyone known may hide a remembered member: a person cut by the image's side is not detected (perceive
             # drops the box) yet hides whoever stands behind them, who was then forgotten and came back under a new id
             in_view = self.visible(local, np.vstack([seen_robot, local]))
-            for m, vis in zip(gone, in_view, strict=True):
+            in_image = self.visible(local, np.zeros((0, 2)))
+            for m, vis, shown in zip(gone, in_view, in_image, strict=True):
                 m.unseen_in_view = m.unseen_in_view + 1 if vis else 0
-                # a member reported only since m was last detected, standing where m was, is m again; one
-                # reported while m was still detected is a neighbour (5 members stand 0.45-0.5 m apart, inside
-                # same_person_m): deleting m for it dropped a member out of view, and its gap joined the next
-                later = [o.pos for o in seen.values() if o.born > m.last_seen]
-                dup = bool(later) and float(np.hypot(*(np.array(later) - m.pos).T).min()) < self.p.same_person_m
+                # someone within same_person_m is m again, unless m is out of the image and they were reported
+                # while m was still detected: then they are a neighbour (5 members stand 0.45-0.5 m apart), and
+                # deleting m dropped a member out of view, its gap joining the next. In the image, a member
+                # hidden behind someone who took over its place (an id that jumped across) is deleted as before
+                near = [o.pos for o in seen.values() if shown or o.born > m.last_seen]
+                dup = bool(near) and float(np.hypot(*(np.array(near) - m.pos).T).min()) < self.p.same_person_m
                 if dup or m.unseen_in_view >= self.p.forget_frames:
                     del self.members[m.id]
         self.members.update(seen)
