@@ -80,7 +80,7 @@ def write_results(args: Any, table: dict[str, dict[str, dict]], scs: list[str], 
     write_json(args.out.with_suffix(".json"), {"episodes": args.episodes, "seed": args.seed, "results": table})
     lines = ["| policy | " + " | ".join(scs) + " |", "|---|" + "---|" * len(scs)]
     for pol, row in table.items():
-        lines.append(f"| {pol} | " + " | ".join(f"{row[sc]['success_rate']:.1%} ({row[sc]['violation_rate']:.0%} v)"
+        lines.append(f"| {pol} | " + " | ".join(f"{row[sc]['success_rate']:.1%} ({row[sc]['violation_rate']:.1%} v)"
                                                  for sc in scs) + " |")
     text = (f"Success rate (and share of episodes ended by a collision or intimate-zone intrusion, 'v') over "
             f"{args.episodes} episodes per scenario, seeds {args.seed}-{args.seed + args.episodes - 1}.\n\n"
