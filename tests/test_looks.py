@@ -102,3 +102,17 @@ def test_decide_takes_one_period_as_deploys_loop_does():
     backed = Looks(confirm_s=4.0, seen_at={1: 20.0, 2: 19.0})
     backed.decide(members, 20.0, True, 0.1, 0.0, task)
     assert backed.decide(members, 20.0 + CLAIM_HOLD_S, True, 0.1, 0.0, task) == (True, None, None)
+
+
+def test_standing_inside_the_tolerance_but_short_of_the_claims_margin_it_looks_too():
+    # 0.25 m from its estimated place: inside the 0.3 m tolerance, outside the claim's 0.2 m. Over qi a dock braked
+    # there stood 65 s while the place, computed from two members remembered out of view, was 0.22 m off
+    task = SimpleNamespace(slot_tolerance=0.3, stop_speed=0.1, heading_tolerance_deg=20.0)
+    members = [SimpleNamespace(id=1, seen=False), SimpleNamespace(id=2, seen=False)]
+    looks = Looks(confirm_s=4.0, seen_at={1: 12.0, 2: 10.0})
+    assert looks.decide(members, 20.0, False, 0.25, 0.0, task) == (False, None, None)
+    assert looks.decide(members, 20.0 + STALL_S, False, 0.25, 0.0, task) == (False, "look", 1)
+    # docking at 0.06 m/s counts as standing; within the claim's margin it does not look
+    inside = Looks(confirm_s=4.0, seen_at={1: 12.0, 2: 10.0})
+    assert inside.decide(members, 20.0, False, 0.15, 0.06, task) == (False, None, None)
+    assert inside.decide(members, 20.0 + 2 * STALL_S, False, 0.15, 0.06, task) == (False, None, None)
