@@ -78,3 +78,26 @@ def test_real_frame_end_to_end_with_and_without_the_lower_bodies():
     assert (box_iou(upper, cut[:, :4]).max(axis=1) >= 0.3).all()
     # RGB input gives the same boxes as BGR with rgb=True
     np.testing.assert_allclose(MoveNetDetector(det.p, rgb=True)(crop[..., ::-1].copy()), boxes, atol=1e-3)
+
+
+VIDEO = PETS / "vtest.avi"
+
+
+@pytest.mark.skipif(not VIDEO.is_file(), reason=f"PETS video not found: {VIDEO}")
+def test_detector_coverage_tool_counts_the_people_its_boxes_cover(tmp_path, capsys):
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("detector_coverage", Path(__file__).resolve().parents[1]
+                                                  / "tools" / "detector_coverage.py")
+    tool = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(tool)
+    assert tool.main(["--range", "5:3", "--out", str(tmp_path / "bad")]) == 2
+    assert "expected START:STOP" in capsys.readouterr().err and not list(tmp_path.iterdir())
+    out = tmp_path / "cov"
+    assert tool.main(["--detector", "movenet", "--range", "0:2", "--step", "1", "--out", str(out)]) == 0
+    import json
+
+    r = json.loads(out.with_suffix(".json").read_text())["movenet"]["visible"]
+    assert r["person_frames"] >= 4 and r["boxes"] >= r["person_frames"] - 1
+    assert r["either_iou30"] >= 0.75  # PETS frames 0-1: the walkers whole in view
+    assert "| movenet | visible |" in out.with_suffix(".md").read_text()
