@@ -101,6 +101,8 @@ CASES = [
       expect="none"),
     C("eval_tracking.py", "--tracks", "{tmp}", "--gt", "{tmp}/gt.xml", "--range", "5:2", expect="--range"),
     C("bench_tracking.py", "--data", "{tmp}/none", "--out", "{out}", "--doc", "{out}.md", expect="none"),
+    C("detector_coverage.py", "--video", "{tmp}/none.avi", "--out", "{out}", expect="none.avi: not found"),
+    C("detector_coverage.py", "--range", "5:2", "--out", "{out}", expect="--range"),
     # calibration
     C("calibrate_camera.py", "{tmp}/none.jpg", "--out", "{out}.yaml", expect="none.jpg"),
     C("calibrate_camera.py", "{file}", "--board", "9y6", "--out", "{out}.yaml", expect="board '9y6'"),

@@ -87,10 +87,6 @@ def main(argv: list[str] | None = None) -> int:
     from ssbl_pb.perception.tracking.occlusion import FeetHidden, median_background
     from ssbl_pb.perception.tracking.pets import load_ground_truth
 
-    for p in (args.video, args.gt):
-        if not p.is_file():
-            print(f"error: {p}: not found", file=sys.stderr)
-            return 2
     try:
         start, stop = (int(x) for x in args.range.split(":"))
         assert 0 <= start < stop and args.step >= 1
@@ -98,6 +94,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: --range {args.range!r} / --step {args.step}: expected START:STOP with 0 <= START < STOP and "
               f"STEP >= 1", file=sys.stderr)
         return 2
+    for p in (args.video, args.gt):
+        if not p.is_file():
+            print(f"error: {p}: not found", file=sys.stderr)
+            return 2
     cv2.setNumThreads(1)
     gt = load_ground_truth(args.gt)
     frames = range(start, stop, args.step)
