@@ -89,8 +89,9 @@ def main(argv: list[str] | None = None) -> int:
 
     try:
         start, stop = (int(x) for x in args.range.split(":"))
-        assert 0 <= start < stop and args.step >= 1
-    except (ValueError, AssertionError):
+    except ValueError:
+        start = stop = -1
+    if not (0 <= start < stop and args.step >= 1):
         print(f"error: --range {args.range!r} / --step {args.step}: expected START:STOP with 0 <= START < STOP and "
               f"STEP >= 1", file=sys.stderr)
         return 2
