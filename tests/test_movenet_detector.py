@@ -101,3 +101,19 @@ def test_detector_coverage_tool_counts_the_people_its_boxes_cover(tmp_path, caps
     assert r["person_frames"] >= 4 and r["boxes"] >= r["person_frames"] - 1
     assert r["either_iou30"] >= 0.75  # PETS frames 0-1: the walkers whole in view
     assert "| movenet | visible |" in out.with_suffix(".md").read_text()
+
+
+@pytest.mark.skipif(not FRAME.is_file(), reason=f"PETS frame not found: {FRAME}")
+def test_the_pipeline_runs_movenet_as_its_detector():
+    # tools/track.py --detector movenet: the network's raw boxes, selected by the pipeline's ``ssd`` settings
+    from ssbl_pb.perception.tracking.tracking_io import make_detector
+    from ssbl_pb.perception.tracking.tuning import PipelineParams, cache_raw, default_params, select_cached
+
+    pp = default_params("movenet")
+    assert pp.detector == "movenet" and pp.grid is default_params("ssd").grid
+    assert PipelineParams.from_dict(pp.to_dict()) == pp
+    crop = np.ascontiguousarray(cv2.imread(str(FRAME))[100:388, 200:584])
+    raw = cache_raw([(0, crop)], pp)[0]
+    boxes = make_detector(pp)(crop)
+    assert len(boxes) >= 2
+    np.testing.assert_allclose(boxes, select_cached(raw, pp), atol=1e-6)  # online and cached paths agree

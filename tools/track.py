@@ -38,8 +38,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--params", default=None, help="JSON of pipeline thresholds (tools/bench_tracking.py writes "
                                                    "results/tracking/pets_params.json); default: built-in")
     ap.add_argument("--detector", choices=DETECTORS, default=None,
-                    help="hog (default: OpenCV's HOG people detector) or ssd (the learned SSDLite pedestrian "
-                         "detector); each with its built-in thresholds chosen on PETS frames 0-399")
+                    help="hog (default: OpenCV's HOG people detector), ssd (the learned SSDLite pedestrian "
+                         "detector) or movenet (MoveNet MultiPose, which finds people cut above the feet too); "
+                         "each with its built-in thresholds chosen on PETS frames 0-399")
     ap.add_argument("--hide-feet", default=None, metavar="GT",
                     help="ground truth (PETS .xml or MOT .txt): paint each person's box below 55 %% of its height "
                          "with the video's median background before detection (the feet-hidden benchmark)")

@@ -93,6 +93,12 @@ def make_detector(pp: PipelineParams, scale: float = 1.0) -> Callable[[np.ndarra
         from .learned import SsdDetector
 
         return SsdDetector(dataclasses.replace(pp.ssd, min_height=pp.ssd.min_height * scale))
+    if pp.detector == "movenet":
+        from .learned import select_ssd
+        from .tuning import learned_raw
+
+        raw, sel = learned_raw(pp), dataclasses.replace(pp.ssd, min_height=pp.ssd.min_height * scale)
+        return lambda frame: select_ssd(raw(frame), sel)
     hog = pp.hog
     if scale != 1.0:  # search the same person sizes on the resized frame
         hog = dataclasses.replace(hog, scales=tuple(s / scale for s in hog.scales),

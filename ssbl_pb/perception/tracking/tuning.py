@@ -61,7 +61,8 @@ SSD_GRID: dict[str, list[Any]] = {
     "rng.min_body_height": [1.3, 1.4, 1.5, 1.6],  # which boxes count as whole (feet) or cut (head)
     "rng.max_aspect": [float("inf"), 0.6, 0.5, 0.45],
 }
-DETECTORS = ("hog", "ssd")
+DETECTORS = ("hog", "ssd", "movenet")
+LEARNED = ("ssd", "movenet")  # networks whose boxes ``ssd`` params select (``learned.select_ssd``)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -77,8 +78,8 @@ class PipelineParams:
                                        tentative_misses=2, min_new_dist=0.0, birth_score=1.2)
     box: BoxParams = BoxParams(height_gain=0.1, aspect=0.48, max_coast=1, max_coast_inside=8, det_weight=0.5,
                                pixel_noise=0.05)
-    detector: str = "hog"  # "hog" (``hog`` params) or "ssd" (the learned detector, ``ssd`` params)
-    ssd: SsdParams = SsdParams()
+    detector: str = "hog"  # "hog" (``hog`` params), "ssd" or "movenet" (learned networks, ``ssd`` params)
+    ssd: SsdParams = SsdParams()  # a learned network's input size and box selection (SSD's or MoveNet's boxes)
     rng: RangingParams = RangingParams()  # head-and-shoulders ranging (``box.head_ranging``): priors, head-cue noise
 
     def __post_init__(self) -> None:
@@ -106,7 +107,7 @@ class PipelineParams:
     @property
     def grid(self) -> dict[str, list[Any]]:
         """The threshold search's grid for this detector."""
-        return SSD_GRID if self.detector == "ssd" else GRID
+        return SSD_GRID if self.detector in LEARNED else GRID
 
 
 # Where the search starts: box shrink measured on frames 0-399 (median HOG window -> GT box offsets), the rest
@@ -135,11 +136,19 @@ SSD_DEFAULT = PipelineParams(
     rng=RangingParams(min_body_height=1.6, max_aspect=0.5, pixel_noise=0.1))
 
 
+# MoveNet (``movenet.MoveNetDetector``): the SSD's chosen tracker and ranging as a start, its own input (the 4:3
+# frame at half size, a multiple of 32) and score; its box offsets are measured by ``--tune`` on frames 0-399
+MOVENET_UNTUNED = dataclasses.replace(
+    SSD_DEFAULT, detector="movenet",
+    ssd=SsdParams(input_size=(384, 288), score_threshold=0.05, raw_threshold=0.02, nms_iou=0.45))
+MOVENET_DEFAULT = MOVENET_UNTUNED
+
+
 def default_params(detector: str) -> PipelineParams:
-    """The built-in (tuned) pipeline for ``detector`` ("hog" or "ssd")."""
+    """The built-in (tuned) pipeline for ``detector`` ("hog", "ssd" or "movenet")."""
     if detector not in DETECTORS:
         raise UserError(f"detector {detector!r}: expected one of {list(DETECTORS)}")
-    return SSD_DEFAULT if detector == "ssd" else PipelineParams()
+    return {"ssd": SSD_DEFAULT, "movenet": MOVENET_DEFAULT}.get(detector, PipelineParams())
 
 
 def keep_scales(raw: np.ndarray, scales: tuple[float, ...]) -> np.ndarray:
@@ -153,7 +162,7 @@ def keep_scales(raw: np.ndarray, scales: tuple[float, ...]) -> np.ndarray:
 
 def select_cached(raw: np.ndarray, params: PipelineParams) -> np.ndarray:
     """One frame's cached raw rows (``detect_raw`` windows or ``SsdDetector.raw`` boxes) -> detections."""
-    if params.detector == "ssd":
+    if params.detector in LEARNED:
         return select_ssd(raw, params.ssd)
     return select(keep_scales(raw, params.hog.scales), params.hog)
 
@@ -201,11 +210,21 @@ def tune(raw: dict[int, np.ndarray], gt: np.ndarray, camera: TsaiCamera, dt: flo
 
 
 def cache_raw(frames: Iterable[tuple[int, np.ndarray]], params: PipelineParams) -> dict[int, np.ndarray]:
-    """``SsdDetector.raw`` (every box above ``ssd.raw_threshold``) for each ``(index, BGR frame)``: the cache the
-    search selects from (``select_cached``), so one network pass serves every trial."""
+    """The learned network's raw boxes (every box above ``ssd.raw_threshold``) for each ``(index, BGR frame)``: the
+    cache the search selects from (``select_cached``), so one network pass serves every trial."""
+    if params.detector not in LEARNED:
+        raise UserError(f"cache_raw: detector {params.detector!r}; HOG windows are cached by pipeline.detect_raw")
+    raw = learned_raw(params)
+    return {i: raw(f) for i, f in frames}
+
+
+def learned_raw(params: PipelineParams) -> Any:
+    """``frame -> (n, 5)`` raw boxes of the learned network ``params.detector`` at ``ssd.input_size``."""
+    if params.detector == "movenet":
+        from .movenet import MoveNetDetector, MoveNetParams
+
+        return MoveNetDetector(MoveNetParams(input_size=params.ssd.input_size,
+                                             score_threshold=params.ssd.raw_threshold))
     from .learned import SsdDetector
 
-    if params.detector != "ssd":
-        raise UserError(f"cache_raw: detector {params.detector!r}; HOG windows are cached by pipeline.detect_raw")
-    det = SsdDetector(params.ssd)
-    return {i: det.raw(f) for i, f in frames}
+    return SsdDetector(params.ssd).raw
