@@ -160,3 +160,11 @@ def test_bench_deploy_hands_its_detector_to_deploy(monkeypatch, tmp_path):
     with pytest.raises(UserError, match="argument --detector: invalid choice: 'yolo'"):
         tool.main(["--detector", "yolo", "--out", str(tmp_path / "bd")])
     assert not (tmp_path / "bd").exists()
+
+
+def test_the_learned_detectors_grid_searches_birth_scores_on_the_networks_scale():
+    # HOG's birth margins (0.6-1.5) once replaced the network's list: MoveNet's 0.1-0.45 scores bore no track
+    from ssbl_pb.perception.tracking.tuning import GRID, SSD_GRID
+
+    assert max(GRID["trk.birth_score"]) > 1.0
+    assert all(0.0 < v <= 1.0 for v in SSD_GRID["trk.birth_score"]) and min(SSD_GRID["trk.birth_score"]) <= 0.2

@@ -54,7 +54,9 @@ SSD_GRID: dict[str, list[Any]] = {
     "trk.birth_score": [0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8],
     "ssd.nms_iou": [0.3, 0.45, 0.6],
     "ssd.min_height": [0.0, 40.0, 55.0],
-    **{k: v for k, v in GRID.items() if k.startswith(("trk.", "box."))},
+    # HOG's tracker and box grids, less its birth margins (SVM margins 0.8-1.5: a network's scores are 0-1; merged
+    # in, they replaced the list above and no track was ever born from MoveNet's 0.1-0.45 scores)
+    **{k: v for k, v in GRID.items() if k.startswith(("trk.", "box.")) and k != "trk.birth_score"},
     "rng.pixel_noise": [0.03, 0.05, 0.1, 0.15, 0.2],
     "rng.height_std": [0.05, 0.08, 0.12],
     "rng.width_rel_std": [0.15, 0.25, 0.4],
@@ -139,8 +141,9 @@ SSD_DEFAULT = PipelineParams(
 # MoveNet (``movenet.MoveNetDetector``): the SSD's chosen tracker and ranging as a start, its own input (the 4:3
 # frame at half size, a multiple of 32) and score; its box offsets are measured by ``--tune`` on frames 0-399
 MOVENET_UNTUNED = dataclasses.replace(
-    SSD_DEFAULT, detector="movenet",
+    SSD_DEFAULT, detector="movenet", trk=dataclasses.replace(SSD_DEFAULT.trk, birth_score=0.2),
     ssd=SsdParams(input_size=(384, 288), score_threshold=0.05, raw_threshold=0.02, nms_iou=0.45))
+#   (its person scores on PETS are 0.14-0.43, 10th-99th percentile: the SSD's birth score, 0.6, bore no track)
 MOVENET_DEFAULT = MOVENET_UNTUNED
 
 
