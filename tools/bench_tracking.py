@@ -12,9 +12,9 @@ on first-person TinyRenderer frames against the simulator's member positions.
 Writes results/tracking/{pets_params,pets_metrics,timing,sim,bench}.json, results/tracking/pets_s{stride}/
 (tracks + overlay per variant) and docs/benchmarks_tracking.md.
 
-    python tools/bench_tracking.py --compare  # HOG vs the learned detector, about 12 min on 2 shared cores
+    python tools/bench_tracking.py --compare  # HOG, the SSD and MoveNet, about 12 min on 2 shared cores
 
---compare runs each detector (HOG, SSD) with its built-in thresholds (chosen on frames 0-399) through
+--compare runs each detector (HOG, SSD, MoveNet) with its built-in thresholds (chosen on frames 0-399) through
 tools/track.py's code path on one thread (cv2.setNumThreads(1)): the whole video scored on 400-794, then frames
 400-794 with every GT person's lower body painted over (--hide-feet); it writes results/tracking/compare.json and
 the comparison table into docs/tracking.md (between the detector-comparison markers).
@@ -90,7 +90,8 @@ def main(argv: list[str] | None = None) -> int:
                     help="re-render the Markdown from results/tracking/bench.json without running anything")
     ap.add_argument("--sim-episodes", type=int, default=SimEvalParams.episodes)
     ap.add_argument("--compare", action="store_true",
-                    help="only the detector comparison (HOG vs SSD, feet visible and hidden) -> docs/tracking.md")
+                    help="only the detector comparison (HOG, SSD, MoveNet; feet visible and hidden) -> "
+                         "docs/tracking.md")
     ap.add_argument("--tracking-doc", default=str(ROOT / "docs" / "tracking.md"),
                     help="the page whose detector-comparison section --compare rewrites")
     ap.add_argument("--variant", action="append", default=[], metavar="LABEL=PARAMS.json",
@@ -311,7 +312,7 @@ DETECTOR_INFO = {  # licence and the size of what carries the weights (measured 
 
 
 def compare(data: Path, out: Path, doc: Path, argv: list[str] | None, variants: list[str] = ()) -> int:
-    """HOG vs the learned detector on PETS S2L1, feet visible and hidden; one thread; table into ``doc``.
+    """HOG, the SSD and MoveNet on PETS S2L1, feet visible and hidden; one thread; table into ``doc``.
     ``variants``: more rows, ``LABEL=PARAMS.json`` (pipeline parameters as ``--tune`` writes them)."""
     import cv2
 
@@ -326,11 +327,12 @@ def compare(data: Path, out: Path, doc: Path, argv: list[str] | None, variants: 
         print(f"error: {doc}: lacks the markers {COMPARE_BEGIN} / {COMPARE_END} around the comparison section",
               file=sys.stderr)
         return 2
-    runs: dict[str, tuple[PipelineParams, str | None]] = {det: (default_params(det), None) for det in ("hog", "ssd")}
+    runs: dict[str, tuple[PipelineParams, str | None]] = {det: (default_params(det), None) for det in DETECTORS}
     for spec in variants:
         label, _, path = spec.partition("=")
         if not label or not path or label in runs:
-            raise UserError(f"--variant {spec!r}: expected LABEL=PARAMS.json with a new label (not hog or ssd)")
+            raise UserError(f"--variant {spec!r}: expected LABEL=PARAMS.json with a new label (not hog, ssd or "
+                            f"movenet)")
         try:
             runs[label] = (PipelineParams.from_dict(json.loads(Path(path).read_text())), path)
         except (OSError, ValueError, KeyError, TypeError) as exc:

