@@ -262,7 +262,7 @@ def test_auto_detector_follows_what_the_robot_says_it_is():
     from ssbl_pb.deploy.__main__ import detector_for
 
     assert detector_for("auto", SimpleNamespace(identity={"detector": "colour"})) == "colour"  # the virtual Pepper
-    assert detector_for("auto", SimpleNamespace(identity=None)) == "hog"  # a real Pepper
+    assert detector_for("auto", SimpleNamespace(identity=None)) == "movenet"  # a real Pepper
     assert detector_for("hog", SimpleNamespace(identity={"detector": "colour"})) == "hog"  # asked for: kept
 
 

@@ -117,3 +117,18 @@ def test_the_pipeline_runs_movenet_as_its_detector():
     boxes = make_detector(pp)(crop)
     assert len(boxes) >= 2
     np.testing.assert_allclose(boxes, select_cached(raw, pp), atol=1e-6)  # online and cached paths agree
+
+
+@pytest.mark.skipif(not FRAME.is_file(), reason=f"PETS frame not found: {FRAME}")
+def test_deploy_runs_movenet_on_rgb_frames_and_picks_it_on_a_real_robot():
+    from types import SimpleNamespace
+
+    from ssbl_pb.deploy.__main__ import detector_for
+    from ssbl_pb.deploy.perceive import DETECTORS, make_detector
+
+    assert "movenet" in DETECTORS and detector_for("auto", SimpleNamespace(identity=None)) == "movenet"
+    detect, torso = make_detector("movenet")
+    assert not torso  # whole people or cut above the feet, ranged by boxes_to_ground
+    rgb = np.ascontiguousarray(cv2.imread(str(FRAME))[200:480, 150:550, ::-1])
+    boxes = detect(rgb)
+    assert boxes.shape[1] == 5 and len(boxes) >= 1

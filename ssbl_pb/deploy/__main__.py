@@ -49,8 +49,9 @@ def _parser() -> argparse.ArgumentParser:
     ap.add_argument("--token", help="NAOqi 2.9 login password/token")
     ap.add_argument("--policy", default="vector", help="vector (shipped) | run dir | .zip | sffm | straight | random")
     ap.add_argument("--detector", default="auto", help="auto (default: colour on the virtual Pepper, which says "
-                    "what it is over qi; hog on a real robot) | hog (real people, whole bodies) | ssd (real people: "
-                    "the learned SSDLite detector, see docs/tracking.md) | colour (the virtual Pepper's box proxies)")
+                    "what it is over qi; movenet on a real robot) | movenet (real people, whole or cut above the "
+                    "feet: MoveNet MultiPose, see docs/tracking.md) | hog (real people, whole bodies) | ssd (the "
+                    "learned SSDLite pedestrian detector) | colour (the virtual Pepper's box proxies)")
     ap.add_argument("--camera-yaml", help="calibrated camera (tools/calibrate_camera.py); default nominal CameraTop")
     ap.add_argument("--robot-yaml", help="identified base dynamics (tools/identify_dynamics.py)")
     ap.add_argument("--social-yaml", help="calibrated group parameters (tools/calibrate_humans.py)")
@@ -163,11 +164,12 @@ def _rate(spec: str, rate: float | None) -> float:
 
 
 def detector_for(name: str, robot: Any) -> str:
-    """``--detector auto``: the colour detector on a virtual Pepper (it says so over qi), HOG on a real one."""
+    """``--detector auto``: the colour detector on a virtual Pepper (it says so over qi), MoveNet on a real one (the
+    detector that meets the PETS targets with the feet in view and hidden, docs/tracking.md)."""
     if name != "auto":
         return name
     identity = getattr(robot, "identity", None)
-    return str(identity.get("detector", "colour")) if identity else "hog"
+    return str(identity.get("detector", "colour")) if identity else "movenet"
 
 
 def _warm_up(policy: Any) -> None:

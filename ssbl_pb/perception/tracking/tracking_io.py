@@ -97,11 +97,9 @@ def make_detector(pp: PipelineParams, scale: float = 1.0) -> Callable[[np.ndarra
 
         return SsdDetector(dataclasses.replace(pp.ssd, min_height=pp.ssd.min_height * scale))
     if pp.detector == "movenet":
-        from .learned import select_ssd
-        from .tuning import learned_raw
+        from .movenet import selected
 
-        raw, sel = learned_raw(pp), dataclasses.replace(pp.ssd, min_height=pp.ssd.min_height * scale)
-        return lambda frame: select_ssd(raw(frame), sel)
+        return selected(dataclasses.replace(pp.ssd, min_height=pp.ssd.min_height * scale))
     hog = pp.hog
     if scale != 1.0:  # search the same person sizes on the resized frame
         hog = dataclasses.replace(hog, scales=tuple(s / scale for s in hog.scales),
