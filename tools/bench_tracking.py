@@ -453,7 +453,7 @@ def markdown(r: dict) -> str:
     L += ["", "The same figures from the command line (built-in defaults = the selected thresholds):", "", "```bash",
           "D=../shared/data/video/pets2009_s2l1",
           "python tools/track.py $D/vtest.avi --calib $D/View_001_tsai_calibration.xml --out results/tracking/pets "
-          "--fps 7",
+          "--fps 7 --detector hog",
           "python tools/eval_tracking.py --tracks results/tracking/pets --gt $D/PETS2009-S2L1.xml "
           "--calib $D/View_001_tsai_calibration.xml --range 0:400 --range 400:795 --range 0:795", "```"]
     if len(r.get("variants", {})) > 1:
