@@ -36,6 +36,14 @@ def test_input_size_must_be_multiples_of_32():
         MoveNetParams(input_size=(300, 288))
     with pytest.raises(UserError, match="movenet.score_threshold"):
         MoveNetParams(score_threshold=1.5)
+    # in the pipeline's parameters (tools/track.py --params, bench_tracking --input-size) the field is ssd.input_size
+    from ssbl_pb.perception.tracking.learned import SsdParams
+    from ssbl_pb.perception.tracking.tuning import PipelineParams, default_params
+
+    with pytest.raises(UserError, match=r"ssd.input_size = \(400, 300\): MoveNet takes multiples of 32"):
+        PipelineParams(detector="movenet", ssd=SsdParams(input_size=(400, 300)))
+    with pytest.raises(UserError, match="ssd.input_size"):
+        default_params("movenet").with_value("ssd.input_size", (400, 300))
 
 
 def test_decode_by_hand():

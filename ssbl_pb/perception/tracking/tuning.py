@@ -87,6 +87,8 @@ class PipelineParams:
     def __post_init__(self) -> None:
         if self.detector not in DETECTORS:
             raise UserError(f"detector = {self.detector!r}: expected one of {list(DETECTORS)}")
+        if self.detector == "movenet" and any(v % 32 for v in self.ssd.input_size):
+            raise UserError(f"ssd.input_size = {self.ssd.input_size!r}: MoveNet takes multiples of 32 (w, h)")
 
     def with_value(self, key: str, value: Any) -> PipelineParams:
         part, name = key.split(".")
@@ -234,10 +236,9 @@ def cache_raw(frames: Iterable[tuple[int, np.ndarray]], params: PipelineParams) 
 def learned_raw(params: PipelineParams) -> Any:
     """``frame -> (n, 5)`` raw boxes of the learned network ``params.detector`` at ``ssd.input_size``."""
     if params.detector == "movenet":
-        from .movenet import MoveNetDetector, MoveNetParams
+        from .movenet import network
 
-        return MoveNetDetector(MoveNetParams(input_size=params.ssd.input_size,
-                                             score_threshold=params.ssd.raw_threshold))
+        return network(params.ssd)
     from .learned import SsdDetector
 
     return SsdDetector(params.ssd).raw
