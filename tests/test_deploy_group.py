@@ -13,8 +13,8 @@ from ssbl_pb.env.formulas.humans import Group
 from ssbl_pb.env.formulas.layouts import free_layout, paper_layout, slot_keep
 from ssbl_pb.env.formulas.task import TaskParams
 from ssbl_pb.params import RobotParams, SocialParams
+from ssbl_pb.perception.camera import sim_camera
 from ssbl_pb.perception.tracking.group import GroupModel, GroupTracker, group_circle
-from ssbl_pb.perception.tracking.sim_eval import sim_camera
 from ssbl_pb.perception.tracking.tracker import TrackerParams
 
 SOCIAL = SocialParams()
@@ -238,8 +238,8 @@ def test_one_box_per_colour_spans_a_torso_split_by_a_nearer_person():
         image = robot.render().image
     finally:
         robot.close()
-    from ssbl_pb.env.view.world import HUMAN_COLOURS
     from ssbl_pb.perception.tracking.detectors import ColourDetector
+    from ssbl_pb.urdf import HUMAN_COLOURS
 
     assert len(ColourDetector(HUMAN_COLOURS)(image)) == 3  # the far torso shows on either side of the near one
     detect, torso = make_detector("colour")

@@ -9,10 +9,11 @@ import pytest
 
 from ssbl_pb.deploy.facing_bench import place
 from ssbl_pb.deploy.perceive import make_detector
-from ssbl_pb.env.view.world import HUMAN_COLOURS, World
+from ssbl_pb.env.view.world import World
 from ssbl_pb.params import RobotParams
+from ssbl_pb.perception.camera import sim_camera
 from ssbl_pb.perception.tracking.facing import ProxyBody, estimate_facing, facing_yaw, phi_of, wrap
-from ssbl_pb.perception.tracking.sim_eval import sim_camera
+from ssbl_pb.urdf import HUMAN_COLOURS
 
 CAM = sim_camera(RobotParams(), 320, 240)
 

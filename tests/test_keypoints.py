@@ -9,7 +9,7 @@ import pytest
 from ssbl_pb.params import RobotParams
 from ssbl_pb.perception.autoencoding.keypoints import calibrate, merge_points, nearest_member_distance, plane_projection
 from ssbl_pb.perception.autoencoding.probe import fit_linear, fit_predict_mlp, member_probe, pixel_probe, predict_linear
-from ssbl_pb.perception.tracking.sim_eval import sim_camera
+from ssbl_pb.perception.camera import sim_camera
 
 
 def test_calibration_finds_the_keypoint_on_the_feet_and_its_height() -> None:

@@ -244,7 +244,7 @@ def test_a_torso_cut_by_the_image_side_is_completed_beyond_it():
 
 
 def test_the_share_of_a_torso_inside_the_image_by_hand():
-    from ssbl_pb.perception.tracking.sim_eval import sim_camera
+    from ssbl_pb.perception.camera import sim_camera
     from ssbl_pb.perception.tracking.simulated import image_share
 
     cam = sim_camera(RobotParams(), 320, 240)

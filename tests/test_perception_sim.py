@@ -7,9 +7,12 @@ import math
 import numpy as np
 import pytest
 
-from ssbl_pb.env.view.world import HUMAN_COLOURS, World
+from ssbl_pb.env.view.world import World
+from ssbl_pb.perception.camera import sim_camera
 from ssbl_pb.perception.tracking.detectors import ColourDetector, SimDetector, mask_boxes
-from ssbl_pb.perception.tracking.sim_eval import boxes_to_ground, proxy_geometry, sim_camera
+from ssbl_pb.perception.tracking.ground import boxes_to_ground
+from ssbl_pb.perception.tracking.sim_eval import proxy_geometry
+from ssbl_pb.urdf import HUMAN_COLOURS
 
 
 @pytest.fixture(scope="module")

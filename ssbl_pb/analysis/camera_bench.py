@@ -142,7 +142,8 @@ def keypoint_tracking(frames: dict[str, np.ndarray], saev: str, episodes: int = 
     from ..params import RobotParams
     from ..perception.autoencoding.keypoints import KeypointDetector, calibrate, encode_keypoints, plane_projection
     from ..perception.autoencoding.probe import visible_members
-    from ..perception.tracking.sim_eval import SimEvalParams, evaluate_sim, sim_camera
+    from ..perception.camera import sim_camera
+    from ..perception.tracking.sim_eval import SimEvalParams, evaluate_sim
 
     model = load_autoencoder(saev, arch="saev")
     s = model.size.input_size
@@ -167,7 +168,7 @@ def keypoint_precision(frames: dict[str, np.ndarray], noise_px: tuple[float, ...
     (a close member's are below the image: this cue is an idealisation there)."""
     from ..params import RobotParams
     from ..perception.autoencoding.probe import pixel_probe, visible_members
-    from ..perception.tracking.sim_eval import sim_camera
+    from ..perception.camera import sim_camera
     from .frames import frames_hfov
 
     train_c, val_c = split_centres(frames["episode"], 10)

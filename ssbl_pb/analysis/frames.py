@@ -72,7 +72,7 @@ def collect(episodes: int, size: int, seed: int = 0, policies: tuple[str, ...] =
     seen through Pepper's camera or, with ``camera_hfov_deg``, one of that field of view."""
     from ..agents.rollout import run_episode
     from ..env.gymenv.approach import make_env
-    from ..perception.tracking.sim_eval import sim_camera
+    from ..perception.camera import sim_camera
     from .evaluation import build_policy
 
     if not isinstance(episodes, int) or episodes < 1:

@@ -63,7 +63,8 @@ def run_bench(frames: int = 400, seed: int = 0, width: int = 320, height: int = 
     the samples and the seconds the detector's ``facing()`` took on each frame."""
     import time
 
-    from ..env.view.world import HUMAN_COLOURS, World
+    from ..env.view.world import World
+    from ..urdf import HUMAN_COLOURS
     from .perceive import make_detector
 
     rng = np.random.default_rng(seed)

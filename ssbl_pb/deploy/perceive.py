@@ -20,10 +20,10 @@ import numpy as np
 
 from ..errors import UserError
 from ..params import RobotParams, SocialParams
-from ..perception.camera import PinholeCamera
+from ..perception.camera import PinholeCamera, sim_camera
 from ..perception.tracking.facing import Facing, estimate_facing
+from ..perception.tracking.ground import ProxyGeometry, boxes_to_ground
 from ..perception.tracking.group import MIN_VISIBLE, TORSO_HALF, TORSO_HEIGHT, TRACKER, GroupTracker, Member
-from ..perception.tracking.sim_eval import ProxyGeometry, boxes_to_ground, sim_camera
 from ..perception.tracking.tracker import TrackerParams
 from .robot import Frame, Robot
 
@@ -131,7 +131,7 @@ def make_detector(name: str) -> tuple[Callable[[np.ndarray], np.ndarray], bool]:
     from ..perception.tracking.detectors import HogDetector, HogParams
 
     if name == "colour":
-        from ..env.view.world import HUMAN_COLOURS
+        from ..urdf import HUMAN_COLOURS
 
         return one_per_colour(HUMAN_COLOURS), True
     if name == "hog":

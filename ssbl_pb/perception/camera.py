@@ -25,6 +25,7 @@ from typing import Any
 import cv2
 import numpy as np
 
+from ..env.formulas.camera import projection_from_intrinsics
 from ..files import write_yaml
 from ..params import CalibrationError, RobotParams, load_yaml
 
@@ -243,7 +244,26 @@ def sim_projection_from_yaml(path: str | Path, width: int, height: int) -> list[
     scale separately when the aspect ratios differ). Distortion is not rendered: compare sim frames with
     undistorted real frames (``cv2.undistort``). Pair it with ``robot_overrides()`` for the camera pose.
     """
-    from ..env.view.cameras import projection_from_intrinsics
-
     cam = PinholeCamera.from_yaml(path).scaled(width, height)
     return projection_from_intrinsics(cam.fx, cam.fy, cam.cx, cam.cy, int(width), int(height))
+
+
+def sim_camera(robot: RobotParams, width: int, height: int) -> PinholeCamera:
+    """The pinhole equivalent of ``env.view.cameras.perspective`` + ``first_person_view`` for a render size."""
+    f = width / (2.0 * math.tan(math.radians(robot.camera_hfov_deg) / 2.0))
+    k = np.array([[f, 0.0, width / 2.0], [0.0, f, height / 2.0 - 1.0], [0.0, 0.0, 1.0]])
+    return PinholeCamera(width=width, height=height, K=k, camera_height=robot.camera_height,
+                         pitch_deg=robot.camera_pitch_deg, forward=robot.camera_forward)
+
+
+def pixel_to_plane(cam: PinholeCamera, uv: np.ndarray, z: float) -> np.ndarray:
+    """Pixels (n, 2) -> robot-frame points (n, 2) on the horizontal plane at height ``z`` (NaN if not hit)."""
+    rays = cam.unproject(np.asarray(uv, dtype=float).reshape(-1, 2)) @ cam.rotation().T
+    c = cam.centre()
+    out = np.full((len(rays), 2), np.nan)
+    dz = rays[:, 2]
+    ok = np.abs(dz) > 1e-9
+    t = (z - c[2]) / np.where(ok, dz, 1.0)
+    ok &= t > 0
+    out[ok] = c[None, :2] + t[ok, None] * rays[ok, :2]
+    return out

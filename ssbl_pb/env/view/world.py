@@ -17,7 +17,7 @@ import math
 import numpy as np
 
 from ...params import RobotParams, SocialParams, WorldParams
-from ...urdf import urdf_path
+from ...urdf import HUMAN_COLOURS, urdf_path
 from ..formulas.base import BaseArrays, HolonomicBase, footprint_distance, wall_clearance
 from ..formulas.humans import MAX_HUMANS, Group, GroupArrays
 from ..formulas.layouts import GroupModel
@@ -27,8 +27,6 @@ from ..rooms.spawn import spawn_layout
 from . import cameras
 from .bullet import pybullet as p
 
-HUMAN_COLOURS = [(0.20, 0.70, 0.30, 1), (0.20, 0.40, 0.85, 1), (0.90, 0.50, 0.10, 1), (0.60, 0.30, 0.75, 1),
-                 (0.85, 0.20, 0.25, 1)]
 _PARKED = (0.0, 0.0, -10.0)
 OBSTACLE_HEIGHT = 0.75  # m: a desk's or a table's height (the camera at 1.15 m sees over it, as a person does)
 OBSTACLE_COLOUR = [0.45, 0.33, 0.22, 1]  # wood brown: apart from the walls' grey and the members' colours

@@ -18,8 +18,7 @@ from collections.abc import Callable
 import numpy as np
 import torch
 
-from ..camera import PinholeCamera
-from ..tracking.sim_eval import pixel_to_plane
+from ..camera import PinholeCamera, pixel_to_plane
 from .autoencoders import SAEV, keypoint_pixels, to_input
 
 HEIGHTS = (0.0, 0.15, 0.3, 0.45, 0.6, 0.75, 1.4, 1.55, 1.7)  # m; 0.9-1.3 m rays run nearly level

@@ -46,7 +46,7 @@ import numpy as np
 
 from ..camera import PinholeCamera
 from .detectors import ColourParams
-from .sim_eval import ProxyGeometry, boxes_to_ground
+from .ground import ProxyGeometry, boxes_to_ground
 
 MARKER_RGB = (0.95, 0.85, 0.10)  # urdf/human.urdf material "marker" (chest plate and nose)
 
@@ -503,13 +503,13 @@ def estimate_facing(frame: np.ndarray | None, boxes: np.ndarray, camera: Pinhole
             raise ValueError("estimate_facing: give the frame or its hsv")
         hsv = cv2.cvtColor(np.ascontiguousarray(frame), cv2.COLOR_RGB2HSV)
     if palette is None:
-        from ...env.view.world import HUMAN_COLOURS
+        from ...urdf import HUMAN_COLOURS
 
         palette = HUMAN_COLOURS
     height, width = hsv.shape[:2]
     if camera is None:
         from ...params import RobotParams
-        from .sim_eval import sim_camera
+        from ..camera import sim_camera
 
         camera = sim_camera(RobotParams(), width, height)
     elif camera.width != width:

@@ -69,7 +69,7 @@ class PinholeGeometry:
         self.camera = camera
 
     def image_to_plane(self, uv: np.ndarray, z: float) -> np.ndarray:
-        from .sim_eval import pixel_to_plane
+        from ..camera import pixel_to_plane
 
         return pixel_to_plane(self.camera, uv, z)  # type: ignore[arg-type]
 

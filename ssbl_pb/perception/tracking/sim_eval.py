@@ -18,22 +18,14 @@ import numpy as np
 
 from ...env.formulas.layouts import GroupModel
 from ...env.view.bullet import pybullet as pb
-from ...env.view.world import HUMAN_COLOURS, World
+from ...env.view.world import World
 from ...errors import UserError
 from ...params import RobotParams, WorldParams
-from ..camera import PinholeCamera
+from ...urdf import HUMAN_COLOURS
+from ..camera import sim_camera
 from .detectors import ColourDetector, SimDetector
+from .ground import ProxyGeometry, boxes_to_ground
 from .tracker import Tracker, TrackerParams
-
-LEG_RADIUS = 0.16  # m, the proxy's leg cylinder (urdf/human.urdf)
-
-
-@dataclasses.dataclass(frozen=True)
-class ProxyGeometry:
-    """Heights (m above the floor) of the rendered proxy's head top and torso box."""
-
-    head_top: float = 1.70  # urdf/human.urdf
-    torso: tuple[float, float] = (0.84, 1.44)
 
 
 def proxy_geometry(world: World) -> ProxyGeometry:
@@ -51,60 +43,6 @@ def proxy_geometry(world: World) -> ProxyGeometry:
     box = vis[(torso, pb.GEOM_BOX)]
     mid, half = torso_z + box[5][2], box[3][2] / 2
     return ProxyGeometry(head_top=head_z + head_r, torso=(mid - half, mid + half))
-
-
-def sim_camera(robot: RobotParams, width: int, height: int) -> PinholeCamera:
-    """The pinhole equivalent of ``env.view.cameras.perspective`` + ``first_person_view`` for a render size."""
-    f = width / (2.0 * math.tan(math.radians(robot.camera_hfov_deg) / 2.0))
-    k = np.array([[f, 0.0, width / 2.0], [0.0, f, height / 2.0 - 1.0], [0.0, 0.0, 1.0]])
-    return PinholeCamera(width=width, height=height, K=k, camera_height=robot.camera_height,
-                         pitch_deg=robot.camera_pitch_deg, forward=robot.camera_forward)
-
-
-def pixel_to_plane(cam: PinholeCamera, uv: np.ndarray, z: float) -> np.ndarray:
-    """Pixels (n, 2) -> robot-frame points (n, 2) on the horizontal plane at height ``z`` (NaN if not hit)."""
-    rays = cam.unproject(np.asarray(uv, dtype=float).reshape(-1, 2)) @ cam.rotation().T
-    c = cam.centre()
-    out = np.full((len(rays), 2), np.nan)
-    dz = rays[:, 2]
-    ok = np.abs(dz) > 1e-9
-    t = (z - c[2]) / np.where(ok, dz, 1.0)
-    ok &= t > 0
-    out[ok] = c[None, :2] + t[ok, None] * rays[ok, :2]
-    return out
-
-
-def boxes_to_ground(cam: PinholeCamera, boxes: np.ndarray, geom: ProxyGeometry | None = None,
-                    margin: float = 1.0, torso: bool = False) -> np.ndarray:
-    """Person boxes ``x, y, w, h`` (n, >=4) -> robot-frame centres (n, 2); NaN when neither end is visible.
-
-    ``torso=True`` treats boxes as torso boxes (``ColourDetector``): the mean of the top and bottom edges'
-    intersections with the torso's top and bottom planes."""
-    boxes = np.asarray(boxes, dtype=float)
-    boxes = boxes.reshape(-1, boxes.shape[-1] if boxes.ndim == 2 else 5)
-    out = np.full((len(boxes), 2), np.nan)
-    if not len(boxes):
-        return out
-    g = geom or ProxyGeometry()
-    u = boxes[:, 0] + (boxes[:, 2] - 1) / 2.0
-    top, bottom = boxes[:, 1], boxes[:, 1] + boxes[:, 3] - 1
-    if torso:
-        a = pixel_to_plane(cam, np.column_stack([u, top]), g.torso[1])
-        b = pixel_to_plane(cam, np.column_stack([u, bottom]), g.torso[0])
-        ok_t = top > margin
-        ok_b = bottom < cam.height - 1 - margin
-        both = ok_t & ok_b
-        out[both] = 0.5 * (a[both] + b[both])
-        return out
-    feet = pixel_to_plane(cam, np.column_stack([u, bottom + 0.5]), 0.0)
-    head = pixel_to_plane(cam, np.column_stack([u, top - 0.5]), g.head_top)
-    use_feet = bottom < cam.height - 1 - margin
-    use_head = ~use_feet & (top > margin)
-    rng = np.linalg.norm(feet - cam.centre()[None, :2], axis=1, keepdims=True)
-    pushed = feet + LEG_RADIUS * (feet - cam.centre()[None, :2]) / np.maximum(rng, 1e-9)
-    out[use_feet] = pushed[use_feet]
-    out[use_head] = head[use_head]
-    return out
 
 
 @dataclasses.dataclass(frozen=True)

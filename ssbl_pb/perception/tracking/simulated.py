@@ -193,8 +193,8 @@ class CopyPerception:
 
     def __init__(self, robot: RobotParams, social: SocialParams, keep: float, paper: bool,
                  params: PerceptionParams) -> None:
+        from ..camera import sim_camera
         from .group import BODY_HEIGHT, MIN_VISIBLE, TORSO_HALF, TRACKER, GroupModel, GroupTracker
-        from .sim_eval import sim_camera
 
         self.torso_halfwidth = TORSO_HALF[1]
         self.apparent_halfwidth = 2.0 * sum(TORSO_HALF) / math.pi  # the mean over facings
