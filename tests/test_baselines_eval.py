@@ -11,7 +11,7 @@ import pytest
 from ssbl_pb.agents.policies import SFFMPolicy, StraightPolicy, make_policy
 from ssbl_pb.agents.rollout import run_episode
 from ssbl_pb.analysis.evaluation import Setup, evaluate
-from ssbl_pb.env.formulas.observation import OBS_SIZE
+from ssbl_pb.core.observation import OBS_SIZE
 from ssbl_pb.env.gymenv.approach import ApproachGroupEnv
 from ssbl_pb.errors import UserError
 

@@ -5,10 +5,10 @@ import numpy as np
 import pytest
 
 from ssbl_pb.agents.policies import SFFMPolicy, StraightPolicy
+from ssbl_pb.core import observation as ob
+from ssbl_pb.core.reward import TERMS, RewardWeights, total_reward, weight_vector
+from ssbl_pb.core.shield import ShieldParams, shield_action, shield_actions
 from ssbl_pb.env.engine.batched import BatchedApproach
-from ssbl_pb.env.formulas import observation as ob
-from ssbl_pb.env.formulas.reward import TERMS, RewardWeights, total_reward, weight_vector
-from ssbl_pb.env.formulas.shield import ShieldParams, shield_action, shield_actions
 from ssbl_pb.env.gymenv.approach import ApproachGroupEnv
 from ssbl_pb.env.gymenv.wrappers import ActionFilter
 

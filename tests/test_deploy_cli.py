@@ -48,7 +48,7 @@ def test_virtual_pepper_on_a_port_in_use_writes_no_map_and_says_so_in_one_line(t
     server.listen(1)
     port = server.getsockname()[1]
     try:
-        res = _tool("-m", "ssbl_pb.deploy.virtual_robot", "--listen", f"tcp://127.0.0.1:{port}", "--write-map",
+        res = _tool("-m", "ssbl_pb.virtual", "--listen", f"tcp://127.0.0.1:{port}", "--write-map",
                     str(tmp_path / "map"))
     finally:
         server.close()

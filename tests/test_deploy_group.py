@@ -1,5 +1,5 @@
 """From tracked people to the policy's group: circle, free slot, the joining model and the memory of people out of
-view, held against the simulator's own group (env.formulas.humans)."""
+view, held against the simulator's own group (core.humans)."""
 
 from __future__ import annotations
 
@@ -9,12 +9,12 @@ import numpy as np
 import pytest
 
 from ssbl_pb.agents.trained import policy_groups
-from ssbl_pb.env.formulas.humans import Group
-from ssbl_pb.env.formulas.layouts import free_layout, paper_layout, slot_keep
-from ssbl_pb.env.formulas.task import TaskParams
+from ssbl_pb.core.humans import Group
+from ssbl_pb.core.layouts import free_layout, paper_layout, slot_keep
+from ssbl_pb.core.task import TaskParams
 from ssbl_pb.params import RobotParams, SocialParams
 from ssbl_pb.perception.camera import sim_camera
-from ssbl_pb.perception.tracking.group import GroupModel, GroupTracker, group_circle
+from ssbl_pb.perception.groups.estimate import GroupModel, GroupTracker, group_circle
 from ssbl_pb.perception.tracking.tracker import TrackerParams
 
 SOCIAL = SocialParams()
@@ -226,7 +226,7 @@ def test_someone_hidden_behind_a_remembered_person_is_not_forgotten():
 
 def test_one_box_per_colour_spans_a_torso_split_by_a_nearer_person():
     from ssbl_pb.deploy.perceive import make_detector
-    from ssbl_pb.deploy.sim_robot import SimRobot
+    from ssbl_pb.virtual.robot import SimRobot
 
     robot = SimRobot("default", 11)  # a pair: one 2 m ahead seen side-on, one 3 m ahead facing the camera
     try:
@@ -238,7 +238,7 @@ def test_one_box_per_colour_spans_a_torso_split_by_a_nearer_person():
         image = robot.render().image
     finally:
         robot.close()
-    from ssbl_pb.perception.tracking.detectors import ColourDetector
+    from ssbl_pb.perception.detection.detectors import ColourDetector
     from ssbl_pb.urdf import HUMAN_COLOURS
 
     assert len(ColourDetector(HUMAN_COLOURS)(image)) == 3  # the far torso shows on either side of the near one
@@ -252,9 +252,9 @@ def test_one_box_per_colour_spans_a_torso_split_by_a_nearer_person():
 def test_lockstep_members_keep_one_id_through_leaving_and_reentering_the_view():
     # the real pipeline in lockstep (rendered frames, colour detector, tracker, group memory): the robot faces a
     # pair, turns 100 deg away for 4 s and back; each person is one id throughout
+    from ssbl_pb.bench.perception_errors import assign, room_to_odom
     from ssbl_pb.deploy.perceive import Perception
-    from ssbl_pb.deploy.perception_errors import assign, room_to_odom
-    from ssbl_pb.deploy.sim_robot import SimClock, SimRobot
+    from ssbl_pb.virtual.robot import SimClock, SimRobot
 
     robot = SimRobot("default", 11)
     clock = SimClock(robot)
@@ -290,9 +290,9 @@ def test_lockstep_members_carry_the_facing_the_colour_detector_reads():
     # deploy's pipeline on rendered frames: the tracked members' facing (odometry frame) is the virtual Pepper's
     # people's, within the spread the filter reports (here the farther person is half hidden behind the nearer
     # one, and their facing stays unknown)
+    from ssbl_pb.bench.perception_errors import assign, room_to_odom
     from ssbl_pb.deploy.perceive import Perception
-    from ssbl_pb.deploy.perception_errors import assign, room_to_odom
-    from ssbl_pb.deploy.sim_robot import SimClock, SimRobot
+    from ssbl_pb.virtual.robot import SimClock, SimRobot
 
     robot = SimRobot("default", 11)
     clock = SimClock(robot)

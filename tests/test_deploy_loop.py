@@ -17,9 +17,9 @@ from ssbl_pb.deploy.frames import Frames
 from ssbl_pb.deploy.log import RunLog, read_log
 from ssbl_pb.deploy.loop import DeployLoop, DeployParams, Setup, deploy_shield
 from ssbl_pb.deploy.perceive import Perception
-from ssbl_pb.deploy.sim_robot import SimClock, SimRobot
 from ssbl_pb.params import RobotParams, SocialParams
-from ssbl_pb.perception.tracking.looks import Looks
+from ssbl_pb.perception.groups.looks import Looks
+from ssbl_pb.virtual.robot import SimClock, SimRobot
 
 
 class FrozenCamera(SimClock):
@@ -40,7 +40,7 @@ def make_loop(seed=11, policy="sffm", folder=None, clock_cls=SimClock, groups="c
     social = SocialParams()
     if policy == "vector":
         from ssbl_pb.agents.trained import load_trained, shield_at_place
-        from ssbl_pb.env.formulas.task import TaskParams
+        from ssbl_pb.core.task import TaskParams
 
         shield = deploy_shield(RobotParams(), social, TaskParams(), DeployParams().stop_distance,
                                shield_at_place("vector"))  # as the CLI builds it: the place's clearance and cap
@@ -215,8 +215,8 @@ def test_a_failing_stop_does_not_mask_the_runs_own_error():
 
 
 def test_the_shield_s_interventions_are_logged_and_summarised(tmp_path):
-    from ssbl_pb.env.formulas.shield import SafetyShield
-    from ssbl_pb.env.formulas.task import TaskParams
+    from ssbl_pb.core.shield import SafetyShield
+    from ssbl_pb.core.task import TaskParams
 
     class Charging:
         """Full speed toward the place, whatever is in the way; the deploy shield brakes it."""
@@ -278,9 +278,9 @@ def test_deploy_params_name_the_field_that_is_wrong():
 def test_deploy_docks_the_last_centimetres_when_the_policy_stops_short_of_its_margin():
     from types import SimpleNamespace
 
+    from ssbl_pb.core.task import TaskParams
     from ssbl_pb.deploy.loop import DOCK_SPEED
-    from ssbl_pb.env.formulas.task import TaskParams
-    from ssbl_pb.perception.tracking.looks import ARRIVAL_MARGIN
+    from ssbl_pb.perception.groups.looks import ARRIVAL_MARGIN
 
     loop = DeployLoop.__new__(DeployLoop)
     loop.s = SimpleNamespace(task=TaskParams(), robot_params=RobotParams(), policy=SimpleNamespace())
@@ -301,9 +301,9 @@ def test_deploy_docks_the_last_centimetres_when_the_policy_stops_short_of_its_ma
 def test_members_out_of_view_are_kept_at_a_clearance_growing_with_the_time_unseen():
     from types import SimpleNamespace
 
+    from ssbl_pb.core.shield import ShieldParams
+    from ssbl_pb.core.task import TaskParams
     from ssbl_pb.deploy.loop import UNSEEN_GROWTH, UNSEEN_MARGIN
-    from ssbl_pb.env.formulas.shield import ShieldParams
-    from ssbl_pb.env.formulas.task import TaskParams
 
     loop = DeployLoop.__new__(DeployLoop)
     loop.shield = ShieldParams.from_env(RobotParams(), SocialParams(), TaskParams())

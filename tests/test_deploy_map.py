@@ -13,10 +13,10 @@ from ssbl_pb.deploy.log import RunLog, read_log
 from ssbl_pb.deploy.loop import DeployLoop, DeployParams, Setup
 from ssbl_pb.deploy.perceive import Perception
 from ssbl_pb.deploy.plot import draw
-from ssbl_pb.deploy.sim_robot import SimClock, SimRobot
-from ssbl_pb.deploy.virtual_robot import write_room_map
 from ssbl_pb.errors import UserError
 from ssbl_pb.params import RobotParams, SocialParams
+from ssbl_pb.virtual.pepper import write_room_map
+from ssbl_pb.virtual.robot import SimClock, SimRobot
 
 
 @pytest.fixture
@@ -76,7 +76,7 @@ def test_run_on_the_map_logs_true_poses_and_draws_them(robot, tmp_path):
 
 def test_scan_from_the_map_is_the_simulators(tmp_path):
     """Deploy casts the scan from the room YAML at the localised pose exactly as the simulator does in that room."""
-    from ssbl_pb.env.formulas import observation as ob
+    from ssbl_pb.core import observation as ob
     from ssbl_pb.env.gymenv.approach import make_env
 
     r = SimRobot("default", seed=35)

@@ -17,10 +17,10 @@ import pytest
 
 pytest.importorskip("qi")
 
-from ssbl_pb.deploy.bench import FAULTS, run_fault, virtual_pepper  # noqa: E402
+from ssbl_pb.bench.deploy import FAULTS, run_fault, virtual_pepper  # noqa: E402
 from ssbl_pb.deploy.naoqi import NaoqiRobot, RobotError  # noqa: E402
-from ssbl_pb.deploy.virtual_robot import load_log  # noqa: E402
 from ssbl_pb.params import RobotParams  # noqa: E402
+from ssbl_pb.virtual.pepper import load_log  # noqa: E402
 
 
 def test_robot_interface_over_qi(tmp_path):
@@ -181,7 +181,7 @@ def test_load_log_leaves_out_a_line_still_being_written(tmp_path):
 
 
 def test_the_benchmark_report_keeps_a_run_that_ended_on_a_fault_before_its_first_tick():
-    from ssbl_pb.deploy.bench import markdown
+    from ssbl_pb.bench.deploy import markdown
 
     runs = [{"seed": 1, "outcome": "success", "true_success": True, "true_slot_m": 0.1, "true_heading_deg": 2.0,
              "true_min_clearance_m": 0.62, "tick_ms_median": 1.0, "tick_ms_p99": 3.0, "estimate_age_ms_median": 90},
@@ -198,7 +198,7 @@ def test_the_command_the_virtual_pepper_prints_joins_its_group(tmp_path):
     virtual Pepper) joins the group by the simulator's ground truth."""
     import shlex
 
-    from ssbl_pb.deploy.bench import truth_score
+    from ssbl_pb.bench.deploy import truth_score
 
     log = tmp_path / "vp.jsonl"
     with virtual_pepper(log, seed=0) as (vp, url):
@@ -217,7 +217,7 @@ def test_the_command_the_virtual_pepper_prints_joins_its_group(tmp_path):
 def test_the_benchmark_gives_deploy_the_virtual_rooms_map(tmp_path):
     """``bench.run_approach`` reads the virtual Pepper's ``--write-map`` line: deploy's ``--map`` and
     ``--start-pose``, the room YAML written, the start pose on a free cell of its map."""
-    from ssbl_pb.deploy.bench import _map_flags
+    from ssbl_pb.bench.deploy import _map_flags
     from ssbl_pb.deploy.frames import Frames, load_room
 
     with virtual_pepper(tmp_path / "vp.jsonl", 0, "default", "--write-map", str(tmp_path / "map")) as (vp, _):

@@ -9,8 +9,8 @@ import pytest
 
 from ssbl_pb.deploy.frames import Frames, inverse, transform_points
 from ssbl_pb.deploy.robot import clamp_command, compose, relative
-from ssbl_pb.deploy.sim_robot import SimClock, SimRobot
 from ssbl_pb.params import RobotParams
+from ssbl_pb.virtual.robot import SimClock, SimRobot
 
 
 def test_clamp_limits_planar_speed_as_a_vector_and_the_turn_rate():

@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 
 from ssbl_pb.errors import UserError
-from ssbl_pb.perception.tracking.learned import SsdDetector, SsdParams
+from ssbl_pb.perception.detection.learned import SsdDetector, SsdParams
+from ssbl_pb.perception.detection.ranging import HEAD, RangingParams
 from ssbl_pb.perception.tracking.pipeline import BoxParams, GroundTracker
-from ssbl_pb.perception.tracking.ranging import HEAD, RangingParams
 from ssbl_pb.perception.tracking.tracker import TrackerParams
 from ssbl_pb.perception.tracking.tuning import PipelineParams, cache_raw, select_cached, tune
 
@@ -37,8 +37,8 @@ def bench_tool():
 
 @needs_pets
 def test_tune_picks_the_threshold_that_drops_false_boxes_and_adds_the_hidden_score():
-    from ssbl_pb.perception.tracking.pets import load_ground_truth
-    from ssbl_pb.perception.tracking.tsai import TsaiCamera
+    from ssbl_pb.perception.datasets.pets import load_ground_truth
+    from ssbl_pb.perception.datasets.tsai import TsaiCamera
 
     cam, gt = TsaiCamera.from_xml(CALIB), load_ground_truth(GT)
     frames = range(0, 15)
@@ -78,7 +78,7 @@ def test_cached_detector_output_selects_to_the_online_boxes():
 def test_each_ranging_cue_has_its_own_measurement_noise():
     """A new track's position covariance is the first detection's: a head-ranged box's follows ``rng.pixel_noise``
     (times the box's width), a foot-ranged box's ``box.pixel_noise`` (times its height)."""
-    from ssbl_pb.perception.tracking.tsai import TsaiCamera
+    from ssbl_pb.perception.datasets.tsai import TsaiCamera
 
     cam = TsaiCamera.from_xml(CALIB)
     truth = np.array([2.0, 5.0])
@@ -137,7 +137,7 @@ def test_bench_deploy_hands_its_detector_to_deploy(monkeypatch, tmp_path):
     Pepper); a name deploy does not know is refused before anything runs."""
     import contextlib
 
-    from ssbl_pb.deploy import bench
+    from ssbl_pb.bench import deploy as bench
 
     seen = []
 

@@ -274,7 +274,7 @@ def test_low_pass_episodes_restarts_at_each_episode() -> None:
 
 
 def test_feature_jitter_by_hand_and_falls_with_the_low_pass(checkpoints: dict[str, Path]) -> None:
-    from ssbl_pb.analysis.camera_bench import feature_jitter
+    from ssbl_pb.bench.camera import feature_jitter
     from tests.test_ae_training import moving_square
 
     data = moving_square(10, 12)

@@ -8,7 +8,7 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import ssbl_pb  # noqa: F401  (registers the env)
-from ssbl_pb.env.formulas.observation import OBS_SIZE, decode_members
+from ssbl_pb.core.observation import OBS_SIZE, decode_members
 from ssbl_pb.env.gymenv.approach import ApproachGroupEnv
 from ssbl_pb.env.rooms.scenarios import ScenarioMix
 
@@ -140,7 +140,7 @@ def test_route_keeps_the_footprint_corners_out_of_the_intimate_zone():
     # a point on the far side of the group from the slot: its way goes around at the keep-out radius
     far = g.centre + 4.0 * (g.centre - env.slot()) / np.linalg.norm(g.centre - env.slot())
     keep_out = g.radius + env.social.human_radius + env.robot_params.reach + env.task.intimate_zone
-    from ssbl_pb.env.formulas.reward import route_distance
+    from ssbl_pb.core.reward import route_distance
 
     assert env.keep_out() == pytest.approx(keep_out + env.task.route_margin)
     pose = np.array([*far, 0.0])

@@ -1,4 +1,4 @@
-"""Facing from the virtual Pepper's frames (perception/tracking/facing.py): the convention, the geometry on synthetic
+"""Facing from the virtual Pepper's frames (perception/detection/facing.py): the convention, the geometry on synthetic
 frames, rendered people facing the camera, away from it and partly hidden, and deploy's detector exposing it."""
 
 import math
@@ -7,12 +7,12 @@ import cv2
 import numpy as np
 import pytest
 
-from ssbl_pb.deploy.facing_bench import place
+from ssbl_pb.bench.facing import place
 from ssbl_pb.deploy.perceive import make_detector
 from ssbl_pb.env.view.world import World
 from ssbl_pb.params import RobotParams
 from ssbl_pb.perception.camera import sim_camera
-from ssbl_pb.perception.tracking.facing import ProxyBody, estimate_facing, facing_yaw, phi_of, wrap
+from ssbl_pb.perception.detection.facing import ProxyBody, estimate_facing, facing_yaw, phi_of, wrap
 from ssbl_pb.urdf import HUMAN_COLOURS
 
 CAM = sim_camera(RobotParams(), 320, 240)

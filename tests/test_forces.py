@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from ssbl_pb.env.formulas import forces
+from ssbl_pb.core import forces
 
 
 def _mask(k, mask):

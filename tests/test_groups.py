@@ -10,8 +10,8 @@ from scipy.io import savemat
 
 from ssbl_pb.calib.fformations import load_dataset, load_datasets
 from ssbl_pb.calib.groups import group_geometry, groups_yaml, real_stats, sim_stats
-from ssbl_pb.env.formulas.humans import Group
-from ssbl_pb.env.formulas.layouts import GroupModel, load_group_data, parse_group_data, real_layout, slot_keep
+from ssbl_pb.core.humans import Group
+from ssbl_pb.core.layouts import GroupModel, load_group_data, parse_group_data, real_layout, slot_keep
 from ssbl_pb.env.gymenv.approach import ApproachGroupEnv, make_env
 from ssbl_pb.errors import UserError
 from ssbl_pb.params import RobotParams, SocialParams

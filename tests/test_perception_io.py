@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ssbl_pb.perception.tracking.pets import GroundTruthError, load_cvml, load_ground_truth, load_mot
+from ssbl_pb.perception.datasets.pets import GroundTruthError, load_cvml, load_ground_truth, load_mot
 from ssbl_pb.perception.tracking.pipeline import VideoError, open_video
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -11,7 +11,7 @@ import pytest
 from ssbl_pb.env.engine.batched import BatchedApproach
 from ssbl_pb.env.gymenv.approach import ApproachGroupEnv
 from ssbl_pb.params import ConfigError, RobotParams, SocialParams
-from ssbl_pb.perception.tracking.simulated import CopyPerception, PerceptionParams, detect
+from ssbl_pb.perception.groups.observation_model import CopyPerception, PerceptionParams, detect
 
 EXACT = PerceptionParams(range_std_m=0.0, range_std_per_m=0.0, bearing_std_deg=0.0, miss_prob=0.0)
 
@@ -103,7 +103,7 @@ def test_bad_model_settings_are_named():
 
 
 def test_the_share_of_a_torso_hidden_behind_nearer_people_by_hand():
-    from ssbl_pb.perception.tracking.simulated import hidden_share
+    from ssbl_pb.perception.groups.observation_model import hidden_share
 
     # behind a person straight ahead: all of it; a person 0.2 m to the side (bearing atan(0.1) = 0.0997 rad,
     # half-angle atan(0.115) = 0.1145 rad) covers the target's rays (k / 10 - 1) atan(0.23 / 3) from -0.0148 rad:
@@ -114,7 +114,7 @@ def test_the_share_of_a_torso_hidden_behind_nearer_people_by_hand():
 
 
 def test_the_search_steps_sideways_after_a_full_turn_with_one_person_known():
-    from ssbl_pb.perception.tracking.group import Member
+    from ssbl_pb.perception.groups.estimate import Member
 
     cp = _copy()
     cp.members = [Member(1, np.array([2.0, 1.0]), np.zeros(2), np.eye(2))]  # to the left: turn left first
@@ -146,7 +146,7 @@ def test_facing_is_measured_from_the_front_finely_and_from_behind_coarsely():
 
 
 def test_facing_rays_that_cross_fix_the_centre_and_facing_each_other_do_not():
-    from ssbl_pb.perception.tracking.group import facing_centre
+    from ssbl_pb.perception.groups.estimate import facing_centre
 
     c = np.array([1.0, 2.0])
     members = c + np.array([[0.8, 0.0], [0.0, 0.8], [-0.8, 0.0]])
@@ -192,7 +192,7 @@ def test_searching_adds_its_time_to_the_episode_up_to_one_episode_more():
 
 
 def test_the_sidestep_goes_to_the_side_with_room_or_not_at_all():
-    from ssbl_pb.perception.tracking.group import Member
+    from ssbl_pb.perception.groups.estimate import Member
 
     def full_turn(cp, clearance):
         yaw, act = 0.0, np.zeros(2)
@@ -231,7 +231,7 @@ def test_a_turn_that_would_swing_a_corner_into_the_wall_is_held():
 
 def test_a_torso_cut_by_the_image_side_is_completed_beyond_it():
     from ssbl_pb.deploy.perceive import complete_cut_torsos
-    from ssbl_pb.perception.tracking.group import MIN_VISIBLE, TORSO_HALF, TORSO_HEIGHT
+    from ssbl_pb.perception.groups.estimate import MIN_VISIBLE, TORSO_HALF, TORSO_HEIGHT
 
     full = 60.0 * (4.0 * sum(TORSO_HALF) / math.pi) / TORSO_HEIGHT  # a 60 px tall torso is ~45.8 px wide
     boxes = np.array([[100.0, 80, 40, 60, 1], [0.0, 80, 30, 60, 1], [300.0, 80, 20, 60, 1], [0.0, 80, 10, 60, 1]])
@@ -245,7 +245,7 @@ def test_a_torso_cut_by_the_image_side_is_completed_beyond_it():
 
 def test_the_share_of_a_torso_inside_the_image_by_hand():
     from ssbl_pb.perception.camera import sim_camera
-    from ssbl_pb.perception.tracking.simulated import image_share
+    from ssbl_pb.perception.groups.observation_model import image_share
 
     cam = sim_camera(RobotParams(), 320, 240)
     half = math.radians(RobotParams().camera_hfov_deg) / 2
@@ -256,7 +256,7 @@ def test_the_share_of_a_torso_inside_the_image_by_hand():
 
 
 def _one_known(cp):
-    from ssbl_pb.perception.tracking.group import Member
+    from ssbl_pb.perception.groups.estimate import Member
 
     cp.members = [Member(1, np.array([2.0, 1.0]), np.zeros(2), np.eye(2))]  # to the left: it would step left
 
@@ -312,9 +312,9 @@ def test_deploys_search_repeats_its_sidesteps_as_the_observation_model_does():
 
 
 def test_at_its_estimated_place_the_robot_looks_at_a_member_not_seen_lately_as_deploy_does():
-    from ssbl_pb.env.formulas.task import TaskParams
-    from ssbl_pb.perception.tracking.looks import CLAIM_HOLD_S, STALL_S
-    from ssbl_pb.perception.tracking.simulated import PerceivedGroups
+    from ssbl_pb.core.task import TaskParams
+    from ssbl_pb.perception.groups.looks import CLAIM_HOLD_S, STALL_S
+    from ssbl_pb.perception.groups.observation_model import PerceivedGroups
 
     task = TaskParams()
     groups = PerceivedGroups(1, RobotParams(), SocialParams(), 0.8, False, EXACT)

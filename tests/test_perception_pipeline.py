@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ssbl_pb.perception.tracking.detectors import HogParams, box_fractions, nms, shrink_windows
+from ssbl_pb.perception.datasets.tsai import TsaiCamera
+from ssbl_pb.perception.detection.detectors import HogParams, box_fractions, nms, shrink_windows
 from ssbl_pb.perception.tracking.pipeline import BoxParams, GroundTracker, ground_covariance, select
 from ssbl_pb.perception.tracking.tracker import TrackerParams
-from ssbl_pb.perception.tracking.tsai import TsaiCamera
 from ssbl_pb.perception.tracking.tuning import PipelineParams, keep_scales
 
 CAM = """<?xml version="1.0"?>

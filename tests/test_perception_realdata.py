@@ -6,11 +6,11 @@ import cv2
 import numpy as np
 import pytest
 
-from ssbl_pb.perception.tracking.detectors import HogDetector, HogParams, nms
-from ssbl_pb.perception.tracking.evaluation import evaluate
-from ssbl_pb.perception.tracking.pets import foot_points, load_ground_truth
+from ssbl_pb.perception.datasets.pets import foot_points, load_ground_truth
+from ssbl_pb.perception.datasets.scoring import evaluate
+from ssbl_pb.perception.datasets.tsai import TsaiCamera
+from ssbl_pb.perception.detection.detectors import HogDetector, HogParams, nms
 from ssbl_pb.perception.tracking.pipeline import GroundTracker, HogFgDetector, read_frames
-from ssbl_pb.perception.tracking.tsai import TsaiCamera
 from ssbl_pb.perception.tracking.tuning import PipelineParams
 
 FRAMES = 20

@@ -7,11 +7,11 @@ import math
 import numpy as np
 import pytest
 
+from ssbl_pb.bench.sim_tracking import proxy_geometry
 from ssbl_pb.env.view.world import World
 from ssbl_pb.perception.camera import sim_camera
-from ssbl_pb.perception.tracking.detectors import ColourDetector, SimDetector, mask_boxes
-from ssbl_pb.perception.tracking.ground import boxes_to_ground
-from ssbl_pb.perception.tracking.sim_eval import proxy_geometry
+from ssbl_pb.perception.detection.detectors import ColourDetector, SimDetector, mask_boxes
+from ssbl_pb.perception.detection.ground import boxes_to_ground
 from ssbl_pb.urdf import HUMAN_COLOURS
 
 
@@ -77,7 +77,7 @@ def test_seg_detector_needs_mask(scene):
 
 
 def test_short_sim_evaluation():
-    from ssbl_pb.perception.tracking.sim_eval import SimEvalParams, evaluate_sim
+    from ssbl_pb.bench.sim_tracking import SimEvalParams, evaluate_sim
 
     res = evaluate_sim(SimEvalParams(episodes=1, steps=40, width=160, height=120, seed=1))
     assert res["scored"] > 20

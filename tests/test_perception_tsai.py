@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ssbl_pb.perception.tracking.tsai import CalibrationError, TsaiCamera, euler_to_matrix
+from ssbl_pb.perception.datasets.tsai import CalibrationError, TsaiCamera, euler_to_matrix
 
 PETS = "video/pets2009_s2l1/View_001_tsai_calibration.xml"
 

@@ -7,8 +7,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from ssbl_pb.core.observation import POS_SCALE
 from ssbl_pb.deploy.frames import Frames, RoomMap
-from ssbl_pb.env.formulas.observation import POS_SCALE
 from ssbl_pb.env.rooms import planner
 from ssbl_pb.env.rooms.obstacles import CELL, box_rows
 from ssbl_pb.env.rooms.rooms import Room
@@ -114,7 +114,7 @@ def test_deploy_shows_the_same_waypoint_from_the_map():
 
 
 def test_bad_flags_name_themselves():
-    from ssbl_pb.env.formulas.reward import RewardWeights
+    from ssbl_pb.core.reward import RewardWeights
     from ssbl_pb.env.gymenv.approach import make_env
     from ssbl_pb.errors import UserError
 
@@ -165,8 +165,8 @@ def test_plan_distance_interpolates_and_reads_nearby_nodes():
 def test_the_shaping_goes_round_furniture_only_with_geodesic_route():
     """``kernels.route_to_slot``: the way round the wall to the way in, then in; without ``geodesic_route`` (or
     inside the group's disc) the way round the group only; ``potential`` keeps the last value off the map."""
+    from ssbl_pb.core.reward import route_length, slot_potential
     from ssbl_pb.env.engine import kernels
-    from ssbl_pb.env.formulas.reward import route_length, slot_potential
     from ssbl_pb.env.gymenv.approach import ApproachGroupEnv
 
     plain = ApproachGroupEnv().unwrapped.sim._tp

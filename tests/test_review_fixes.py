@@ -8,9 +8,9 @@ import pytest
 import yaml
 
 from ssbl_pb.agents.policies import SFFMPolicy, make_policy
+from ssbl_pb.core.observation import OBS_SIZE, POS_SCALE
+from ssbl_pb.core.task import TaskParams
 from ssbl_pb.env.engine.batched import BatchedApproach
-from ssbl_pb.env.formulas.observation import OBS_SIZE, POS_SCALE
-from ssbl_pb.env.formulas.task import TaskParams
 from ssbl_pb.env.gymenv.approach import ApproachGroupEnv
 from ssbl_pb.env.rooms import spawn
 from ssbl_pb.params import ConfigError, RobotParams, SocialParams, WorldParams

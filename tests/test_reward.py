@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from ssbl_pb.env.formulas.reward import TERMS, RewardWeights, reward_terms, total_reward
+from ssbl_pb.core.reward import TERMS, RewardWeights, reward_terms, total_reward
 from ssbl_pb.params import ConfigError
 
 DT = 0.1
@@ -80,7 +80,7 @@ def test_total_is_eq15_with_our_terms():
 
 
 def test_proximity_cost_charges_closing_in_near_the_intimate_zone():
-    from ssbl_pb.env.formulas.reward import proximity_cost
+    from ssbl_pb.core.reward import proximity_cost
 
     # intimate 0.45, band 0.3: member 0 closed 0.04 m to 0.55 (depth (0.75 - 0.55)/0.3 = 2/3); member 1 closed
     # 0.05 m but ends at 0.8, outside the band; member 2 moved away
@@ -114,7 +114,7 @@ def test_negative_weight_rejected():
 
 
 def test_slot_potential_rewards_braking_near_the_slot():
-    from ssbl_pb.env.formulas.reward import slot_potential
+    from ssbl_pb.core.reward import slot_potential
 
     assert slot_potential(3.0, 0.35) == pytest.approx(-3.0)  # far: distance only
     assert slot_potential(0.5, 0.3) == pytest.approx(-(0.5 + 5.0 * 0.3 * 0.5))
@@ -122,7 +122,7 @@ def test_slot_potential_rewards_braking_near_the_slot():
 
 
 def test_route_distance_goes_around_the_group():
-    from ssbl_pb.env.formulas.reward import route_distance
+    from ssbl_pb.core.reward import route_distance
 
     c, slot = np.zeros(2), np.array([1.0, 0.0])
     # straight in along the slot's ray

@@ -6,8 +6,8 @@ import math
 import numpy as np
 import pytest
 
+from ssbl_pb.core import observation as ob
 from ssbl_pb.env.engine import kernels
-from ssbl_pb.env.formulas import observation as ob
 from ssbl_pb.env.gymenv.approach import ApproachGroupEnv, make_env
 from ssbl_pb.env.rooms.obstacles import boxes_distance
 from ssbl_pb.env.rooms.spawn import GROUP_CLEARANCE, START_CLEARANCE

@@ -6,8 +6,8 @@ import math
 import numpy as np
 import pytest
 
-from ssbl_pb.env.formulas.observation import MEMBER_X, MEMBER_Y, MEMBERS, OBS_SIZE, POS_SCALE
-from ssbl_pb.env.formulas.shield import (
+from ssbl_pb.core.observation import MEMBER_X, MEMBER_Y, MEMBERS, OBS_SIZE, POS_SCALE
+from ssbl_pb.core.shield import (
     SafetyShield,
     ShieldParams,
     brake_closing,
@@ -83,7 +83,7 @@ def test_every_sector_keeps_its_limit_between_obstacles_on_two_sides():
     # the scan (m) of a robot that drove into a desk in the meeting room: obstacles ahead-left (sectors 0-4) and
     # behind-right (15-17). Braking for each sector in turn gave back speed toward the earlier ones (0.14 m/s
     # toward sector 0 when driving at 270 deg); the shielded command closes on none faster than it can brake.
-    from ssbl_pb.env.formulas.observation import BASE_SIZE, SCAN_RANGE, SCAN_RAYS
+    from ssbl_pb.core.observation import BASE_SIZE, SCAN_RANGE, SCAN_RAYS
 
     scan = np.array([0.39, 0.4, 0.33, 0.34, 0.37, 0.5, 1.37, 3, 3, 2.3, 3, 3, 3, 3, 3, 0.49, 0.44, 0.44, 0.83, 1.16,
                      1.57, 3, 3, 3])
@@ -101,7 +101,7 @@ def test_every_sector_keeps_its_limit_between_obstacles_on_two_sides():
 
 
 def test_a_command_stopped_by_an_obstacle_slides_along_it_and_one_stopped_by_a_member_does_not():
-    from ssbl_pb.env.formulas.observation import BASE_SIZE, SCAN_RANGE
+    from ssbl_pb.core.observation import BASE_SIZE, SCAN_RANGE
 
     obs = obs_with(np.zeros((0, 2)))
     obs[BASE_SIZE:] = 1.0
@@ -216,7 +216,7 @@ def test_braking_for_an_obstacle_never_gives_back_speed_toward_a_member():
     # a narrow way: a member ahead-left, a desk ahead-right (sectors 21-23 at 0.45 m). Braking for the desk after
     # the member removed speed toward the desk and with it gave speed back toward the member; every command now
     # closes on each of them no faster than the base can brake.
-    from ssbl_pb.env.formulas.observation import BASE_SIZE, SCAN_RANGE, SCAN_RAYS
+    from ssbl_pb.core.observation import BASE_SIZE, SCAN_RANGE, SCAN_RAYS
 
     member = np.array([[0.6, 0.75]])
     obs = obs_with(member)
@@ -252,7 +252,7 @@ def test_a_robot_already_closing_too_fast_brakes_before_it_turns():
     spent that on the turn and ran on into the wall (a desk's corner in the lab room). The shield now brakes the
     base's own velocity first when a period toward the command would leave it too fast, and the footprint's
     circle keeps clear of the wall."""
-    from ssbl_pb.env.formulas.base import base_step
+    from ssbl_pb.core.base import base_step
 
     pose, vel, queue = np.array([0.0, 0.0, 0.0]), np.array([0.35, 0.0, 0.0]), np.zeros((1, 3))
     wall_x = REACH + 0.38  # 0.38 m between the footprint's circle and the wall: 0.335 m/s to brake for at 0.2 m/s^2
@@ -293,8 +293,8 @@ def test_a_policys_shield_at_place_travels_to_evaluation_and_deploy(tmp_path):
 
     from ssbl_pb.agents.trained import load_trained, shield_at_place
     from ssbl_pb.analysis.evaluation import Setup
+    from ssbl_pb.core.task import TaskParams
     from ssbl_pb.deploy.loop import deploy_shield
-    from ssbl_pb.env.formulas.task import TaskParams
     from ssbl_pb.params import RobotParams, SocialParams
     from ssbl_pb.training.config import load_config
 
@@ -330,8 +330,8 @@ def test_near_its_place_the_shield_keeps_the_places_clearance():
     clearance kept is 0.55 m. With a desk 1.25 m behind (half way through the scan's gate) it is 0.55 m at 1.2 m;
     with one 0.9 m behind, only the place's own ramp holds (0.5 m at 1.2 m; 0.55 m at 0.45 m). Without
     ``place_clearance`` nothing changes."""
-    from ssbl_pb.env.formulas.observation import BASE_SIZE, SCAN_RANGE
-    from ssbl_pb.env.formulas.shield import CLEARANCE_FAR, CLEARANCE_NEAR, ROOM_FAR, ROOM_NEAR
+    from ssbl_pb.core.observation import BASE_SIZE, SCAN_RANGE
+    from ssbl_pb.core.shield import CLEARANCE_FAR, CLEARANCE_NEAR, ROOM_FAR, ROOM_NEAR
 
     assert (CLEARANCE_NEAR, CLEARANCE_FAR, ROOM_NEAR, ROOM_FAR) == (1.2, 1.6, 1.0, 1.5)
     a = P.brake_accel
@@ -355,7 +355,7 @@ def test_near_its_place_the_shield_caps_the_speed_to_arrive_slowly():
     sqrt(0.05^2 + 2 a (d - 0.3)) at d m from the place (a = 0.2: 0.206 m/s at 0.4 m, 0.05 within 0.3 m, the full
     0.35 beyond 0.6 m), in the direction asked; without it, nothing changes; a bad value is refused by name; and
     it holds only where the robot keeps the clearance asked of it from every member."""
-    from ssbl_pb.env.formulas.shield import place_speed_cap
+    from ssbl_pb.core.shield import place_speed_cap
 
     slow = ShieldParams(place_arrival_speed=0.05)
     assert place_speed_cap(0.4, 0.05, 0.2) == pytest.approx(math.sqrt(0.05 ** 2 + 2 * 0.2 * 0.1))
@@ -407,7 +407,7 @@ def test_the_shield_keeps_the_robot_out_of_the_ospace_short_of_the_places_ring()
     (``OSPACE_MARGIN`` 0.3 inside the radius). Full speed at the centre: the closing speed on it is cut to
     sqrt(2 a (d - 0.6)) (0.2 m/s at d = 0.7), the sideways part kept; at 0.6 m only sideways motion is left; away
     from the centre nothing changes; without ``ospace_keep_out`` nothing is braked."""
-    from ssbl_pb.env.formulas.shield import OSPACE_MARGIN
+    from ssbl_pb.core.shield import OSPACE_MARGIN
 
     keep = ShieldParams(ospace_keep_out=True)
     assert OSPACE_MARGIN == pytest.approx(0.3)
@@ -448,8 +448,8 @@ def test_kept_out_of_the_ospace_the_shipped_policy_joins_the_pairs_it_lost_insid
 
 # -- issue 39: what the shield changed, and by which rule ----------------------------------------------------
 def test_the_shield_names_the_rule_that_changed_each_action():
-    from ssbl_pb.env.formulas.observation import BASE_SIZE, SCAN_RANGE
-    from ssbl_pb.env.formulas.shield import (
+    from ssbl_pb.core.observation import BASE_SIZE, SCAN_RANGE
+    from ssbl_pb.core.shield import (
         RULE_MEMBERS,
         RULE_OBSTACLES,
         RULE_PLACE,

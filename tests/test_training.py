@@ -330,7 +330,7 @@ def test_fine_tuning_onto_the_range_scan_starts_as_the_source(tmp_path):
     import torch
 
     from ssbl_pb.agents.trained import load_trained
-    from ssbl_pb.env.formulas import observation as ob
+    from ssbl_pb.core import observation as ob
     from ssbl_pb.training.run import _init_from, build_model, make_vec_env
 
     src_dir = tmp_path / "no_scan"

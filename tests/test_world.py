@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from ssbl_pb.env.formulas.base import HolonomicBase
+from ssbl_pb.core.base import HolonomicBase
 from ssbl_pb.env.view.world import World
 from ssbl_pb.params import ConfigError, RobotParams, SocialParams, WorldParams
 

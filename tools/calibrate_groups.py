@@ -25,7 +25,7 @@ from ssbl_pb.calib import groups
 from ssbl_pb.calib.fformations import load_datasets
 from ssbl_pb.calib.io import check_outputs, save_figure
 from ssbl_pb.cli import ArgumentParser, UserError, command_line, run
-from ssbl_pb.env.formulas.layouts import GroupModel, parse_group_data
+from ssbl_pb.core.layouts import GroupModel, parse_group_data
 from ssbl_pb.files import write_text, write_yaml
 from ssbl_pb.params import SocialParams
 

@@ -31,19 +31,19 @@ DETECTORS = ("ssd", "movenet")  # HOG needs every frame in order (its background
 def make(name: str) -> Any:
     """The detector ``name`` with its built-in settings (the SSD as tuned in ``PipelineParams``)."""
     if name == "ssd":
-        from ssbl_pb.perception.tracking.learned import SsdDetector
+        from ssbl_pb.perception.detection.learned import SsdDetector
         from ssbl_pb.perception.tracking.tuning import PipelineParams
 
         return SsdDetector(PipelineParams().ssd)
-    from ssbl_pb.perception.tracking.movenet import MoveNetDetector
+    from ssbl_pb.perception.detection.movenet import MoveNetDetector
 
     return MoveNetDetector()
 
 
 def coverage(detect: Any, video: Path, gt: np.ndarray, frames: range, paint: Any | None) -> dict[str, float]:
     """The counts above for one detector (``paint(i, frame)``: the feet-hidden frame, or None)."""
-    from ssbl_pb.perception.tracking.learned import box_iou
-    from ssbl_pb.perception.tracking.occlusion import KEEP
+    from ssbl_pb.perception.datasets.occlusion import KEEP
+    from ssbl_pb.perception.detection.learned import box_iou
     from ssbl_pb.perception.tracking.pipeline import read_frames
 
     people = boxes = upper = whole = either = 0
@@ -84,8 +84,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, default=ROOT / "results" / "tracking" / "detector_coverage",
                     help="output stem: OUT.json, OUT.md")
     args = ap.parse_args(argv)
-    from ssbl_pb.perception.tracking.occlusion import FeetHidden, median_background
-    from ssbl_pb.perception.tracking.pets import load_ground_truth
+    from ssbl_pb.perception.datasets.occlusion import FeetHidden, median_background
+    from ssbl_pb.perception.datasets.pets import load_ground_truth
 
     try:
         start, stop = (int(x) for x in args.range.split(":"))

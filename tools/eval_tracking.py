@@ -17,7 +17,7 @@ from pathlib import Path
 
 from ssbl_pb.cli import ArgumentParser, run
 from ssbl_pb.files import write_json, write_text
-from ssbl_pb.perception.tracking.evaluation import to_markdown
+from ssbl_pb.perception.datasets.scoring import to_markdown
 from ssbl_pb.perception.tracking.tracking_io import InputError, evaluate_dir
 
 

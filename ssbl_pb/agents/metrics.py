@@ -13,8 +13,8 @@ from typing import Any
 
 import numpy as np
 
-from ..env.formulas.reward import route_distance
-from ..env.formulas.task import TaskParams
+from ..core.reward import route_distance
+from ..core.task import TaskParams
 
 # name: (unit, direction: "lower" / "higher" is better or "" descriptive, community name)
 METRICS: dict[str, tuple[str, str, str]] = {

@@ -12,9 +12,9 @@ from typing import Any
 
 import numpy as np
 
-from ..env.formulas import forces
-from ..env.formulas import observation as ob
-from ..env.formulas.task import TaskParams
+from ..core import forces
+from ..core import observation as ob
+from ..core.task import TaskParams
 from ..errors import UserError
 from ..params import RobotParams, SocialParams
 

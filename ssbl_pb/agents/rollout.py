@@ -19,7 +19,7 @@ import gymnasium as gym
 import numpy as np
 
 from ..cli import children_ignore_sigint
-from ..env.formulas.reward import TERMS
+from ..core.reward import TERMS
 from .metrics import episode_metrics
 from .policies import Policy
 
@@ -61,7 +61,7 @@ def run_episode(env: gym.Env, policy: Policy, seed: int, keep_trajectory: bool =
 
 def shield_changed(policy: Policy, n: int) -> np.ndarray:
     """Per row of the policy's last action (``n`` rows), whether its safety shield changed it (all False for a
-    policy without one); ``env.formulas.shield.SafetyShield.last``."""
+    policy without one); ``core.shield.SafetyShield.last``."""
     last = getattr(getattr(policy, "shield", None), "last", None)
     return np.zeros(n, dtype=bool) if last is None else last.changed()
 

@@ -12,7 +12,7 @@ import gymnasium as gym
 import numpy as np
 import yaml
 
-from ..env.formulas.observation import BASE_SIZE, OBS_SIZE
+from ..core.observation import BASE_SIZE, OBS_SIZE
 from ..errors import UserError
 from ..params import parse_yaml
 from ..policies import SHIPPED
@@ -179,7 +179,7 @@ class TrainedPolicy(Policy):
         """``smoothing`` and ``shield`` are the agent's action stages as in training (config ``action_smoothing``,
         ``safety_shield``); the shield needs Vector observations and uses ``shield_params`` (a ``ShieldParams``;
         default: Pepper's default limits)."""
-        from ..env.formulas.shield import ShieldParams
+        from ..core.shield import ShieldParams
         from ..env.gymenv.wrappers import ActionStages
 
         self.model = model
@@ -273,8 +273,8 @@ def load_trained(spec: str, observation_space: gym.Space | None = None, shield: 
     if shield is None:
         shield = bool(config.get("safety_shield", False)) and config.get("obs_mode", "vector") == "vector"
     if shield and shield_params is None:
-        from ..env.formulas.shield import ShieldParams
-        from ..env.formulas.task import TaskParams
+        from ..core.shield import ShieldParams
+        from ..core.task import TaskParams
         from ..params import RobotParams, SocialParams
 
         shield_params = ShieldParams.from_env(RobotParams(), SocialParams(), TaskParams(), shield_at_place(spec))
@@ -283,9 +283,9 @@ def load_trained(spec: str, observation_space: gym.Space | None = None, shield: 
 
 
 def policy_groups(spec: str) -> str:
-    """The group model (``env.formulas.layouts.GROUP_MODELS``) the policy ``spec`` was trained on: its run config's
+    """The group model (``core.layouts.GROUP_MODELS``) the policy ``spec`` was trained on: its run config's
     ``env.groups``; a baseline, or a config without one, the env's default."""
-    from ..env.formulas.layouts import GroupModel as EnvGroups
+    from ..core.layouts import GroupModel as EnvGroups
     from .policies import BASELINES
 
     if spec in BASELINES:

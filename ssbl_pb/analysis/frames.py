@@ -32,13 +32,13 @@ from pathlib import Path
 
 import numpy as np
 
-from ..env.formulas.observation import MAX_MEMBERS, VEL_FORWARD, VEL_LEFT
+from ..core.observation import MAX_MEMBERS, VEL_FORWARD, VEL_LEFT
 from ..errors import UserError
 from ..files import atomic_write
 
 KEYS = {"frames": 4, "episode": 1, "speed": 2, "members_rel": 3, "members_px": 3, "policy": 1, "policies": 1}
 DEFAULT_POLICIES = ("random", "sffm", "straight", "vector")
-TORSO_HEIGHT = 1.14  # m, middle of the proxy's torso box (perception.tracking.sim_eval.ProxyGeometry)
+TORSO_HEIGHT = 1.14  # m, middle of the proxy's torso box (bench.sim_tracking.ProxyGeometry)
 
 
 class FramesError(UserError):

@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..env.formulas.base import HolonomicBase
+from ..core.base import HolonomicBase
 from ..files import write_text
 from ..params import CalibrationError, RobotParams
 

@@ -10,7 +10,7 @@ Per group (real or simulated), pure functions of the members' positions (m) and 
   orientations are continuous (Coffee Break's are quantised to 90 deg and are left out).
 
 The groups YAML (``groups_yaml``) holds, per size, the quantiles of each distribution and every real layout
-re-centred on its centroid; ``env.formulas.layouts.load_group_data`` reads it back.
+re-centred on its centroid; ``core.layouts.load_group_data`` reads it back.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from collections.abc import Iterable
 
 import numpy as np
 
-from ..env.formulas.layouts import GroupModel
+from ..core.layouts import GroupModel
 from ..params import CalibrationError, SocialParams
 from .fformations import Dataset
 

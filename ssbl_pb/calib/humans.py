@@ -22,8 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..env.formulas.humans import Group
-from ..env.formulas.layouts import paper_layout
+from ..core.humans import Group
+from ..core.layouts import paper_layout
 from ..params import FORMATIONS, CalibrationError, SocialParams
 
 SCENES = ("ewap_seq_eth", "ewap_seq_hotel", "ucy_zara01", "ucy_zara02", "ucy_students03")

@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from ..cli import ArgumentParser, run
-from ..env.formulas.layouts import GROUP_MODELS
+from ..core.layouts import GROUP_MODELS
 from ..errors import UserError
 from ..files import check_output_path
 from .faults import EXIT_CODES
@@ -86,7 +86,7 @@ def _number(flag: str, value: float, lo: float, hi: float, unit: str) -> None:
 
 def _params(args: argparse.Namespace) -> Any:
     """Every input checked before anything connects or is written: (params, robot, social, task, policy, frames)."""
-    from ..env.formulas.task import TaskParams
+    from ..core.task import TaskParams
     from ..env.gymenv.approach import core_kwargs
     from ..params import RobotParams, SocialParams, from_dict
     from .frames import Frames, load_room
@@ -133,7 +133,7 @@ def _policy(spec: str, robot: Any, social: Any, task: Any, stop_distance: float)
 
     from ..agents.policies import make_policy
     from ..agents.trained import load_trained, shield_at_place
-    from ..env.formulas import observation as ob
+    from ..core import observation as ob
     from .loop import deploy_shield
 
     if spec in BASELINES:
@@ -177,7 +177,7 @@ def _warm_up(policy: Any) -> None:
     first approach ticks took 306, 140 and 79 ms without it). Also one torch thread (a small MLP; more only
     contend with detection) and a 1 ms GIL switch interval, so the control thread gets the interpreter back
     within ~1 ms of each robot call while the detector thread runs Python (5 ms by default)."""
-    from ..env.formulas import observation as ob
+    from ..core import observation as ob
 
     sys.setswitchinterval(0.001)
     if hasattr(policy, "model"):  # a trained model (baselines need no torch)

@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 
 from ..calib.room_map import OccupancyMap, read_map
-from ..env.formulas import observation as ob
+from ..core import observation as ob
 from ..env.rooms.obstacles import box_rows, fill_scan
 from ..env.rooms.planner import in_sight, plan_map, way_clearances, way_in_for_group, waypoint
 from ..env.rooms.rooms import Room, read_obstacles

@@ -24,14 +24,14 @@ from typing import Any
 
 import numpy as np
 
-from ..env.formulas import observation as ob
-from ..env.formulas.layouts import member_keep_out, slot_keep
-from ..env.formulas.shield import PLACE_FAR, PLACE_NEAR, ShieldParams, brake_closing, footprint_clearance
-from ..env.formulas.task import TaskParams
+from ..core import observation as ob
+from ..core.layouts import member_keep_out, slot_keep
+from ..core.shield import PLACE_FAR, PLACE_NEAR, ShieldParams, brake_closing, footprint_clearance
+from ..core.task import TaskParams
 from ..errors import Terminated
 from ..params import RobotParams, SocialParams, _check, _positive
-from ..perception.tracking.group import GroupModel, member_arrays
-from ..perception.tracking.looks import ARRIVAL_MARGIN, CONFIRM_S, Looks, claim_rule
+from ..perception.groups.estimate import GroupModel, member_arrays
+from ..perception.groups.looks import ARRIVAL_MARGIN, CONFIRM_S, Looks, claim_rule
 from .faults import EXIT_CODES, DeployFault, HumanTooClose, StaleFrame, StaleOdometry
 from .frames import Frames
 from .log import RunLog, dynamics_columns
@@ -111,7 +111,7 @@ class Setup:
     robot_params: RobotParams = dataclasses.field(default_factory=RobotParams)
     social: SocialParams = dataclasses.field(default_factory=SocialParams)
     task: TaskParams = dataclasses.field(default_factory=TaskParams)
-    groups: str = "calibrated"  # the group model the policy was trained with (``env.formulas.layouts.GROUP_MODELS``)
+    groups: str = "calibrated"  # the group model the policy was trained with (``core.layouts.GROUP_MODELS``)
     waypoints: bool = False  # the policy was trained with waypoints in furnished rooms (``env.rooms.planner``)
     waypoints_near_group: bool = False  # ... shown up to the group's keep-out disc
 

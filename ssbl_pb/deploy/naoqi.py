@@ -25,7 +25,7 @@ from .robot import Frame, Odometry, clamp_command
 MOTION = ("move", "stopMove", "getRobotPosition", "getRobotVelocity")
 VIDEO = ("subscribeCamera", "getImageRemote", "unsubscribe")
 WATCHDOG = "SSBLWatchdog"
-IDENTITY = "SSBLVirtualPepper"  # served by ``virtual_robot``: a simulated Pepper says so (and which detector fits)
+IDENTITY = "SSBLVirtualPepper"  # served by ``virtual.pepper``: a simulated Pepper says so (and which detector fits)
 RESOLUTIONS = {0: (160, 120), 1: (320, 240), 2: (640, 480)}  # NAOqi kQQVGA, kQVGA, kVGA
 RGB, BGR = 11, 13  # NAOqi colour spaces
 

@@ -21,9 +21,9 @@ import numpy as np
 from ..errors import UserError
 from ..params import RobotParams, SocialParams
 from ..perception.camera import PinholeCamera, sim_camera
-from ..perception.tracking.facing import Facing, estimate_facing
-from ..perception.tracking.ground import ProxyGeometry, boxes_to_ground
-from ..perception.tracking.group import MIN_VISIBLE, TORSO_HALF, TORSO_HEIGHT, TRACKER, GroupTracker, Member
+from ..perception.detection.facing import Facing, estimate_facing
+from ..perception.detection.ground import ProxyGeometry, boxes_to_ground
+from ..perception.groups.estimate import MIN_VISIBLE, TORSO_HALF, TORSO_HEIGHT, TRACKER, GroupTracker, Member
 from ..perception.tracking.tracker import TrackerParams
 from .robot import Frame, Robot
 
@@ -35,7 +35,7 @@ def torso_depth(xy: np.ndarray, centre: np.ndarray | None) -> np.ndarray:
     torso boxes lie. A box's top and bottom edges are those of the torso's corner nearest the camera (the torso
     spans the camera's height), a|cos phi| + b|sin phi| in front of the axis when the person's facing makes an
     angle phi with the line of sight (a, b: ``TORSO_HALF``). People in a group face its centre (``centre``, robot
-    frame; env.formulas.humans); without one, the mean over phi, 2 (a + b) / pi. Measured on the virtual Pepper (seeded
+    frame; core.humans); without one, the mean over phi, 2 (a + b) / pi. Measured on the virtual Pepper (seeded
     lockstep runs, bodies 1-2.5 m away seen side-on at the group): with one constant (0.18 m) the estimates fell
     0.07 m short, which the policy's clearance to the members (0.52-0.6 m true) cannot spare against the 0.45 m
     stop distance."""
@@ -59,7 +59,7 @@ def one_per_colour(palette: list[Any]) -> Callable[[np.ndarray], np.ndarray]:
     Pepper, lockstep ``mixed`` runs). The union spans the torso's hidden middle, so its centre is the torso's."""
     import cv2
 
-    from ..perception.tracking.detectors import ColourDetector
+    from ..perception.detection.detectors import ColourDetector
 
     class OnePerColour(ColourDetector):
         last: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None  # frame, hsv, boxes, colours
@@ -90,7 +90,7 @@ def one_per_colour(palette: list[Any]) -> Callable[[np.ndarray], np.ndarray]:
 
         def facing(self, camera: PinholeCamera | None = None) -> Facing:
             """Facing of each box of the last frame (rows as that call returned them: index them as its boxes;
-            ``perception.tracking.facing.estimate_facing``). ``camera``: the frame's, default the simulated
+            ``perception.detection.facing.estimate_facing``). ``camera``: the frame's, default the simulated
             CameraTop."""
             if self.last is None:
                 raise RuntimeError("facing: no frame detected yet")
@@ -124,11 +124,11 @@ def complete_cut_torsos(boxes: np.ndarray, width: int) -> tuple[np.ndarray, np.n
 def make_detector(name: str) -> tuple[Callable[[np.ndarray], np.ndarray], bool]:
     """A detector for RGB frames and whether its boxes are torsos (``colour``: the simulated people's
     saturated torsos, for the virtual Pepper) or whole people (``hog``: OpenCV's people detector; ``ssd``: the
-    learned SSDLite pedestrian detector, ``perception.tracking.learned``; ``movenet``: MoveNet MultiPose,
-    ``perception.tracking.movenet``, the default on a real robot; the learned ones' boxes may end above the feet:
+    learned SSDLite pedestrian detector, ``perception.detection.learned``; ``movenet``: MoveNet MultiPose,
+    ``perception.detection.movenet``, the default on a real robot; the learned ones' boxes may end above the feet:
     those are ranged from the head by ``boxes_to_ground``). The colour detector also tells each box's facing: after a
     call, ``detector.facing()`` (``one_per_colour``)."""
-    from ..perception.tracking.detectors import HogDetector, HogParams
+    from ..perception.detection.detectors import HogDetector, HogParams
 
     if name == "colour":
         from ..urdf import HUMAN_COLOURS
@@ -139,13 +139,13 @@ def make_detector(name: str) -> tuple[Callable[[np.ndarray], np.ndarray], bool]:
         hog = HogDetector(HogParams(scales=(0.5, 0.7, 1.0)))
         return (lambda rgb: hog(np.ascontiguousarray(rgb[..., ::-1]))), False
     if name == "ssd":
-        from ..perception.tracking.learned import SsdDetector
+        from ..perception.detection.learned import SsdDetector
         from ..perception.tracking.tuning import SSD_DEFAULT
 
         # thresholds as chosen on PETS, without its minimum height (people near the robot are large)
         return SsdDetector(dataclasses.replace(SSD_DEFAULT.ssd, min_height=0.0), rgb=True), False
     if name == "movenet":
-        from ..perception.tracking.movenet import selected
+        from ..perception.detection.movenet import selected
         from ..perception.tracking.tuning import MOVENET_DEFAULT
 
         return selected(dataclasses.replace(MOVENET_DEFAULT.ssd, min_height=0.0), rgb=True), False
@@ -259,7 +259,7 @@ class Perception:
         dt = frame.stamp - prev if prev is not None and 0 < frame.stamp - prev < 1.0 else 0.1
         facing = facing_std = None
         if seen is not None:  # phi relative to the line of sight from the robot's origin, as the tracker takes it
-            from ..perception.tracking.facing import facing_yaw
+            from ..perception.detection.facing import facing_yaw
 
             phi, std = seen.phi[whole][found], seen.std[whole][found]
             yaw = facing_yaw(xy, np.nan_to_num(phi), self._group.camera.centre()[:2])

@@ -2,9 +2,9 @@
 
 ``Robot`` is all the loop knows of a robot: the newest camera frame with its time stamp, the odometry pose and
 velocity, a velocity command that returns what was actually sent after clamping, stop and close.
-``naoqi.NaoqiRobot`` speaks to a Pepper (the only client module importing ``qi``); ``sim_robot.SimRobot`` is the
+``naoqi.NaoqiRobot`` speaks to a Pepper (the only client module importing ``qi``); ``virtual.robot.SimRobot`` is the
 PyBullet world and a conversation group moving by the social force model (``env``), for tests without qi and
-behind the virtual Pepper (``virtual_robot``).
+behind the virtual Pepper (``virtual.pepper``).
 
 Frames: the odometry frame is the robot's own (NAOqi's ``getRobotPosition(True)``: fixed in the room, origin
 wherever odometry started); velocities are body-frame (forward, left, turn) in m/s and rad/s.
@@ -18,7 +18,7 @@ from typing import Protocol
 
 import numpy as np
 
-from ..env.formulas.base import limit_command
+from ..core.base import limit_command
 from ..params import RobotParams
 
 

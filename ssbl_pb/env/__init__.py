@@ -1,5 +1,1 @@
-"""Simulation: formulas (forces, reward, shield, ...), rooms, engine (N copies), view (PyBullet), gymenv (Gymnasium)."""
-
-from .compile_cache import use_source_keyed_cache
-
-use_source_keyed_cache()
+"""Simulation: rooms, engine (N copies), view (PyBullet), gymenv (Gymnasium); its formulas are in ``core``."""

@@ -1,1 +1,2 @@
-"""Perception: the camera model (camera), people tracking (tracking/), the camera autoencoders (autoencoding/)."""
+"""Perception, below the env: the camera model (camera), detection/, tracking/, groups/, datasets/ and the camera
+autoencoders (autoencoding/)."""

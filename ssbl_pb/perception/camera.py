@@ -25,7 +25,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from ..env.formulas.camera import projection_from_intrinsics
+from ..core.camera import projection_from_intrinsics
 from ..files import write_yaml
 from ..params import CalibrationError, RobotParams, load_yaml
 

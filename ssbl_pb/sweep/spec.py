@@ -137,7 +137,7 @@ def _mapping(path: Path, key: str, value: Any) -> dict[str, Any]:
 def _check_keys(path: Path, keys: list[tuple[str, str]]) -> None:
     """Keys the config has (top level and the ppo / reward fields; env keys are checked by the config itself),
     no seed (the spec's seeds give it), none twice and none inside another."""
-    from ..env.formulas.reward import RewardWeights
+    from ..core.reward import RewardWeights
     from ..training.config import PPOConfig, TrainConfig
 
     top = {f.name for f in dataclasses.fields(TrainConfig)}

@@ -103,7 +103,7 @@ class EvalCheckpointCallback(BaseCallback):
         self.last_ckpt = self.num_timesteps // self.checkpoint_every
 
     def evaluate(self) -> dict[str, float]:
-        from ..env.formulas.shield import ShieldParams
+        from ..core.shield import ShieldParams
 
         if self.make_eval_venv is not None:
             from .vec_env import evaluate_first_episodes

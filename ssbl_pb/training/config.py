@@ -103,7 +103,7 @@ class TrainConfig:
     # low-pass of the frozen encoder's features over an episode, the newest frame's weight (env.gymenv.encoded; 1 = off)
     feature_smoothing: float = 1.0
     action_smoothing: float = 0.4  # agent-side action filter (env.gymenv.wrappers.ActionStages); 1.0 = off
-    safety_shield: bool = True  # agent-side safety shield (env.formulas.shield), the last action stage; it reads the
+    safety_shield: bool = True  # agent-side safety shield (core.shield), the last action stage; it reads the
     #                             Vector observation, so camera modes train without it
     # VecNormalize's running standardisation of the observation (the original's "normalize: true"); false feeds
     # it raw (reward normalisation stays); unset (auto): on, except for a frozen encoder's features, which train
@@ -181,7 +181,7 @@ class TrainConfig:
         unknown = sorted(set(self.env) - set(env_keys()))
         _check(not unknown, "config", "env", unknown, f"keys among {env_keys()} (the config sets obs_mode, "
                "scenario, reward and camera size itself)")
-        from ..env.formulas.reward import RewardWeights
+        from ..core.reward import RewardWeights
 
         from_dict(RewardWeights, self.reward, "config.reward")  # validates names and values early
         for key, value in self.reward_ramp.items():

@@ -95,7 +95,7 @@ class EnvFactory:
     def __call__(self) -> Any:
         env = make_env(**self.kwargs)
         if self.shield or self.smoothing < 1.0:
-            from ..env.formulas.shield import ShieldParams
+            from ..core.shield import ShieldParams
             from ..env.gymenv.wrappers import ActionStages, ActionStagesWrapper
 
             core = env.unwrapped

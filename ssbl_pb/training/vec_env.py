@@ -16,9 +16,9 @@ import gymnasium as gym
 import numpy as np
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices
 
+from ..core import observation as ob
+from ..core.shield import ShieldParams
 from ..env.engine.batched import BatchedApproach
-from ..env.formulas import observation as ob
-from ..env.formulas.shield import ShieldParams
 from ..env.gymenv.wrappers import ActionStages
 
 

@@ -18,14 +18,14 @@ from typing import Any
 import numpy as np
 from gymnasium.utils import seeding
 
+from ...core import observation as ob
+from ...core.base import BaseArrays, BaseParams
+from ...core.humans import KEEP, MAX_HUMANS, RADIUS, GroupArrays, free_slot, sffm_params
+from ...core.layouts import GroupModel, member_keep_out, slot_keep
+from ...core.reward import TERMS, RewardWeights, weight_vector
+from ...core.task import TaskParams
 from ...errors import UserError
 from ...params import RobotParams, SocialParams, WorldParams, from_dict
-from ..formulas import observation as ob
-from ..formulas.base import BaseArrays, BaseParams
-from ..formulas.humans import KEEP, MAX_HUMANS, RADIUS, GroupArrays, free_slot, sffm_params
-from ..formulas.layouts import GroupModel, member_keep_out, slot_keep
-from ..formulas.reward import TERMS, RewardWeights, weight_vector
-from ..formulas.task import TaskParams
 from ..rooms.obstacles import CAP, CELL
 from ..rooms.planner import way_in_for_group
 from ..rooms.rooms import FurnitureParams, Room, furnished_room
@@ -47,9 +47,9 @@ class BatchedApproach:
                  room_yaml: str | list[str] | None = None, furniture: FurnitureParams | dict | None = None,
                  scan: bool = True, waypoints: bool = False, waypoints_near_group: bool = False,
                  perception: Any = None) -> None:
-        """``perception``: the observation model (``perception.tracking.simulated``): None/False, the true state (the
-        default); True or a ``PerceptionParams`` (or a dict of its fields), the group as deploy's perception would
-        see it, and the robot turning in place while it knows fewer than two people."""
+        """``perception``: the observation model (``perception.groups.observation_model``): None/False, the true
+        state (the default); True or a ``PerceptionParams`` (or a dict of its fields), the group as deploy's
+        perception would see it, and the robot turning in place while it knows fewer than two people."""
         if not isinstance(num, int) or num < 1:
             raise UserError(f"number of copies {num!r}: expected an integer >= 1")
         for name, flag in (("scan", scan), ("waypoints", waypoints), ("waypoints_near_group", waypoints_near_group)):
@@ -93,9 +93,9 @@ class BatchedApproach:
         self.perceived = self._perception(perception)
 
     def _perception(self, value: Any) -> Any:
-        """The copies' perceived groups (``perception.tracking.simulated.PerceivedGroups``), or None for the true
+        """The copies' perceived groups (``perception.groups.observation_model.PerceivedGroups``), or None for the true
         state."""
-        from ...perception.tracking.simulated import PerceivedGroups, PerceptionParams
+        from ...perception.groups.observation_model import PerceivedGroups, PerceptionParams
 
         params = PerceptionParams.of(value)
         if params is None:

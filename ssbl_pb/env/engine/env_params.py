@@ -7,10 +7,10 @@ import dataclasses
 from pathlib import Path
 from typing import Any, NamedTuple
 
+from ...core.layouts import GROUP_MODELS, GroupModel
+from ...core.reward import RewardWeights
+from ...core.task import TaskParams
 from ...params import ConfigError, RobotParams, SocialParams, WorldParams, from_dict
-from ..formulas.layouts import GROUP_MODELS, GroupModel
-from ..formulas.reward import RewardWeights
-from ..formulas.task import TaskParams
 from ..rooms.obstacles import box_rows
 from ..rooms.rooms import FurnitureParams, Room, read_obstacles
 from ..rooms.scenarios import ScenarioMix

@@ -20,13 +20,13 @@ import math
 import numpy as np
 from numba import njit
 
+from ...core.base import base_step, footprint_distance, wall_clearance, wrap_angle
+from ...core.humans import KEEP, RADIUS, free_slot, group_step
+from ...core.layouts import slot_keep
+from ...core.observation import BASE_SIZE, POS_SCALE, SCAN_RANGE, action_command, fill_observation
+from ...core.reward import N_TERMS, proximity_cost, route_length, slot_potential, step_terms
+from ...core.task import TaskParams, joined
 from ...params import RobotParams, SocialParams, WorldParams
-from ..formulas.base import base_step, footprint_distance, wall_clearance, wrap_angle
-from ..formulas.humans import KEEP, RADIUS, free_slot, group_step
-from ..formulas.layouts import slot_keep
-from ..formulas.observation import BASE_SIZE, POS_SCALE, SCAN_RANGE, action_command, fill_observation
-from ..formulas.reward import N_TERMS, proximity_cost, route_length, slot_potential, step_terms
-from ..formulas.task import TaskParams, joined
 from ..rooms.obstacles import CAP, fill_scan, footprint_clearance
 from ..rooms.planner import in_sight, plan_distance, plan_map, way_clearances, way_length, waypoint
 

@@ -13,15 +13,15 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from ...core import humans
+from ...core import observation as ob
+from ...core.layouts import GroupModel
+from ...core.reward import RewardWeights
+from ...core.task import TaskParams
 from ...errors import UserError
 from ...params import RobotParams, SocialParams, WorldParams
 from ..engine import kernels
 from ..engine.env_params import merged
-from ..formulas import humans
-from ..formulas import observation as ob
-from ..formulas.layouts import GroupModel
-from ..formulas.reward import RewardWeights
-from ..formulas.task import TaskParams
 from ..rooms.rooms import FurnitureParams
 from ..view.world import World
 
@@ -75,8 +75,9 @@ class ApproachGroupEnv(gym.Env):
         trained before it read); ``waypoints``: in rooms with obstacles, the slot's entries show the way around
         them while the slot is out of sight (``planner``; off for policies trained before it);
         ``waypoints_near_group``: right up to the group's keep-out disc (``planner.way_in_for_group``);
-        ``perception``: the observation model (``perception.tracking.simulated``; off by default: the true state), true
-        or a mapping of ``PerceptionParams``' fields: the policy sees the group as deploy's perception would."""
+        ``perception``: the observation model (``perception.groups.observation_model``; off by default: the true
+        state), true or a mapping of ``PerceptionParams``' fields: the policy sees the group as deploy's perception
+        would."""
         from ..engine.batched import BatchedApproach
 
         if render_mode not in (None, "rgb_array"):

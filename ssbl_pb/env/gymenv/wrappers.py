@@ -6,9 +6,9 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 
+from ...core import observation as ob
+from ...core.shield import SafetyShield, ShieldParams
 from ...errors import UserError
-from ..formulas import observation as ob
-from ..formulas.shield import SafetyShield, ShieldParams
 
 OBS_MODES = ("vector", "camera", "camera_speed")
 
@@ -42,7 +42,7 @@ class CameraSpeedObservation(CameraObservation):
         })
 
     def observation(self, observation: np.ndarray) -> dict[str, np.ndarray]:
-        # the Vector layout's normalised body velocity and turn rate (env.formulas.observation)
+        # the Vector layout's normalised body velocity and turn rate (core.observation)
         speed = observation[ob.VEL_FORWARD:ob.TURN_RATE + 1]
         return {"image": self.image(), "speed": np.clip(speed, -1.5, 1.5).astype(np.float32)}
 

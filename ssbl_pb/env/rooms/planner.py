@@ -31,7 +31,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ..formulas.shield import ShieldParams
+from ...core.shield import ShieldParams
 from .obstacles import CELL, field_at
 
 PLAN_CELL = CELL  # the field's own nodes: passages that spawning found on them close on a coarser grid

@@ -18,8 +18,8 @@ import dataclasses
 
 import numpy as np
 
+from ...core.layouts import LAYOUTS
 from ...errors import UserError
-from ..formulas.layouts import LAYOUTS
 
 STARTS = ("any", "behind")
 ROOMS = ("empty", "furnished", "map")

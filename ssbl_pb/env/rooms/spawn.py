@@ -14,11 +14,11 @@ import math
 import numpy as np
 from numba import njit
 
+from ...core.humans import MAX_HUMANS, free_slot
+from ...core.layouts import GroupModel, Layout, member_keep_out
+from ...core.shield import ShieldParams
+from ...core.task import TaskParams
 from ...params import ConfigError, RobotParams, SocialParams, WorldParams
-from ..formulas.humans import MAX_HUMANS, free_slot
-from ..formulas.layouts import GroupModel, Layout, member_keep_out
-from ..formulas.shield import ShieldParams
-from ..formulas.task import TaskParams
 from .obstacles import CELL, boxes_distance, field_at
 from .planner import ENTRY_BEYOND
 from .rooms import Room
@@ -202,7 +202,7 @@ def fitting_sizes(room: Room, world: WorldParams | None = None, robot: RobotPara
     """Group sizes (2-5, calibrated vis-a-vis groups) for which ``spawn_layout`` finds a place in ``room`` (with the
     given parameters, default ones where None; ``tries`` seeded attempts each), for telling a user what a room
     holds."""
-    from ..formulas.layouts import slot_keep
+    from ...core.layouts import slot_keep
 
     world, robot, social = world or WorldParams(), robot or RobotParams(), social or SocialParams()
     task = task or TaskParams()

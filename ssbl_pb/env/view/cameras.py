@@ -12,8 +12,8 @@ import math
 
 import numpy as np
 
+from ...core.camera import FAR, NEAR, gl_matrix, projection_from_intrinsics  # noqa: F401 (re-exported)
 from ...params import RobotParams
-from ..formulas.camera import FAR, NEAR, gl_matrix, projection_from_intrinsics  # noqa: F401 (re-exported)
 from .bullet import pybullet as p
 
 

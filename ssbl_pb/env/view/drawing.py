@@ -7,8 +7,8 @@ from typing import Any
 import cv2
 import numpy as np
 
+from ...core.task import TaskParams
 from ...params import SocialParams
-from ..formulas.task import TaskParams
 from .cameras import TopDown
 
 ROBOT_COLOUR = (40, 40, 40)

@@ -16,11 +16,11 @@ import math
 
 import numpy as np
 
+from ...core.base import BaseArrays, HolonomicBase, footprint_distance, wall_clearance
+from ...core.humans import MAX_HUMANS, Group, GroupArrays
+from ...core.layouts import GroupModel
 from ...params import RobotParams, SocialParams, WorldParams
 from ...urdf import HUMAN_COLOURS, urdf_path
-from ..formulas.base import BaseArrays, HolonomicBase, footprint_distance, wall_clearance
-from ..formulas.humans import MAX_HUMANS, Group, GroupArrays
-from ..formulas.layouts import GroupModel
 from ..rooms.obstacles import footprint_clearance
 from ..rooms.rooms import Room
 from ..rooms.spawn import spawn_layout

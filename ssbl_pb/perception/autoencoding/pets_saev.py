@@ -17,10 +17,10 @@ from typing import Any
 import cv2
 import numpy as np
 
-from ..tracking.evaluation import evaluate
-from ..tracking.pets import foot_points, load_ground_truth
+from ..datasets.pets import foot_points, load_ground_truth
+from ..datasets.scoring import evaluate
+from ..datasets.tsai import TsaiCamera
 from ..tracking.pipeline import read_frames, track_detections
-from ..tracking.tsai import TsaiCamera
 from ..tracking.tuning import PipelineParams
 from .ae_train import AETrainParams, train_autoencoder
 from .keypoints import KeypointDetector, calibrate, encode_keypoints

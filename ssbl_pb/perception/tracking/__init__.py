@@ -1,1 +1,1 @@
-"""People tracking: detectors, Kalman tracker, video pipeline, PETS tools, sim evaluation, facing."""
+"""People over time on the ground plane: the Kalman tracker, the video pipeline, threshold tuning, file runs."""

@@ -16,10 +16,10 @@ import cv2
 import numpy as np
 
 from ...errors import UserError
-from .detectors import HogDetector, HogParams, box_fractions, nms, shrink_windows
-from .ranging import FEET, HEAD, RangingParams, TsaiGeometry, range_boxes
+from ..datasets.tsai import TsaiCamera
+from ..detection.detectors import HogDetector, HogParams, box_fractions, nms, shrink_windows
+from ..detection.ranging import FEET, HEAD, RangingParams, TsaiGeometry, range_boxes
 from .tracker import Tracker, TrackerParams
-from .tsai import TsaiCamera
 
 FG_SHRINK = HogParams(shrink_x=0.3, shrink_top=0.12, shrink_bottom=0.12)  # box used for foreground fractions
 

@@ -13,10 +13,10 @@ import cv2
 import numpy as np
 
 from ...errors import UserError
-from .pets import GroundTruthError, load_ground_truth, load_mot
+from ..datasets.pets import GroundTruthError, load_ground_truth, load_mot
+from ..datasets.tsai import CalibrationError, TsaiCamera
+from ..detection.ranging import HEAD
 from .pipeline import GroundTracker, HogFgDetector, VideoError, open_video, read_frames
-from .ranging import HEAD
-from .tsai import CalibrationError, TsaiCamera
 from .tuning import PipelineParams, default_params
 
 
@@ -93,11 +93,11 @@ def colour(tid: int) -> tuple[int, int, int]:
 def make_detector(pp: PipelineParams, scale: float = 1.0) -> Callable[[np.ndarray], np.ndarray]:
     """The detector ``pp.detector`` names, for BGR frames resized by ``scale`` (same person sizes searched)."""
     if pp.detector == "ssd":
-        from .learned import SsdDetector
+        from ..detection.learned import SsdDetector
 
         return SsdDetector(dataclasses.replace(pp.ssd, min_height=pp.ssd.min_height * scale))
     if pp.detector == "movenet":
-        from .movenet import selected
+        from ..detection.movenet import selected
 
         return selected(dataclasses.replace(pp.ssd, min_height=pp.ssd.min_height * scale))
     hog = pp.hog
@@ -120,7 +120,7 @@ def track_video(video: str | Path, calib: str | Path, out_dir: str | Path, start
     pp = _params(params, detector)
     painter = None
     if hide_feet is not None:
-        from .occlusion import FeetHidden, median_background
+        from ..datasets.occlusion import FeetHidden, median_background
 
         try:
             painter = FeetHidden(load_ground_truth(hide_feet), median_background(video))
@@ -220,7 +220,7 @@ def load_tracks(track_dir: str | Path) -> np.ndarray:
 def evaluate_dir(track_dir: str | Path, gt_path: str | Path, calib: str | Path | None,
                  ranges: list[tuple[int, int | None]]) -> dict[str, dict[str, Any]]:
     """Metrics for each frame range ``[start, stop)`` (stop None = end of the GT)."""
-    from .evaluation import evaluate
+    from ..datasets.scoring import evaluate
 
     try:
         gt = load_ground_truth(gt_path)

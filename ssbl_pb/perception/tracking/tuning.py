@@ -15,13 +15,13 @@ from typing import Any
 import numpy as np
 
 from ...errors import UserError
-from .detectors import HogParams
-from .evaluation import evaluate
-from .learned import SsdParams, select_ssd
+from ..datasets.scoring import evaluate
+from ..datasets.tsai import TsaiCamera
+from ..detection.detectors import HogParams
+from ..detection.learned import SsdParams, select_ssd
+from ..detection.ranging import RangingParams
 from .pipeline import BoxParams, select, track_detections
-from .ranging import RangingParams
 from .tracker import TrackerParams
-from .tsai import TsaiCamera
 
 ALL_SCALES = (0.8, 1.0, 1.2, 1.45, 1.75, 2.1)  # the scales cached by the benchmark's HOG pass
 
@@ -236,9 +236,9 @@ def cache_raw(frames: Iterable[tuple[int, np.ndarray]], params: PipelineParams) 
 def learned_raw(params: PipelineParams) -> Any:
     """``frame -> (n, 5)`` raw boxes of the learned network ``params.detector`` at ``ssd.input_size``."""
     if params.detector == "movenet":
-        from .movenet import network
+        from ..detection.movenet import network
 
         return network(params.ssd)
-    from .learned import SsdDetector
+    from ..detection.learned import SsdDetector
 
     return SsdDetector(params.ssd).raw

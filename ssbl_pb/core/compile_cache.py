@@ -1,10 +1,10 @@
-"""Where numba keeps the compiled env: a cache folder named by a hash of this package's sources.
+"""Where numba keeps the compiled code: a cache folder named by a hash of the sources of every package with some.
 
 numba's own cache (``cache=True``) checks only the source file of the function it compiled: ``kernels.step``
 compiled before an edit of ``reward.py`` or ``obstacles.py`` that it calls would keep running the old terms (it
-did, once, while the range scan was being changed). Keying the folder on every module of ``ssbl_pb.env`` and of
-its sub-packages makes any edit recompile everything once (~1 min) instead. A ``NUMBA_CACHE_DIR`` set by the user is
-left alone.
+did, once, while the range scan was being changed). Keying the folder on every module of the packages with compiled
+code, ``ssbl_pb.core`` and ``ssbl_pb.env`` (``COMPILED``), makes any edit recompile everything once (~1 min)
+instead. A ``NUMBA_CACHE_DIR`` set by the user is left alone.
 """
 
 from __future__ import annotations
@@ -17,6 +17,7 @@ import time
 from pathlib import Path
 
 _SET_BY_US = "_SSBL_PB_NUMBA_CACHE"
+COMPILED = ("core", "env")  # the packages holding numba-compiled functions
 KEEP_OLD_S = 86400.0  # folders of other keys are dropped once unused this long (a run of the old code may live)
 
 
@@ -29,6 +30,16 @@ def source_key(folder: Path) -> str:
     return h.hexdigest()[:12]
 
 
+def compiled_key() -> str:
+    """The key of every package in ``COMPILED`` (their names and ``source_key``s)."""
+    package = Path(__file__).resolve().parents[1]
+    h = hashlib.sha1()
+    for name in COMPILED:
+        h.update(name.encode())
+        h.update(source_key(package / name).encode())
+    return h.hexdigest()[:12]
+
+
 def use_source_keyed_cache() -> Path | None:
     """Point numba's cache at ``__pycache__/numba-KEY`` beside these sources (or ``~/.cache/ssbl_pb`` where that
     is read-only), dropping the folders of other keys untouched for a day; returns the folder (None if the user
@@ -36,7 +47,7 @@ def use_source_keyed_cache() -> Path | None:
     if "NUMBA_CACHE_DIR" in os.environ and os.environ.get(_SET_BY_US) != os.environ["NUMBA_CACHE_DIR"]:
         return None
     here = Path(__file__).resolve().parent
-    name = f"numba-{source_key(here)}"
+    name = f"numba-{compiled_key()}"
     for root in (here / "__pycache__", Path.home() / ".cache" / "ssbl_pb"):
         try:
             (root / name).mkdir(parents=True, exist_ok=True)

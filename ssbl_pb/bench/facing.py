@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from ..perception.tracking.facing import phi_of, wrap
+from ..perception.detection.facing import phi_of, wrap
 
 BANDS = ((1.0, 2.0), (2.0, 3.0), (3.0, 4.0), (4.0, 5.0), (5.0, 7.0))  # m, from the camera to the body axis
 CLASSES = (("front", 0.0, 80.0), ("side", 80.0, 100.0), ("back", 100.0, 180.01))  # |true phi|, deg
@@ -63,9 +63,9 @@ def run_bench(frames: int = 400, seed: int = 0, width: int = 320, height: int = 
     the samples and the seconds the detector's ``facing()`` took on each frame."""
     import time
 
+    from ..deploy.perceive import make_detector
     from ..env.view.world import World
     from ..urdf import HUMAN_COLOURS
-    from .perceive import make_detector
 
     rng = np.random.default_rng(seed)
     world = World()

@@ -14,8 +14,8 @@ from pathlib import Path
 from typing import Any
 
 from ..files import make_stage_dir
-from .dispatch import run_trials
-from .spec import SweepSpec
+from ..sweep.dispatch import run_trials
+from ..sweep.spec import SweepSpec
 
 
 def _children_cpu() -> float:

@@ -3,7 +3,7 @@
 On the robot the policy does not read the true state: deploy's perception detects the people in Pepper's 56 deg
 camera, projects them to the ground, tracks them (``perception.tracking.tracker``, ego-motion compensated), remembers
 the ones out of view where it last estimated them, and computes the group's centre, o-space radius and free
-slot from those estimates (``perception.tracking.group``). This module runs that same pipeline from the simulator's
+slot from those estimates (``perception.groups.estimate``). This module runs that same pipeline from the simulator's
 state, with the camera replaced by a model of the detector: a member can be detected when it is in range with at least
 ``group.MIN_VISIBLE`` of its torso's width inside the image (deploy completes torsos cut by the image's
 side, ``deploy.perceive.complete_cut_torsos``; such a detection gets ``partial_std_m`` more noise across the line
@@ -194,7 +194,7 @@ class CopyPerception:
     def __init__(self, robot: RobotParams, social: SocialParams, keep: float, paper: bool,
                  params: PerceptionParams) -> None:
         from ..camera import sim_camera
-        from .group import BODY_HEIGHT, MIN_VISIBLE, TORSO_HALF, TRACKER, GroupModel, GroupTracker
+        from .estimate import BODY_HEIGHT, MIN_VISIBLE, TORSO_HALF, TRACKER, GroupModel, GroupTracker
 
         self.torso_halfwidth = TORSO_HALF[1]
         self.apparent_halfwidth = 2.0 * sum(TORSO_HALF) / math.pi  # the mean over facings
@@ -248,7 +248,7 @@ class CopyPerception:
             self.model.reset()
             self.looks.new_approach()
             self.approaching, self.search_side = True, 0.0  # the next search starts afresh
-        from .group import member_arrays
+        from .estimate import member_arrays
 
         pos, rest, facing, facing_std = member_arrays(self.members)
         self.group = self.model.update(pos, np.asarray(pose[:2], dtype=float), rest, facing, facing_std)
@@ -316,14 +316,14 @@ class CopyPerception:
 
 
 class PerceivedGroups:
-    """N copies' perceived groups in the engine's array layout (``env.formulas.humans.GroupArrays``' ``count``, ``pos``,
+    """N copies' perceived groups in the engine's array layout (``core.humans.GroupArrays``' ``count``, ``pos``,
     ``vel``, ``centre``, ``scalars[:, RADIUS]``, and the slot), which ``env.engine.kernels.observations`` turns into the
     Vector observation in place of the true ones; ``known``: two or more people known (else the robot
     searches, and the observation's group is empty: its centre just ahead of the robot, its place at it)."""
 
     def __init__(self, num: int, robot: RobotParams, social: SocialParams, keep: float, paper: bool,
                  params: PerceptionParams) -> None:
-        from ...env.formulas.humans import MAX_HUMANS, N_SCALARS
+        from ...core.humans import MAX_HUMANS, N_SCALARS
 
         self.params = params
         self.copies = [CopyPerception(robot, social, keep, paper, params) for _ in range(num)]
@@ -345,7 +345,7 @@ class PerceivedGroups:
 
     def frame(self, i: int, pose: np.ndarray, members: np.ndarray, yaw: np.ndarray, dt: float) -> None:
         """Copy ``i``'s frame after a step (the true members (n, 2) facing ``yaw`` (n,)), into the arrays."""
-        from ...env.formulas.humans import MAX_HUMANS, RADIUS
+        from ...core.humans import MAX_HUMANS, RADIUS
 
         cp = self.copies[i]
         cp.frame(pose, members, dt, yaw)

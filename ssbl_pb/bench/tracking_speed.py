@@ -8,10 +8,10 @@ import time
 import cv2
 import numpy as np
 
-from .pipeline import GroundTracker, HogFgDetector
-from .tracker import Tracker, TrackerParams
-from .tsai import TsaiCamera
-from .tuning import PipelineParams
+from ..perception.datasets.tsai import TsaiCamera
+from ..perception.tracking.pipeline import GroundTracker, HogFgDetector
+from ..perception.tracking.tracker import Tracker, TrackerParams
+from ..perception.tracking.tuning import PipelineParams
 
 
 def time_tracker_update(n_targets: int = 5, updates: int = 2000, seed: int = 0) -> dict[str, float]:

@@ -1,6 +1,6 @@
 """The simulated robot behind the ``robot.Robot`` interface: Pepper and a conversation group in the PyBullet world
 (``env``), stepped by a lockstep clock (``SimClock``: tests) or by the virtual Pepper's real-time thread
-(``virtual_robot``)."""
+(``virtual.pepper``)."""
 
 from __future__ import annotations
 
@@ -11,9 +11,9 @@ from typing import Any
 
 import numpy as np
 
+from ..deploy.robot import Frame, Odometry, clamp_command, relative
 from ..env.gymenv.approach import ApproachGroupEnv
 from ..params import RobotParams, WorldParams
-from .robot import Frame, Odometry, clamp_command, relative
 
 
 class SimRobot:
@@ -69,7 +69,7 @@ class SimRobot:
             return self.t, self.world.robot_pose.copy(), g.pos.copy(), g.yaw.copy()
 
     def set_frame(self, frame: Frame) -> None:
-        """Make a frame rendered elsewhere (``virtual_robot``'s camera process) the newest one."""
+        """Make a frame rendered elsewhere (``virtual.pepper``'s camera process) the newest one."""
         with self._lock:
             self._frame = frame
 

@@ -5,7 +5,7 @@ Pepper's camera sees 56 deg: at the free slot the members stand 60-90 deg to eit
 who leave the view are kept as *remembered* members, standing where last estimated (``GroupTracker.hold``), until
 their place comes back into view, unoccluded and within detection range, and nobody is found there for
 ``forget_frames`` frames.
-The group's geometry is the simulator's (``env.formulas.humans.measured_group``: the centre, the o-space radius, the
+The group's geometry is the simulator's (``core.humans.measured_group``: the centre, the o-space radius, the
 joining weight and the free slot come from the same functions the env steps), spawned where the members stood
 before the robot came to join (their *rest* positions) and then moved to where they stand now, as in the env.
 The centre is measured: a pair gives its midpoint (the calibrated model: real pairs stand symmetric about their
@@ -23,10 +23,10 @@ from typing import Any
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from ...env.formulas.humans import MAX_HUMANS, measured_group
+from ...core.humans import MAX_HUMANS, measured_group
 from ...params import SocialParams
 from ..camera import PinholeCamera
-from .tracker import Tracker, TrackerParams
+from ..tracking.tracker import Tracker, TrackerParams
 
 BODY_HEIGHT = 1.14  # m: the point of a person checked against the view (torso middle, urdf/human.urdf)
 
@@ -224,8 +224,8 @@ class GroupModel:
 
 def default_model(social: SocialParams) -> GroupModel:
     """``GroupModel`` with the robot's place as the default robot and task keep it (``layouts.slot_keep``)."""
-    from ...env.formulas.layouts import slot_keep
-    from ...env.formulas.task import TaskParams
+    from ...core.layouts import slot_keep
+    from ...core.task import TaskParams
     from ...params import RobotParams
 
     task = TaskParams()

@@ -28,12 +28,12 @@ from typing import Any
 
 import numpy as np
 
-from ...errors import UserError
-from ...params import FORMATIONS, ConfigError, SocialParams, load_yaml
+from ..errors import UserError
+from ..params import FORMATIONS, ConfigError, SocialParams, load_yaml
 
 GROUP_MODELS = ("calibrated", "paper")
 LAYOUTS = (*FORMATIONS, "real")
-SHIPPED_GROUPS = Path(__file__).resolve().parents[2] / "data" / "groups.yaml"
+SHIPPED_GROUPS = Path(__file__).resolve().parents[1] / "data" / "groups.yaml"
 DISTANCES = ("centroid_distance_m", "nearest_neighbour_m")
 ROBOT_ROOM = 0.5  # share of a person's room a robot newcomer gets (CongreG8; docs/decisions.md)
 

@@ -5,7 +5,7 @@ A proxy (urdf/human.urdf) is a torso box in the person's colour, 0.26 m deep (al
 centred 0.135 m in front of the body axis, 1.19 m up, and a yellow nose (0.05 x 0.04 x 0.04 m, its tip 0.145 m
 ahead of the head sphere's centre, 1.58 m up, radius 0.12 m). From a torso box (``x, y, w, h``) and the frame:
 
-- the box's rows give the depth of the torso's nearest corner (as ``sim_eval.boxes_to_ground``);
+- the box's rows give the depth of the torso's nearest corner (as ``ground.boxes_to_ground``);
 - its width is the silhouette of the box turned by the facing, 2 (a |sin phi| + b |cos phi|) with a = 0.13, b =
   0.23 m seen from afar: |phi| folded into [0, 90] deg (and not even that near a back: the width peaks 30 deg off);
 - the chest plate is seen iff the front faces the camera (|phi| < ~95 deg: it stands 0.015 m proud), and its
@@ -488,7 +488,7 @@ def estimate_facing(frame: np.ndarray | None, boxes: np.ndarray, camera: Pinhole
                     hsv: np.ndarray | None = None, colour_params: ColourParams | None = None) -> Facing:
     """Facing of each torso box (``ColourDetector`` / deploy's one-per-colour boxes ``x, y, w, h[, score]``) in an
     RGB ``frame`` (or its ``hsv``, OpenCV's RGB2HSV). ``camera``: the frame's pinhole (default Pepper's simulated
-    CameraTop, ``sim_eval.sim_camera``); ``colours``: each box's index in ``palette`` (default the simulator's
+    CameraTop, ``camera.sim_camera``); ``colours``: each box's index in ``palette`` (default the simulator's
     ``HUMAN_COLOURS``; found from the masks when not given)."""
     p = params or FacingParams()
     cp = colour_params or ColourParams()

@@ -6,7 +6,7 @@ import dataclasses
 
 from numba import njit
 
-from ...params import _check, _positive
+from ..params import _check, _positive
 
 
 @dataclasses.dataclass(frozen=True)

@@ -16,7 +16,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from ...params import RobotParams
+from ..params import RobotParams
 
 TWO_PI = 2.0 * math.pi
 

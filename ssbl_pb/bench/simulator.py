@@ -119,7 +119,7 @@ def evaluation_seconds(episodes: int = 200, policy: str = "vector", seed: int = 
     import torch
 
     from ..agents.rollout import run_episodes
-    from .evaluation import Setup
+    from ..analysis.evaluation import Setup
 
     torch.set_num_threads(1)
     run_episodes(Setup(policy), range(seed, seed + 2), 1)  # imports, model load, compiled kernels: not timed

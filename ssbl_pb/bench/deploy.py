@@ -20,9 +20,9 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-from ..env.formulas.task import TaskParams
-from .log import LOG, SUMMARY
-from .virtual_robot import load_log
+from ..core.task import TaskParams
+from ..deploy.log import LOG, SUMMARY
+from ..virtual.pepper import load_log
 
 FAULTS = ("robot_killed", "camera_frozen", "odometry_frozen", "robot_frozen", "sigint", "sigterm", "policy_exception",
           "deploy_killed", "watchdog_stop_hangs")
@@ -48,7 +48,7 @@ def _first_line(proc: subprocess.Popen, timeout: float) -> str:
 def virtual_pepper(log: Path, seed: int = 0, scenario: str = "default", *extra: str
                    ) -> Iterator[tuple[subprocess.Popen, str]]:
     """A virtual Pepper on a free loopback port: (process, url); terminated (and continued, if stopped) on exit."""
-    proc = subprocess.Popen(_module("ssbl_pb.deploy.virtual_robot", "--listen", "tcp://127.0.0.1:0", "--seed",
+    proc = subprocess.Popen(_module("ssbl_pb.virtual", "--listen", "tcp://127.0.0.1:0", "--seed",
                                     str(seed), "--scenario", scenario, "--log", str(log), *extra),
                             stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
     try:
@@ -163,15 +163,15 @@ def lockstep_approach(folder: Path, seed: int, policy: Any = "vector", scenario:
     each tick's ground truth is logged at its tick's time. ``policy``: a spec as deploy's ``--policy`` or a
     policy object (``predict``); ``room_map`` as ``run_approach``. Returns the outcome and the ground-truth score."""
     from ..agents.trained import policy_env_kwargs, policy_groups
-    from ..env.formulas.task import TaskParams
+    from ..core.task import TaskParams
+    from ..deploy.__main__ import _policy
+    from ..deploy.frames import Frames, load_room
+    from ..deploy.log import RunLog, write_run, write_summary
+    from ..deploy.loop import DeployLoop, DeployParams, Setup
+    from ..deploy.perceive import Perception
     from ..params import RobotParams, SocialParams
-    from .__main__ import _policy
-    from .frames import Frames, load_room
-    from .log import RunLog, write_run, write_summary
-    from .loop import DeployLoop, DeployParams, Setup
-    from .perceive import Perception
-    from .sim_robot import SimClock, SimRobot
-    from .virtual_robot import state_row, write_room_map
+    from ..virtual.pepper import state_row, write_room_map
+    from ..virtual.robot import SimClock, SimRobot
 
     spec = isinstance(policy, str)
     groups = groups or (policy_groups(policy) if spec else "calibrated")
@@ -221,10 +221,10 @@ def perception_report(folders: list[Path], policy: str = "vector", figure: Path 
     """Perception's errors (``perception_errors``) of each run folder (None where it has no logs) and pooled
     over them, the policy's action difference with the policy ``policy``; ``figure``: the pooled figure."""
     from ..agents.trained import policy_env_kwargs
-    from ..env.formulas.task import TaskParams
+    from ..core.task import TaskParams
+    from ..deploy.__main__ import _policy
+    from ..deploy.loop import DeployParams
     from ..params import RobotParams, SocialParams
-    from .__main__ import _policy
-    from .loop import DeployParams
     from .perception_errors import analyse_folder, plot, pool, summarise
 
     pol = _policy(policy, RobotParams(), SocialParams(), TaskParams(), DeployParams().stop_distance)
@@ -267,7 +267,7 @@ def run_fault(fault: str, folder: Path, seed: int = 11, policy: str = "straight"
     with virtual_pepper(vp_log, seed, "default", *extra) as (vp, url):
         if fault == "policy_exception":  # in a fresh interpreter, as deploy runs: in the benchmark's own
             # process (scipy, matplotlib and the approaches' imports loaded) its first frames arrived > 0.5 s late
-            code = ("import json, sys; from pathlib import Path; from ssbl_pb.deploy.bench import _policy_exception;"
+            code = ("import json, sys; from pathlib import Path; from ssbl_pb.bench.deploy import _policy_exception;"
                     " print(json.dumps(_policy_exception(sys.argv[1], Path(sys.argv[2]), float(sys.argv[3]))))")
             res = subprocess.run([sys.executable, "-c", code, url, str(vp_log), str(stale)], capture_output=True,
                                  text=True, timeout=120)
@@ -318,11 +318,11 @@ def _policy_exception(url: str, vp_log: Path, stale: float) -> dict[str, Any]:
     """The loop in this process over qi, with a policy that raises after a second of driving."""
     import numpy as np
 
+    from ..deploy.frames import Frames
+    from ..deploy.loop import DeployLoop, DeployParams, Setup
+    from ..deploy.naoqi import NaoqiRobot
+    from ..deploy.perceive import Perception
     from ..params import RobotParams
-    from .frames import Frames
-    from .loop import DeployLoop, DeployParams, Setup
-    from .naoqi import NaoqiRobot
-    from .perceive import Perception
 
     class Raising:
         calls, raised_at = 0, None

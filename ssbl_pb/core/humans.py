@@ -29,7 +29,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ...params import SocialParams
+from ..params import SocialParams
 from .base import clip, wrap_angle
 from .forces import EPS, cohesion_on, equality_on, repulsion_on
 from .layouts import Layout, formation_angles  # noqa: F401 (formation_angles: re-exported)

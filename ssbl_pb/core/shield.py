@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-from ...params import RobotParams, SocialParams, _check, _positive
+from ..params import RobotParams, SocialParams, _check, _positive
 from .layouts import slot_keep
 from .observation import (
     BASE_SIZE,

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from ...errors import UserError
-from .pipeline import open_video, read_frames
+from ..tracking.pipeline import open_video, read_frames
 
 KEEP = 0.55  # share of each GT box (from its top) left visible
 

@@ -1,6 +1,6 @@
 """A virtual Pepper: ALMotion and ALVideoDevice served over libqi, backed by the simulated world (``SimRobot``).
 
-    python -m ssbl_pb.deploy.virtual_robot --listen tcp://127.0.0.1:9559 --seed 3 --log vp.jsonl
+    python -m ssbl_pb.virtual --listen tcp://127.0.0.1:9559 --seed 3 --log vp.jsonl
     python -m ssbl_pb.deploy --robot-ip 127.0.0.1 --port 9559 --no-watchdog --log-dir runs/deploy1   # as it prints
 
 The group moves by the social force model; frames are TinyRenderer renders from CameraTop. Like a real Pepper
@@ -36,12 +36,12 @@ import cv2
 import numpy as np
 
 from ..cli import ArgumentParser, float_in, int_at_least, run
-from ..env.formulas.layouts import GROUP_MODELS
+from ..core.layouts import GROUP_MODELS
+from ..deploy.naoqi import BGR, IDENTITY, RESOLUTIONS, RGB, import_qi
+from ..deploy.robot import Frame, compose, relative
 from ..errors import UserError
 from ..files import check_output_path
-from .naoqi import BGR, IDENTITY, RESOLUTIONS, RGB, import_qi
-from .robot import Frame, compose, relative
-from .sim_robot import SimRobot
+from .robot import SimRobot
 
 LOOPBACK = ("127.0.0.1", "localhost", "[::1]")
 MAX_SUBSCRIPTIONS = 6  # NAOqi's limit per subscriber name
@@ -239,7 +239,7 @@ def write_room_map(folder: Path, robot: SimRobot, resolution: float = 0.05,
                                      "negate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n")
     grid = read_map(folder / "map.yaml")
     data = room_yaml(grid, extract_room(grid, seed=centre), centre)
-    write_yaml(folder / "room.yaml", data, header="the virtual Pepper's room (python -m ssbl_pb.deploy.virtual_robot)")
+    write_yaml(folder / "room.yaml", data, header="the virtual Pepper's room (python -m ssbl_pb.virtual)")
     t = data["map_to_room"]
     start = compose(np.array([t["x"], t["y"], t["yaw"]]), robot.start_pose)
     return folder / "room.yaml", start
@@ -355,7 +355,7 @@ def deploy_command(url: str, groups: str | None = None, on_map: tuple[Path, np.n
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = ArgumentParser(description=__doc__)
+    ap = ArgumentParser(prog="python -m ssbl_pb.virtual", description=__doc__)
     ap.add_argument("--listen", default="tcp://127.0.0.1:9559", help="tcp://HOST:PORT (default %(default)s)")
     ap.add_argument("--seed", type=int_at_least(0), default=0, help="episode seed of the simulated scene (default 0)")
     ap.add_argument("--scenario", default="default", help="default | mixed | FORMATION[-N] | ... (as evaluate)")

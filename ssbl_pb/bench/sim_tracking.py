@@ -16,16 +16,16 @@ from collections.abc import Callable
 
 import numpy as np
 
-from ...env.formulas.layouts import GroupModel
-from ...env.view.bullet import pybullet as pb
-from ...env.view.world import World
-from ...errors import UserError
-from ...params import RobotParams, WorldParams
-from ...urdf import HUMAN_COLOURS
-from ..camera import sim_camera
-from .detectors import ColourDetector, SimDetector
-from .ground import ProxyGeometry, boxes_to_ground
-from .tracker import Tracker, TrackerParams
+from ..core.layouts import GroupModel
+from ..env.view.bullet import pybullet as pb
+from ..env.view.world import World
+from ..errors import UserError
+from ..params import RobotParams, WorldParams
+from ..perception.camera import sim_camera
+from ..perception.detection.detectors import ColourDetector, SimDetector
+from ..perception.detection.ground import ProxyGeometry, boxes_to_ground
+from ..perception.tracking.tracker import Tracker, TrackerParams
+from ..urdf import HUMAN_COLOURS
 
 
 def proxy_geometry(world: World) -> ProxyGeometry:

@@ -137,13 +137,13 @@ def feature_jitter(frames: dict[str, np.ndarray], checkpoints: dict[str, str],
 def keypoint_tracking(frames: dict[str, np.ndarray], saev: str, episodes: int = 4, steps: int = 150
                       ) -> dict[str, Any]:
     """SAEV keypoint detector calibrated on the training episodes' frames, then the tracker in simulation
-    (``sim_eval.evaluate_sim``, the same drive and scoring as the segmentation and colour detectors)."""
+    (``sim_tracking.evaluate_sim``, the same drive and scoring as the segmentation and colour detectors)."""
     from ..env.gymenv.encoded import encoder_camera
     from ..params import RobotParams
     from ..perception.autoencoding.keypoints import KeypointDetector, calibrate, encode_keypoints, plane_projection
     from ..perception.autoencoding.probe import visible_members
     from ..perception.camera import sim_camera
-    from ..perception.tracking.sim_eval import SimEvalParams, evaluate_sim
+    from .sim_tracking import SimEvalParams, evaluate_sim
 
     model = load_autoencoder(saev, arch="saev")
     s = model.size.input_size
@@ -166,10 +166,10 @@ def keypoint_precision(frames: dict[str, np.ndarray], noise_px: tuple[float, ...
     Gaussian noise of ``noise_px`` pixels (seeded); rows ``{torso,feet}_{linear,mlp}_noise{σ}`` over the same
     sightings and split as ``probe_encoders``; ``feet_in_image``: the held-out sightings whose feet are in view
     (a close member's are below the image: this cue is an idealisation there)."""
+    from ..analysis.frames import frames_hfov
     from ..params import RobotParams
     from ..perception.autoencoding.probe import pixel_probe, visible_members
     from ..perception.camera import sim_camera
-    from .frames import frames_hfov
 
     train_c, val_c = split_centres(frames["episode"], 10)
     members = visible_members(frames)

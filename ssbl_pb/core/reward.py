@@ -39,7 +39,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ...params import _check, _nonneg
+from ..params import _check, _nonneg
 from .base import wrap_angle
 
 TERMS = ("r1_group_forming", "r2_non_increasing", "r3_time", "r4_success", "r5_altruism", "r5_repulsion",

@@ -1,1 +1,0 @@
-"""The task's compiled formulas and their parameters: forces, members, layouts, base, reward, observation, shield."""
