@@ -1,7 +1,8 @@
 #!/usr/bin/env python
 """How often MoveNet (deploy's detector for real people) finds the simulator's person bodies in the virtual
 Pepper's camera frames (``ssbl_pb/bench/body_detection.py``): each shipped body alone at 1-5 m seen from the
-front, the side and the back, and the members of the env's groups, at 320x240 and 640x480. Writes OUT.json (every
+front, the side and the back, and the members of the env's groups (also drawn as box proxies, for comparison),
+at 320x240 and 640x480. Writes OUT.json (every
 sample) and OUT.md (recall tables) and prints the Markdown.
 
     python tools/bench_bodies.py                            # 10 bodies x 7 distances x 3 views, 20 groups (~3 min)
@@ -34,7 +35,8 @@ def main(argv: list[str] | None = None) -> int:
 
     detect = bd.movenet_detector()  # raises naming the install command when MoveNet is missing
     single = bd.single(detect)
-    group = bd.group(detect, args.groups, args.seed) if args.groups else []
+    group = [row for look in ("body", "proxy") for row in bd.group(detect, args.groups, args.seed, appearance=look)
+             ] if args.groups else []  # the box proxies in the same scenes, for comparison
     command = "python tools/bench_bodies.py " + " ".join(shlex.quote(a) for a in (sys.argv[1:] if argv is None
                                                                                  else argv))
     text = bd.markdown(single, group) + f"\n`{command.strip()}`\n"

@@ -75,11 +75,12 @@ def single(detect: Callable[[np.ndarray], np.ndarray], bodies: Sequence[int] | N
 
 
 def group(detect: Callable[[np.ndarray], np.ndarray], episodes: int = 20, seed: int = 0,
-          sizes: Sequence[tuple[int, int]] = SIZES) -> list[dict[str, Any]]:
+          sizes: Sequence[tuple[int, int]] = SIZES, appearance: str = "body") -> list[dict[str, Any]]:
     """One row per member at least ``VISIBLE`` in sight in the env's scenes (``episodes`` seeded spawns of 2-5
-    members, the robot turned to the group's centre): its ``distance`` (m), ``score``, ``visible`` share."""
+    members, the robot turned to the group's centre; members drawn as ``appearance``): its ``distance`` (m),
+    ``score``, ``visible`` share."""
     rows = []
-    world = World(WorldParams(n_humans=5, formation="circular", humans=HumansLook("body")))
+    world = World(WorldParams(n_humans=5, formation="circular", humans=HumansLook(appearance)))
     try:
         for ep in range(episodes):
             rng = np.random.default_rng(seed + ep)
@@ -116,8 +117,9 @@ def _group_frame(world: World, detect: Callable[[np.ndarray], np.ndarray], w: in
         if shown < VISIBLE * alone:
             continue
         d = float(np.hypot(*(pos[i] - world.base.pose[:2])))
-        rows.append({"episode": ep, "member": i, "distance": round(d, 2), "size": f"{w}x{h}",
-                     "visible": round(shown / alone, 2), "score": best_score(boxes, truth)})
+        rows.append({"appearance": world.params.humans.appearance, "episode": ep, "member": i,
+                     "distance": round(d, 2), "size": f"{w}x{h}", "visible": round(shown / alone, 2),
+                     "score": best_score(boxes, truth)})
     return rows
 
 
@@ -142,8 +144,9 @@ def markdown(single_rows: list[dict[str, Any]], group_rows: list[dict[str, Any]]
             out.append(f"| {size} | {view} | " + " | ".join(cells) + " |")
     if group_rows:
         out += ["", f"In the env's groups (members at least {VISIBLE:.0%} in sight):", ""]
-        for size in sizes:
-            r_lo, n = recall(group_rows, lo, size=size)
-            r_hi, _ = recall(group_rows, hi, size=size)
-            out.append(f"- {size}: {r_lo:.0%} / {r_hi:.0%} of {n} members")
+        for look in sorted({r["appearance"] for r in group_rows}):
+            for size in sizes:
+                r_lo, n = recall(group_rows, lo, size=size, appearance=look)
+                r_hi, _ = recall(group_rows, hi, size=size, appearance=look)
+                out.append(f"- {look}, {size}: {r_lo:.0%} / {r_hi:.0%} of {n} members")
     return "\n".join(out) + "\n"
