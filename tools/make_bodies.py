@@ -17,13 +17,12 @@ MakeHuman assets CC0 1.0: the meshes derived from them are shipped with that not
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import math
 import shutil
 import tempfile
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -44,8 +43,7 @@ HAIR = {"black": (0.08, 0.07, 0.07), "brown": (0.30, 0.19, 0.11), "blond": (0.80
 BUILDS = {"slim": (0.25, 0.45), "average": (0.5, 0.5), "heavy": (0.8, 0.45), "muscular": (0.55, 0.85)}
 
 
-@dataclasses.dataclass(frozen=True)
-class BodySpec:
+class BodySpec(NamedTuple):
     """One body: ``sex`` "female" or "male"; ``height`` m (the top of the head); ``age`` Anny's phenotype
     (0.5: about 25 years, 0.75: about 55); ``sleeves`` "long" or "short" (forearms in the shirt's colour or
     skin)."""
@@ -345,9 +343,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, required=True, help="output folder (ssbl_pb/urdf/bodies; replaced whole)")
     args = ap.parse_args(argv)
     check_output_path(args.out)
-    anny, torch = _import_anny()
+    anny, torch = _import_anny()  # before anything is written
     model = anny.Anny(topology=TOPOLOGY).to(dtype=torch.float32)
-    with tempfile.TemporaryDirectory(dir=args.out.parent if args.out.parent.exists() else None) as tmp:
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(dir=args.out.parent) as tmp:  # staged beside it, then moved in whole
         stage = Path(tmp) / "bodies"
         stage.mkdir()
         entries = [make_body(model, spec, f"body_{i:02d}", stage, torch) for i, spec in enumerate(SPECS)]
