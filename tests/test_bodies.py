@@ -133,3 +133,17 @@ def test_movenet_finds_a_body_facing_the_robot_at_2_5_m_in_a_qvga_frame():
     truth, _ = mask_box(mask, pid)
     score = best_score(movenet_detector()(img), truth)
     assert score > MOVENET_DEFAULT.trk.birth_score  # a box there, strong enough to start a track
+
+
+def test_the_virtual_pepper_shows_bodies_and_names_movenet_for_them(tmp_path):
+    pytest.importorskip("qi")
+    from ssbl_pb.bench.deploy import virtual_pepper
+    from ssbl_pb.deploy.__main__ import detector_for
+    from ssbl_pb.deploy.naoqi import NaoqiRobot
+
+    with virtual_pepper(tmp_path / "vp.jsonl", seed=35) as (_, url):  # seed 35: the group in view from the start
+        robot = NaoqiRobot(url, RobotParams())
+        try:
+            assert robot.identity["detector"] == "movenet" and detector_for("auto", robot) == "movenet"
+        finally:
+            robot.close()
