@@ -186,6 +186,19 @@ class SocialParams:
 
 
 FORMATIONS = ("vis_a_vis", "l_shape", "side_by_side", "circular")
+APPEARANCES = ("proxy", "body")
+
+
+@dataclasses.dataclass(frozen=True)
+class HumansLook:
+    """How the simulator draws the members (the engine's shapes are the same either way)."""
+
+    # "proxy": boxes in the colour detector's colours (cheap to render: training, the figures); "body": people
+    # made from a body model (``urdf/bodies``) that a person detector (MoveNet) finds, about 2x the frame time
+    appearance: str = "proxy"
+
+    def __post_init__(self) -> None:
+        _check(self.appearance in APPEARANCES, "humans", "appearance", self.appearance, f"one of {APPEARANCES}")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -201,8 +214,11 @@ class WorldParams:
     robot_spawn_min: float = 2.5  # robot start distance from the group centre (m): outside the c-space ...
     robot_spawn_max: float = 5.5  # ... and close enough for a 30 s episode at 0.35 m/s (ours)
     wall_margin: float = 0.6  # keep bodies this far from the walls at spawn (m)
+    humans: HumansLook = dataclasses.field(default_factory=HumansLook)  # how the members are drawn
 
     def __post_init__(self) -> None:
+        _check(isinstance(self.humans, HumansLook), "world", "humans", self.humans,
+               "a mapping such as {appearance: body}")
         _check(isinstance(self.room_size, tuple) and len(self.room_size) == 2, "world", "room_size",
                self.room_size, "two numbers (x, y) in metres")
         for v in self.room_size:

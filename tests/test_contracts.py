@@ -178,6 +178,14 @@ CASES = [
     C("bench_policies.py", "--perception", "maybe", "--out", "{out}", expect="--perception maybe"),
     C("bench_facing.py", "--frames", "0", "--out", "{out}", expect="argument --frames"),
     C("bench_facing.py", "--out", "{file}/facing", expect="is a file"),
+    # the person bodies: the tool that makes them, MoveNet's recall on them, the switch in the tools that show them
+    C("make_bodies.py", "--out", "{file}/bodies", expect="is a file"),
+    C("bench_bodies.py", "--groups", "-1", "--out", "{out}", expect="argument --groups"),
+    C("bench_bodies.py", "--out", "{file}/bodies", expect="is a file"),
+    C("demo.py", "--appearance", "mesh", "--out", "{out}", expect="argument --appearance"),
+    C("render_episode.py", "--policy", "sffm", "--appearance", "mesh", "--out", "{out}/x.mp4",
+      expect="argument --appearance"),
+    C("-m ssbl_pb.virtual.pepper", "--appearance", "mesh", "--log", "{out}", expect="argument --appearance"),
     C("evaluate.py", "--policy", "sffm", "--perception", "maybe", "--out", "{out}", expect="argument --perception"),
     C("train_pb.py", "--set", "env.perception.miss_prob=2", "--out", "{out}", expect="perception.miss_prob"),
     # issue 39: a calibration file's own checks name the file

@@ -193,15 +193,15 @@ def test_the_benchmark_report_keeps_a_run_that_ended_on_a_fault_before_its_first
 
 @pytest.mark.slow
 def test_the_command_the_virtual_pepper_prints_joins_its_group(tmp_path):
-    """Issue 39: the README's two commands, nothing more: the virtual Pepper prints the deploy command that fits
-    it, and deploy with its defaults (``--detector auto``: the colour detector, since the robot says it is the
-    virtual Pepper) joins the group by the simulator's ground truth."""
+    """The README's two commands: the virtual Pepper (its people box proxies) prints the deploy command that fits
+    it, and deploy with its defaults (``--detector auto``: the colour detector, since the robot says its people
+    are proxies) joins the group by the simulator's ground truth."""
     import shlex
 
     from ssbl_pb.bench.deploy import truth_score
 
     log = tmp_path / "vp.jsonl"
-    with virtual_pepper(log, seed=0) as (vp, url):
+    with virtual_pepper(log, 0, "default", "--appearance", "proxy") as (vp, url):
         lines = [vp.stdout.readline().strip() for _ in range(2)]
         command = next(line.removeprefix("deploy: ") for line in lines if line.startswith("deploy: "))
         assert command == f"python -m ssbl_pb.deploy --robot-ip 127.0.0.1 --port {url.rsplit(':', 1)[1]} --no-watchdog"

@@ -1,6 +1,7 @@
 #!/usr/bin/env python
 """Simulator speed on one core: raw PyBullet stepping and TinyRenderer (the limits), the world with humans
-moving by social forces, first-person frames at 84x84 and 128x128, and the Vector env in an SB3-style loop (in
+moving by social forces, first-person frames at 84x84 and 128x128, frames with five people in view drawn as box
+proxies and as bodies (``humans.appearance``) at 320x240 and 640x480, and the Vector env in an SB3-style loop (in
 the empty room and in randomly furnished ones).
 
 Writes results/bench.json and prints a table.
@@ -36,9 +37,10 @@ def main(argv: list[str] | None = None) -> int:
     if not args.all_cores and hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})
     from ssbl_pb.analysis.report import write_json
-    from ssbl_pb.bench.simulator import evaluation_seconds, simulator_rates
+    from ssbl_pb.bench.simulator import evaluation_seconds, people_frame_rates, simulator_rates
 
     r = simulator_rates(args.steps, args.frames)
+    r.update(people_frame_rates(max(10, args.frames // 5)))  # 640x480 frames take ~0.15 s each
     r["camera_84_vs_raw"] = r["camera_fps_84"] / r["raw_render_fps_84"]
     r["env_vs_raw_step"] = r["env_step_per_s"] / r["raw_step_per_s"]
     r["env_furnished_vs_empty"] = r["env_furnished_step_per_s"] / r["env_step_per_s"]
@@ -52,13 +54,19 @@ def main(argv: list[str] | None = None) -> int:
               "env_step_per_s >= 5000": r["env_step_per_s"] >= 5_000,
               "env_step_per_s >= 0.42 x raw_step_per_s (issue 15)": r["env_vs_raw_step"] >= 0.42,
               "env_furnished_step_per_s >= 0.8 x env_step_per_s (issue 18)": r["env_furnished_vs_empty"] >= 0.8,
-              "... with waypoints (the shipped policy's env)": r["env_waypoints_vs_empty"] >= 0.8}
+              "... with waypoints (the shipped policy's env)": r["env_waypoints_vs_empty"] >= 0.8,
+              "five bodies' frame time <= 2 x the proxies' (320x240)": r["people5_body_vs_proxy_time_320"] <= 2.0,
+              "... and at 640x480": r["people5_body_vs_proxy_time_640"] <= 2.0}
     print(f"{'measure':24s} {'per second':>12s}")
     for k in ("raw_step_per_s", "raw_render_fps_84", "world_step_per_s", "camera_fps_84", "camera_fps_128",
               "env_step_per_s", "env_furnished_step_per_s", "env_furnished_waypoints_step_per_s",
               "batched_env_step_per_s"):
         print(f"{k:24s} {r[k]:12.0f}")
+    for k in ("people5_fps_proxy_320", "people5_fps_body_320", "people5_fps_proxy_640", "people5_fps_body_640"):
+        print(f"{k:24s} {r[k]:12.1f}")
     print(f"{'env_vs_raw_step':24s} {r['env_vs_raw_step']:12.3f}")
+    for k in ("people5_body_vs_proxy_time_320", "people5_body_vs_proxy_time_640"):
+        print(f"{k:24s} {r[k]:12.3f}")
     print(f"{'env_furnished_vs_empty':24s} {r['env_furnished_vs_empty']:12.3f}")
     print(f"{'env_waypoints_vs_empty':24s} {r['env_waypoints_vs_empty']:12.3f}")
     if args.episodes:

@@ -55,7 +55,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--faults", default=",".join(FAULTS), help=f"comma list of {', '.join(FAULTS)}, or none")
     ap.add_argument("--soak", type=float_in(0.0, 86400.0), default=600.0, help="soak seconds (0: none)")
     ap.add_argument("--detector", choices=("auto", *DETECTORS), default="auto",
-                    help="deploy's --detector (default auto: colour on the virtual Pepper)")
+                    help="deploy's --detector (default auto: the one the virtual Pepper names)")
     ap.add_argument("--no-map", action="store_true", help="run deploy without the room's map (default: with it, "
                     "--map and --start-pose as a user who mapped the room; without it the policy cannot see walls)")
     ap.add_argument("--lockstep", action="store_true", help="approaches in this process on a simulated clock "

@@ -1,7 +1,8 @@
 #!/usr/bin/env python
 """Demo of the simulated world: a robot moving into a two-person F-formation, the members opening it.
 
-Writes OUT/demo_topdown.mp4 (top-down, zones drawn) and OUT/demo_first_person.png (Pepper's camera frames).
+Writes OUT/demo_topdown.mp4 (top-down, zones drawn) and OUT/demo_first_person.png (Pepper's camera frames). The
+people are bodies made from a body model (--appearance proxy: the training's box proxies).
     python tools/demo.py --out results/demo
 """
 
@@ -10,6 +11,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ssbl_pb.cli import ArgumentParser, int_in, run
+from ssbl_pb.params import APPEARANCES
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -18,6 +20,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--policy", default="sffm", help="who drives the robot (default: the SFFM baseline)")
     ap.add_argument("--seed", type=int, default=1000)
     ap.add_argument("--width", type=int_in(64, 4096), default=480, help="video width in pixels (64-4096)")
+    ap.add_argument("--appearance", choices=APPEARANCES, default="body",
+                    help="how the people look: body (default) or proxy (boxes)")
     args = ap.parse_args(argv)
 
     from ssbl_pb.analysis.evaluation import build_policy, check_policy_spec
@@ -27,7 +31,8 @@ def main(argv: list[str] | None = None) -> int:
 
     check_policy_spec(args.policy)
     check_output_path(args.out)
-    env = make_env(render_mode="rgb_array", render_width=args.width)
+    env = make_env(render_mode="rgb_array", render_width=args.width, world={"humans": {"appearance": args.appearance}})
+    env.unwrapped.world.set_body_seed(args.seed)  # the members' bodies follow the episode's seed
     policy = build_policy(args.policy, env)
     top, fp, m = record_episode(env, policy, args.seed, first_person=4, fp_size=96)
     with output_dir(args.out):

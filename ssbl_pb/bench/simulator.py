@@ -9,6 +9,12 @@ from typing import Any
 import numpy as np
 
 from ..env.view.bullet import pybullet as p
+from ..params import HumansLook, WorldParams
+
+# five people in view of a robot at the origin facing +x: 2.2-3.8 m away within +-20 deg of bearing (inside the
+# camera's +-28 deg), each facing the robot; rows x, y (m), yaw (rad)
+FIVE_IN_VIEW = np.array([[r * np.cos(b), r * np.sin(b), np.pi + b]
+                         for r, b in ((2.2, 0.0), (2.8, -0.30), (2.8, 0.30), (3.8, -0.15), (3.8, 0.15))])
 
 
 def rate(fn: Callable[[], None], n: int, repeats: int = 5) -> float:
@@ -79,6 +85,41 @@ def simulator_rates(n_steps: int = 20_000, n_frames: int = 500, seed: int = 0) -
 
     batched_step()  # compiles the kernels (or loads them from the cache) outside the timing
     out["batched_env_step_per_s"] = 8 * rate(batched_step, n_steps // 8)
+    return out
+
+
+def people_frame_rates(n_frames: int = 200, sizes: tuple[tuple[int, int], ...] = ((320, 240), (640, 480)),
+                       repeats: int = 5) -> dict[str, float]:
+    """First-person frames per second with the five members of ``FIVE_IN_VIEW`` drawn as proxies and as bodies
+    (``humans.appearance``), at each of ``sizes`` (w, h): ``people5_fps_{proxy,body}_{w}`` and the frame-time
+    ratio ``people5_body_vs_proxy_time_{w}``. Each frame syncs the scene (as a moving group needs) and renders."""
+    from ..env.view.world import World
+
+    out: dict[str, float] = {}
+    worlds = {}
+    for look in ("proxy", "body"):
+        world = World(WorldParams(n_humans=5, formation="circular", humans=HumansLook(look)))
+        world.reset(np.random.default_rng(0))
+        world.base.pose = np.zeros(3)
+        world.group.pos[:], world.group.yaw[:] = FIVE_IN_VIEW[:, :2], FIVE_IN_VIEW[:, 2]
+        worlds[look] = world
+
+    def frame(world: Any, w: int, h: int) -> Callable[[], None]:
+        def fn() -> None:
+            world.invalidate()
+            world.render_first_person(w, h)
+        return fn
+
+    try:
+        for w, h in sizes:
+            for _ in range(repeats):  # in turn, so that a pause of the machine does not fall on one of them only
+                for look, world in worlds.items():
+                    key = f"people5_fps_{look}_{w}"
+                    out[key] = max(out.get(key, 0.0), rate(frame(world, w, h), max(1, n_frames // repeats), 1))
+            out[f"people5_body_vs_proxy_time_{w}"] = out[f"people5_fps_proxy_{w}"] / out[f"people5_fps_body_{w}"]
+    finally:
+        for world in worlds.values():
+            world.close()
     return out
 
 

@@ -48,10 +48,11 @@ def _parser() -> argparse.ArgumentParser:
     ap.add_argument("--user", help="NAOqi 2.9 login user (default nao)")
     ap.add_argument("--token", help="NAOqi 2.9 login password/token")
     ap.add_argument("--policy", default="vector", help="vector (shipped) | run dir | .zip | sffm | straight | random")
-    ap.add_argument("--detector", default="auto", help="auto (default: colour on the virtual Pepper, which says "
-                    "what it is over qi; movenet on a real robot) | movenet (real people, whole or cut above the "
-                    "feet: MoveNet MultiPose, see docs/tracking.md) | hog (real people, whole bodies) | ssd (the "
-                    "learned SSDLite pedestrian detector) | colour (the virtual Pepper's box proxies)")
+    ap.add_argument("--detector", default="auto", help="auto (default: what the virtual Pepper says over qi, "
+                    "movenet for its bodies or colour for its box proxies; movenet on a real robot) | movenet (real "
+                    "people, whole or cut above the feet: MoveNet MultiPose, see docs/tracking.md) | hog (real "
+                    "people, whole bodies) | ssd (the learned SSDLite pedestrian detector) | colour (the virtual "
+                    "Pepper's box proxies)")
     ap.add_argument("--camera-yaml", help="calibrated camera (tools/calibrate_camera.py); default nominal CameraTop")
     ap.add_argument("--robot-yaml", help="identified base dynamics (tools/identify_dynamics.py)")
     ap.add_argument("--social-yaml", help="calibrated group parameters (tools/calibrate_humans.py)")
@@ -164,8 +165,9 @@ def _rate(spec: str, rate: float | None) -> float:
 
 
 def detector_for(name: str, robot: Any) -> str:
-    """``--detector auto``: the colour detector on a virtual Pepper (it says so over qi), MoveNet on a real one (the
-    detector that meets the PETS targets with the feet in view and hidden, docs/tracking.md)."""
+    """``--detector auto``: on a virtual Pepper the detector it names over qi (MoveNet for its bodies, colour for its
+    box proxies), MoveNet on a real one (the detector that meets the PETS targets with the feet in view and hidden,
+    docs/tracking.md)."""
     if name != "auto":
         return name
     identity = getattr(robot, "identity", None)

@@ -7,8 +7,9 @@ The group moves by the social force model; frames are TinyRenderer renders from 
 it keeps executing the last ``move`` until told otherwise and clamps commands to its limits. It binds loopback
 addresses only unless ``--allow-remote``. Port 0 picks a free port; the first stdout line is
 ``listening on URL``; a later line ``deploy: python -m ssbl_pb.deploy ...`` is the command that fits it. It
-identifies itself over qi (an ``SSBLVirtualPepper`` service), so deploy's ``--detector auto`` picks the colour
-detector for its box proxies. ``--write-map DIR`` writes the room as a map with the flags deploy needs to use it.
+identifies itself over qi (an ``SSBLVirtualPepper`` service), so deploy's ``--detector auto`` picks MoveNet for
+its people (``--appearance body``, the default) or the colour detector for box proxies (``--appearance proxy``).
+``--write-map DIR`` writes the room as a map with the flags deploy needs to use it.
 ``--log`` (JSONL, flushed per line) records every simulation step: time, commanded and actual velocity,
 room-frame pose, odometry pose, the members, the free slot and the clearance, so tests can see when the base
 really stopped. ``--security-distance`` imitates NAOqi's collision protection (a move toward a person closer
@@ -41,10 +42,12 @@ from ..deploy.naoqi import BGR, IDENTITY, RESOLUTIONS, RGB, import_qi
 from ..deploy.robot import Frame, compose, relative
 from ..errors import UserError
 from ..files import check_output_path
+from ..params import APPEARANCES, HumansLook, WorldParams
 from .robot import SimRobot
 
 LOOPBACK = ("127.0.0.1", "localhost", "[::1]")
 MAX_SUBSCRIPTIONS = 6  # NAOqi's limit per subscriber name
+DETECTOR = {"body": "movenet", "proxy": "colour"}  # the detector deploy's --detector auto picks for each look
 HANG_S = 2.0  # s a hung stopMove (``--hang-stops``) takes to return, having done nothing
 
 
@@ -59,11 +62,12 @@ def check_listen(url: str, allow_remote: bool) -> str:
     return url
 
 
-def _render_worker(conn: Any, world: Any, robot: Any, social: Any) -> None:
+def _render_worker(conn: Any, world: Any, robot: Any, social: Any, body_seed: int = 0) -> None:
     """The camera process: renders scenes sent over ``conn`` until it receives None."""
     from ..env.view.world import World
 
     w = World(world, robot, social)
+    w.set_body_seed(body_seed)  # the members wear the bodies they wear in the robot's world
     w.reset(np.random.default_rng(0), n_humans=2)  # warm up (group data, compiled code, the renderer) before
     w.render_first_person(64, 48)  # the first request: a subscriber's first frame must not come late
     try:
@@ -92,7 +96,8 @@ class Camera:
         ctx = mp.get_context("spawn")
         self.conn, child = ctx.Pipe()
         w = robot.world
-        self.proc = ctx.Process(target=_render_worker, args=(child, w.params, w.robot_params, w.social), daemon=True)
+        self.proc = ctx.Process(target=_render_worker, args=(child, w.params, w.robot_params, w.social, w.body_seed),
+                                daemon=True)
         self.proc.start()
         self.busy = threading.Event()
         self._rx = threading.Thread(target=self._receive, name="camera", daemon=True)
@@ -371,6 +376,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--hang-stops", type=int_at_least(0), default=0, metavar="N",
                     help=f"leave the first N stopMove calls unanswered for {HANG_S:g} s, doing nothing (a lost "
                     "call, to test the watchdog; default 0)")
+    ap.add_argument("--appearance", choices=APPEARANCES, default="body", help="how the people look: body (made "
+                    "from a body model; deploy's --detector auto then picks movenet; default) or proxy (boxes for "
+                    "the colour detector)")
     ap.add_argument("--write-map", type=Path, metavar="DIR", help="write the room as a map (DIR/room.yaml for "
                     "deploy's --map) and print the robot's --start-pose on it")
     args = ap.parse_args(argv)
@@ -384,7 +392,7 @@ def main(argv: list[str] | None = None) -> int:
         from ..agents.trained import policy_groups
 
         groups = policy_groups("vector")
-    robot = SimRobot(args.scenario, args.seed, groups=groups)
+    robot = SimRobot(args.scenario, args.seed, groups=groups, world=WorldParams(humans=HumansLook(args.appearance)))
     session = qi.Session()
     try:
         session.listenStandalone(url)
@@ -402,7 +410,7 @@ def main(argv: list[str] | None = None) -> int:
     vp.hang_stops = args.hang_stops
     for name, service in zip(("ALMotion", "ALVideoDevice", "ALMemory"), make_services(vp), strict=True):
         session.registerService(name, service)
-    session.registerService(IDENTITY, Identity({"detector": "colour", "scenario": args.scenario,
+    session.registerService(IDENTITY, Identity({"detector": DETECTOR[args.appearance], "scenario": args.scenario,
                                                 "seed": str(args.seed), "groups": groups}))
     signal.signal(signal.SIGUSR1, lambda *_: setattr(vp, "frozen", not vp.frozen))
     signal.signal(signal.SIGUSR2, lambda *_: vp.toggle_odometry_freeze())

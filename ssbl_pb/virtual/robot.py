@@ -36,6 +36,7 @@ class SimRobot:
         self.env = ApproachGroupEnv(scenario, world=world, **env_kwargs)
         self.info = self.env.reset(seed=seed)[1]
         self.world = self.env.world
+        self.world.set_body_seed(seed)  # ``humans.appearance: body``: the members' bodies follow the scene's seed
         self.limits = limits or self.env.robot_params
         self.image_size = (int(image_size[0]), int(image_size[1]))
         self.start_pose = self.world.robot_pose.copy()  # room frame

@@ -25,9 +25,10 @@ from ..rooms.obstacles import footprint_clearance
 from ..rooms.rooms import Room
 from ..rooms.spawn import spawn_layout
 from . import cameras
+from .bodies import PARKED, body_count, body_order, load_body, park
 from .bullet import pybullet as p
 
-_PARKED = (0.0, 0.0, -10.0)
+_PARKED = PARKED
 OBSTACLE_HEIGHT = 0.75  # m: a desk's or a table's height (the camera at 1.15 m sees over it, as a person does)
 OBSTACLE_COLOUR = [0.45, 0.33, 0.22, 1]  # wood brown: apart from the walls' grey and the members' colours
 
@@ -88,12 +89,32 @@ class World:
         self.robot_id = p.loadURDF(str(urdf_path("pepper")), [0, 0, 0], useFixedBase=True,
                                    flags=p.URDF_USE_INERTIA_FROM_FILE, physicsClientId=c)
         self.human_ids = []
+        self.body_seed = 0
+        self._bodies: list[int] = []
+        if self.params.humans.appearance == "body":  # every body loaded once, parked; members take them by seed
+            self._bodies = [load_body(c, k) for k in range(body_count())]
+            self.human_ids = self._chosen_bodies()
+            return
         for i in range(MAX_HUMANS):
             hid = p.loadURDF(str(urdf_path("human")), _PARKED, useFixedBase=True, physicsClientId=c)
             for link in (0, 1):  # torso and facing marker keep their own colours; recolour the torso only
                 if link == 0:
                     p.changeVisualShape(hid, link, rgbaColor=HUMAN_COLOURS[i], physicsClientId=c)
             self.human_ids.append(hid)
+
+    def _chosen_bodies(self) -> list[int]:
+        order = body_order(self.body_seed)
+        return [self._bodies[order[i % len(order)]] for i in range(MAX_HUMANS)]
+
+    def set_body_seed(self, seed: int) -> None:
+        """Members wear the bodies ``bodies.body_order(seed)`` gives (member i its entry i; ``humans.appearance:
+        body``; the proxies ignore it)."""
+        self.body_seed = int(seed)
+        if self._bodies:
+            for body in self.human_ids:
+                park(self.client, body)
+            self.human_ids = self._chosen_bodies()
+            self._synced = False
 
     def _box(self, half: list[float], pos: list[float], yaw: float, rgba: list[float]) -> int:
         c = self.client
