@@ -202,6 +202,8 @@ CASES = [
     C("-m ssbl_pb.deploy.watchdog", "--limit", "soon", expect="argument --limit"),
     C("bench_deploy.py", "--scenario", "bogus", "--out", "{out}", expect="scenario 'bogus'"),
     C("bench_deploy.py", "--soak", "nan", "--out", "{out}", expect="argument --soak"),
+    C("bench_deploy.py", "--seed", "-1", "--out", "{out}", expect="argument --seed: -1: expected an integer >= 0"),
+    C("bench_deploy.py", "--seed", "-1", "--lockstep", "--out", "{out}", expect="argument --seed"),
     C("bench_deploy.py", "--runs", "0", "--faults", "none", "--soak", "0", "--out", "{tmp}",
       expect="holds files this tool did not write"),
     C("table1.py", "--budget", "huge", "--out", "{out}", expect="--budget 'huge'"),
