@@ -103,6 +103,7 @@ CASES = [
     C("bench_tracking.py", "--data", "{tmp}/none", "--out", "{out}", "--doc", "{out}.md", expect="none"),
     C("detector_coverage.py", "--video", "{tmp}/none.avi", "--out", "{out}", expect="none.avi: not found"),
     C("detector_coverage.py", "--range", "5:2", "--out", "{out}", expect="--range"),
+    C("detector_coverage.py", "--out", "{file}/cov", expect="a_file.txt is a file, not a directory"),
     # calibration
     C("calibrate_camera.py", "{tmp}/none.jpg", "--out", "{out}.yaml", expect="none.jpg"),
     C("calibrate_camera.py", "{file}", "--board", "9y6", "--out", "{out}.yaml", expect="board '9y6'"),
