@@ -186,6 +186,8 @@ CASES = [
       expect="small_room.yaml: world.room_size = (1, 1)"),
     C("train_pb.py", "--config", "tests/config_specs/bad_lr.yaml", "--out", "{out}",
       expect="bad_lr.yaml: ppo.learning_rate = -1"),
+    C("train_pb.py", "--config", "tests/config_specs/perception_word.yaml", "--out", "{out}",
+      expect="perception_word.yaml: env.perception = 'on': expected false, true or a mapping of ['range_std_m'"),
     C("evaluate.py", "--policy", "sffm", "--camera-yaml", "tests/camera_specs/negative_height.yaml", "--out", "{out}",
       expect="negative_height.yaml: camera pepper_camera_top: camera_height=-1.15 must be > 0"),
     C("evaluate.py", "--policy", "sffm", "--room-yaml", "tests/room_specs/tiny.yaml", "--out", "{out}",

@@ -28,6 +28,7 @@ import yaml
 
 from ..errors import UserError
 from ..params import ConfigError, _check, from_dict, load_yaml, parse_yaml
+from ..perception.groups.observation_model import PerceptionParams
 
 OBS_MODES = ("vector", "camera", "camera_speed")
 ENCODERS = ("none", "cnn", "conv", "saev")  # cnn: end-to-end NatureCNN; conv / saev: a frozen autoencoder
@@ -302,10 +303,14 @@ def _from_dict(data: dict[str, Any], where: str) -> TrainConfig:
 
 def check_env(cfg: TrainConfig) -> None:
     """The config's env parameters as the env will check them (room size for its groups, group data, room
-    YAMLs), before anything is built."""
+    YAMLs, the observation model), before anything is built."""
     from ..env.engine.env_params import parse_env_params
 
     env = cfg.env
+    try:
+        PerceptionParams.of(env.get("perception"))
+    except ConfigError as exc:  # the config's key is env.perception
+        raise ConfigError(f"env.{exc}") from None
     parse_env_params(cfg.scenario, env.get("world"), env.get("robot"), env.get("social"), cfg.reward,
                      env.get("task"), env.get("groups"), env.get("groups_yaml"), env.get("room_yaml"),
                      env.get("furniture"))
