@@ -47,6 +47,15 @@ class Echo:
         if self.mode == "sleep":
             (trial_dir / "pid").write_text(str(os.getpid()))
             time.sleep(120)
+        if self.mode == "defer":  # as training does: a signal stops it at its next safe point and is re-raised
+            from ssbl_pb.cli import DeferredSignals
+
+            with DeferredSignals() as signals:
+                (trial_dir / "pid").write_text(str(os.getpid()))
+                deadline = time.time() + 120
+                while signals.signum is None and time.time() < deadline:
+                    time.sleep(0.05)
+                signals.raise_if_signalled()
         return {"square": self.value ** 2}
 
 
@@ -208,6 +217,37 @@ def test_ctrl_c_while_a_worker_starts_is_one_line_from_the_parent(tmp_path):
     out, err = proc.communicate(timeout=60)
     assert proc.returncode == 130 and err.splitlines() == ["interrupted (Ctrl-C)"], err
     assert not list((tmp_path / "root").glob("trials/*/result.json"))
+
+
+@pytest.mark.parametrize("sig, code, line", [(signal.SIGINT, 130, "interrupted (Ctrl-C)"),
+                                             (signal.SIGTERM, 143, "terminated (SIGTERM)")])
+def test_a_stopped_sweep_is_one_line_from_the_parent_not_its_workers_tracebacks(tmp_path, sig, code, line):
+    """Ctrl-C or SIGTERM while the workers run trials that stop at a safe point on a signal (training does): the
+    parent stops them, and they leave quietly (no traceback of the signal re-raised in them)."""
+    script = tmp_path / "sweep_two.py"
+    script.write_text(
+        "import sys\nfrom pathlib import Path\n"
+        f"sys.path.insert(0, {str(ROOT / 'tests')!r})\n"
+        "if __name__ == '__main__':\n"
+        "    from test_sweep import Echo\n    from ssbl_pb.cli import run\n    from ssbl_pb.sweep import run_trials\n"
+        "    trials = [Echo('a', 1.0, 'defer'), Echo('b', 2.0, 'defer')]\n"
+        "    run(lambda argv: run_trials(trials, Path(sys.argv[1]), workers=2) and 0)\n")
+    proc = subprocess.Popen([sys.executable, str(script), str(tmp_path / "root")], start_new_session=True,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    pids = [tmp_path / "root" / "trials" / n / "pid" for n in "ab"]
+    deadline = time.time() + 90
+    while time.time() < deadline and not all(p.exists() for p in pids) and proc.poll() is None:
+        time.sleep(0.05)
+    assert all(p.exists() for p in pids), proc.communicate()
+    os.killpg(proc.pid, sig)  # as a terminal's Ctrl-C (the process group); the workers have sessions of their own
+    out, err = proc.communicate(timeout=60)
+    time.sleep(0.5)  # a worker's last words would come after its parent's
+    workers = [int(p.read_text()) for p in pids]
+    deadline = time.time() + 10
+    while time.time() < deadline and not all(_gone(w) for w in workers):
+        time.sleep(0.1)
+    assert proc.returncode == code and err.splitlines() == [line], err
+    assert all(_gone(w) for w in workers)
 
 
 # -- a real sweep: 2 configurations x 2 seeds of 1024 training steps, evaluated on 3 held-out episodes -------------
