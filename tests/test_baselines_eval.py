@@ -67,6 +67,16 @@ def test_evaluate_same_seed_same_files(tmp_path):
     assert not list(a.glob(".staging*"))
 
 
+def test_a_network_policy_gives_the_same_bytes_with_any_number_of_workers(tmp_path):
+    """The shipped network plays its episodes in batches; batches of other sizes round its forward pass
+    differently, so the batches must not depend on the workers."""
+    a, b = tmp_path / "a", tmp_path / "b"
+    evaluate(Setup("vector"), 16, 1000, a, workers=1, n_paths=0)
+    evaluate(Setup("vector"), 16, 1000, b, workers=2, n_paths=0)
+    assert (a / "episodes.csv").read_bytes() == (b / "episodes.csv").read_bytes()
+    assert (a / "summary.json").read_bytes() == (b / "summary.json").read_bytes()
+
+
 def run_cli(*args):
     return subprocess.run([sys.executable, str(ROOT / "tools" / "evaluate.py"), *args], capture_output=True,
                           text=True, timeout=120)
