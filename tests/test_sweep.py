@@ -65,6 +65,33 @@ def _spec(tmp_path: Path, text: str) -> Path:
     return path
 
 
+def test_summary_intervals_stay_where_the_quantities_can_be(tmp_path):
+    """Two seeds that disagree: the Student t interval of a time or a distance would reach below 0 and is cut at
+    0 (the mean kept), a rate's stays in 0-1, the return's is left as it is; the table's note says so."""
+    from ssbl_pb.sweep import summary
+    from ssbl_pb.sweep.trial import METRICS
+
+    spec = load_spec(SPECS / "tiny.yaml")
+    values = [{m: 0.0 for m in METRICS} | {"success_rate": 1.0, "mean_return": -1.0},
+              {m: 3.0 for m in METRICS} | {"success_rate": 0.0, "collision_rate": 1.0, "violation_rate": 1.0}]
+    trials = [t for t in spec.trials() if t.group == "learning_rate=0.001"]
+    records = {t.name: {"result": v} for t, v in zip(trials, values, strict=True)}
+    row = summary.rows(spec, records)[0]
+    assert row["seeds"] == 2
+    for m in METRICS:
+        mean, low, high = (row[f"{m}_{k}"] for k in ("mean", "ci_low", "ci_high"))
+        if m == "mean_return":  # 1 +- 12.7 * 2.83 / sqrt(2): no bound
+            assert low < -20 and high > 20 and mean == 1.0
+        elif m in summary.RATES:
+            assert 0.0 <= low < mean < high <= 1.0
+        else:  # 1.5 +- 12.7 * 2.12 / sqrt(2) = 1.5 +- 19.1
+            assert (low, mean) == (0.0, 1.5) and high == pytest.approx(1.5 + 19.06, abs=0.01), m
+    text = summary.markdown(spec, summary.rows(spec, records), 2, "python tools/sweep.py tiny.yaml")
+    assert "| learning_rate=0.001 | 2 | 50.0 [0.2, 99.8] | 1.00 [-24.41, 26.41] | 50.0 [0.2, 99.8] |" in text
+    assert text.count("1.50 [0.00, 20.56]") == 2 and text.count("1.500 [0.000, 20.559]") == 3
+    assert "is cut at 0" in text
+
+
 def test_spec_grid_product_names_and_resolved_configs(tmp_path):
     spec = load_spec(_spec(tmp_path, f"""
 base: {BASE}
