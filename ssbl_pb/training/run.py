@@ -312,6 +312,7 @@ def train(cfg: TrainConfig, run_dir: Path, overwrite: bool = False, init_from: P
             venv = _init_from(model, venv, init_from)
         if overwrite and run_dir.is_dir():
             remove_run(run_dir)
+        clean_temporaries(run_dir)  # what a run killed before its config.yaml left half-written, of its names only
         with output_dir(run_dir, "--out"):
             save_checkpoint(model, venv, run_dir)
             save_config(cfg, run_dir / "config.yaml")
