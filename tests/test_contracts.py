@@ -142,6 +142,8 @@ CASES = [
     # groups calibration (issue 14)
     C("calibrate_groups.py", "{tmp}/nosuch", "--out", "{out}.yaml", expect="nosuch: not found"),
     C("calibrate_groups.py", "{tmp}", "--out", "{out}.yaml", expect="no features.mat at or below"),
+    C("calibrate_groups.py", "{file}", "--out", "{out}.yaml",
+      expect="a_file.txt: a file; expected a dataset folder holding features.mat and groundtruth.mat"),
     C("calibrate_groups.py", "--out", "{out}", expect="expected a .yaml file name"),
     C("calibrate_groups.py", "--per-size", "0", "--out", "{out}.yaml", expect="--per-size 0"),
     # deploy (issue 12): nothing connects or moves before the inputs are checked
