@@ -77,6 +77,18 @@ def test_a_network_policy_gives_the_same_bytes_with_any_number_of_workers(tmp_pa
     assert (a / "summary.json").read_bytes() == (b / "summary.json").read_bytes()
 
 
+def test_the_summary_records_whether_the_observation_model_was_on(tmp_path):
+    from test_contracts import run_in_process
+
+    for flag in ("on", "off"):
+        out = tmp_path / flag
+        res = run_in_process(ROOT / "tools" / "evaluate.py", ["--policy", "sffm", "--episodes", "2", "--paths", "0",
+                                                             "--workers", "1", "--perception", flag, "--out", str(out)])
+        assert res.returncode == 0, res.stderr
+        assert json.loads((out / "summary.json").read_text())["perception"] == flag
+        assert res.stdout.startswith(f"perception {flag}  success "), res.stdout
+
+
 def run_cli(*args):
     return subprocess.run([sys.executable, str(ROOT / "tools" / "evaluate.py"), *args], capture_output=True,
                           text=True, timeout=120)

@@ -59,7 +59,8 @@ def main(argv: list[str] | None = None) -> int:
     setup = Setup(args.policy, args.obs_mode, args.scenario, calib, shield)
     with progress_bar(args.episodes, f"evaluate {args.policy}") as bar:
         summary, _ = evaluate(setup, args.episodes, args.seed, args.out, workers, args.paths, bar)
-    print(f"success {summary['success_rate']:.1%}  collision {summary['collision_rate']:.1%}  "
+    print(f"perception {summary['perception']}  success {summary['success_rate']:.1%}  "
+          f"collision {summary['collision_rate']:.1%}  "
           f"shield {summary['shield_intervention_rate']:.1%} of steps  "
           f"return {summary['mean_return']:.3f}  personal-zone {summary['personal_zone_time_s']:.2f}s  "
           f"-> {args.out}/summary.json")
