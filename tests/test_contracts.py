@@ -274,6 +274,19 @@ CASES = [
       expect="--saev ssbl_pb/policies/camera_speed_saev/encoder.pt: learned through a 56.3 deg camera"),
     C("table1.py", "--budget", "smoke", "--saev", "{tmp}/none.pt", "--out", "{out}", expect="--saev "),
     C("sweep.py", "{tmp}", "--out", "{out}", expect="is a directory, expected a YAML file"),
+    # a negative seed: numpy and gymnasium refuse it deep inside, after the output folder exists
+    C("evaluate.py", "--policy", "sffm", "--seed", "-1", "--out", "{out}", expect="argument --seed: -1: expected"),
+    C("compare.py", "--seed", "-1", "--out", "{out}", expect="argument --seed"),
+    C("render_episode.py", "--policy", "sffm", "--seed", "-1", "--out", "{out}/x.mp4", expect="argument --seed"),
+    C("demo.py", "--seed", "-1", "--out", "{out}", expect="argument --seed"),
+    C("collect_frames.py", "--episodes", "1", "--seed", "-1", "--out", "{out}.npz", expect="argument --seed"),
+    C("bench_facing.py", "--seed", "-1", "--out", "{out}", expect="argument --seed"),
+    C("bench_policies.py", "--seed", "-1", "--out", "{out}", expect="argument --seed"),
+    C("main_job.py", "--seed", "-1", "--out", "{out}", expect="argument --seed: -1: expected an integer in [0, "),
+    C("train_pb.py", "--seed", "4294967296", "--out", "{out}", expect="argument --seed"),
+    C("train_pb.py", "--set", "seed=-1", "--out", "{out}", expect="config.seed = -1: expected an integer in [0, "),
+    C("train_ae.py", "--frames", "{file}", "--seed", "-1", "--out", "{out}", expect="argument --seed"),
+    C("identify_dynamics.py", "{file}", "--seed", "-1", "--out", "{out}.yaml", expect="argument --seed"),
 ]
 
 

@@ -21,7 +21,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--policy", required=True,
                     help="sffm | random | straight | vector (the shipped model) | PATH (.zip or run directory)")
     ap.add_argument("--episodes", type=int_at_least(1), default=100, help="number of episodes (default 100)")
-    ap.add_argument("--seed", type=int, default=1000, help="seed of the first episode; episode i uses seed+i")
+    ap.add_argument("--seed", type=int_at_least(0), default=1000,
+                    help="seed of the first episode; episode i uses seed+i")
     ap.add_argument("--obs-mode", default="vector", choices=["vector", "camera", "camera_speed"])
     ap.add_argument("--scenario", default="default",
                     help="default | mixed | behind | FORMATION[-N] | a,b,...; each may end in "

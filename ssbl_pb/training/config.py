@@ -34,6 +34,7 @@ OBS_MODES = ("vector", "camera", "camera_speed")
 ENCODERS = ("none", "cnn", "conv", "saev")  # cnn: end-to-end NatureCNN; conv / saev: a frozen autoencoder
 POLICIES = ("ff", "lstm")
 VEC_ENVS = ("auto", "batched", "dummy", "subproc")
+SEED_MAX = 2**32 - 1  # SB3 seeds numpy's legacy generator, which takes 0 .. 2**32 - 1
 
 
 @dataclasses.dataclass(frozen=True)
@@ -164,7 +165,10 @@ class TrainConfig:
         for name in ("n_envs", "total_steps", "eval_every", "eval_episodes", "checkpoint_every", "torch_threads"):
             v = getattr(self, name)
             _check(isinstance(v, int) and v >= 1, "config", name, v, "an integer >= 1")
-        _check(isinstance(self.seed, int), "config", "seed", self.seed, "an integer")
+        _check(isinstance(self.seed, int) and not isinstance(self.seed, bool) and 0 <= self.seed <= SEED_MAX, "config",
+               "seed", self.seed, f"an integer in [0, {SEED_MAX}]")
+        _check(isinstance(self.eval_seed, int) and not isinstance(self.eval_seed, bool) and self.eval_seed >= 0,
+               "config", "eval_seed", self.eval_seed, "an integer >= 0")
         _check(isinstance(self.safety_shield, bool), "config", "safety_shield", self.safety_shield, "true or false")
         _check(self.normalize_obs is None or isinstance(self.normalize_obs, bool), "config", "normalize_obs",
                self.normalize_obs, "true, false or unset (auto)")
