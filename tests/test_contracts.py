@@ -91,7 +91,7 @@ CASES = [
     C("train_pb.py", "--out", "{file}/run", expect="is a file"),
     C("train_pb.py", "--resume", "{tmp}/none", expect="not a run directory"),
     C("train_pb.py", "--config", "{tmp}/none.yaml", "--out", "{out}", expect="none.yaml: file not found"),
-    C("train_pb.py", "--total-steps", "0", "--out", "{out}", expect="total_steps"),
+    C("train_pb.py", "--total-steps", "0", "--out", "{out}", expect="argument --total-steps: 0: expected"),
     C("train_pb.py", "--set", "feature_smoothing=0.5", "--out", "{out}",
       expect="feature_smoothing = 0.5: expected 1 for encoder 'none'"),
     # tracking
@@ -287,6 +287,12 @@ CASES = [
     C("train_pb.py", "--set", "seed=-1", "--out", "{out}", expect="config.seed = -1: expected an integer in [0, "),
     C("train_ae.py", "--frames", "{file}", "--seed", "-1", "--out", "{out}", expect="argument --seed"),
     C("identify_dynamics.py", "{file}", "--seed", "-1", "--out", "{out}.yaml", expect="argument --seed"),
+    # an empty path is the current folder: a tool would write its files there
+    C("evaluate.py", "--policy", "sffm", "--out", "", expect="argument --out: '': expected a path"),
+    C("train_pb.py", "--out", " ", expect="argument --out: ' ': expected a path"),
+    C("demo.py", "--out", "", expect="argument --out"),
+    C("train_pb.py", "--resume", "ssbl_pb/policies/vector", expect="start a new run with --init-from"),
+    C("train_pb.py", "--resume", "{tmp}", "--total-steps", "0", expect="argument --total-steps: 0"),
 ]
 
 
