@@ -17,6 +17,7 @@ import sys
 import threading
 import time
 from collections.abc import Callable, Iterable, Iterator
+from pathlib import Path
 from typing import Any, NoReturn, TypeVar
 
 from .errors import EXIT_SIGINT, EXIT_SIGTERM, EXIT_USAGE, Terminated, UserError
@@ -44,6 +45,18 @@ class ArgumentParser(argparse.ArgumentParser):
 
     def error(self, message: str) -> NoReturn:
         raise UserError(f"{message} (see --help)")
+
+    def add_argument(self, *args: Any, **kwargs: Any) -> argparse.Action:
+        if kwargs.get("type") is Path:  # an empty path would be the current folder: refused
+            kwargs["type"] = _path
+        return super().add_argument(*args, **kwargs)
+
+
+def _path(text: str) -> Path:
+    """An argparse type: a path, not an empty string (``Path("")`` is ``.``, the folder the tool runs in)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError(f"{text!r}: expected a path (an empty one would be the current folder)")
+    return Path(text)
 
 
 def int_at_least(low: int) -> Callable[[str], int]:

@@ -106,7 +106,8 @@ def test_frames_file_checks_name_the_problem(tmp_path: Path) -> None:
     with pytest.raises(FramesError, match="'camera_hfov' has shape"):
         load_frames(tmp_path / "e.npz")
     (tmp_path / "d.npz").write_text("not a zip")
-    with pytest.raises(FramesError, match="not a readable"):
+    with pytest.raises(FramesError, match=r"d.npz: not a frames file written by tools/collect_frames.py .*; this is "
+                                          r"not an .npz \(zip\) archive\)"):
         load_frames(tmp_path / "d.npz")
 
 
@@ -273,8 +274,28 @@ def test_a_truncated_frames_file_is_one_line(tmp_path: Path, capsys) -> None:
         (tmp_path / name).write_bytes(data)
         code, err = _tool(["--frames", str(tmp_path / name), "--arch", "saev", "--out", str(tmp_path / "ae")],
                           capsys)
-        assert code == 2 and len(err) == 1 and f"--frames {tmp_path / name}: not a readable .npz" in err[0], err
+        assert code == 2 and len(err) == 1 and (f"--frames {tmp_path / name}: not a frames file written by "
+                                                "tools/collect_frames.py") in err[0], err
+        assert "this is a damaged or cut-short .npz archive" in err[0], err
     assert not (tmp_path / "ae").exists()
+
+
+@pytest.mark.parametrize("content, what", [(b"episode,frame\n1,2\n", "not an .npz (zip) archive"),
+                                           (None, "a single .npy array")])
+def test_a_file_that_is_not_a_frames_archive_is_one_line_saying_what_was_expected(tmp_path, capsys, content, what):
+    """A text file or a lone .npy named .npz: what was expected and what it is, not numpy's advice (pickles)."""
+    path = tmp_path / "frames.npz"
+    if content is None:
+        with open(path, "wb") as fh:
+            np.save(fh, np.zeros((4, 64, 64, 3), np.uint8))
+    else:
+        path.write_bytes(content)
+    code, err = _tool(["--frames", str(path), "--arch", "saev", "--out", str(tmp_path / "ae")], capsys)
+    assert code == 2 and len(err) == 1, err
+    assert err[0] == (f"error: --frames {path}: not a frames file written by tools/collect_frames.py (expected an "
+                      f".npz archive of the arrays ['episode', 'frames', 'members_px', 'members_rel', 'policies', "
+                      f"'policy', 'speed']; this is {what})"), err
+    assert "pickle" not in err[0] and not (tmp_path / "ae").exists()
 
 
 def test_resume_errors_name_the_flag_and_come_before_any_work(tmp_path: Path, capsys) -> None:
@@ -319,5 +340,5 @@ def test_load_frames_refuses_a_truncated_archive_for_every_caller(tmp_path: Path
 
     whole = save_frames(tmp_path / "f.npz", moving_square(10, 5, size=64)).read_bytes()
     (tmp_path / "tail.npz").write_bytes(whole[:-40])  # bench_camera and Table I read frames this way too
-    with pytest.raises(FramesError, match="tail.npz: not a readable .npz"):
+    with pytest.raises(FramesError, match="tail.npz: not a frames file written by tools/collect_frames.py"):
         load_frames(tmp_path / "tail.npz")

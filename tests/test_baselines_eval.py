@@ -67,6 +67,28 @@ def test_evaluate_same_seed_same_files(tmp_path):
     assert not list(a.glob(".staging*"))
 
 
+def test_a_network_policy_gives_the_same_bytes_with_any_number_of_workers(tmp_path):
+    """The shipped network plays its episodes in batches; batches of other sizes round its forward pass
+    differently, so the batches must not depend on the workers."""
+    a, b = tmp_path / "a", tmp_path / "b"
+    evaluate(Setup("vector"), 16, 1000, a, workers=1, n_paths=0)
+    evaluate(Setup("vector"), 16, 1000, b, workers=2, n_paths=0)
+    assert (a / "episodes.csv").read_bytes() == (b / "episodes.csv").read_bytes()
+    assert (a / "summary.json").read_bytes() == (b / "summary.json").read_bytes()
+
+
+def test_the_summary_records_whether_the_observation_model_was_on(tmp_path):
+    from test_contracts import run_in_process
+
+    for flag in ("on", "off"):
+        out = tmp_path / flag
+        res = run_in_process(ROOT / "tools" / "evaluate.py", ["--policy", "sffm", "--episodes", "2", "--paths", "0",
+                                                             "--workers", "1", "--perception", flag, "--out", str(out)])
+        assert res.returncode == 0, res.stderr
+        assert json.loads((out / "summary.json").read_text())["perception"] == flag
+        assert res.stdout.startswith(f"perception {flag}  success "), res.stdout
+
+
 def run_cli(*args):
     return subprocess.run([sys.executable, str(ROOT / "tools" / "evaluate.py"), *args], capture_output=True,
                           text=True, timeout=120)

@@ -3,12 +3,15 @@ the virtual Pepper checks its port before it writes anything, the watchdog's hel
 
 from __future__ import annotations
 
+import importlib.util
 import socket
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
+
+from ssbl_pb.errors import UserError
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -28,17 +31,39 @@ def test_bench_deploy_never_deletes_a_folder_it_did_not_write(tmp_path):
     assert (mine / "notes.txt").read_text() == "the user's\n"
 
 
-def test_bench_deploy_rerun_replaces_only_its_own_runs(tmp_path):
-    out = tmp_path / "bench"
-    res = _tool("bench_deploy.py", "--runs", "0", "--faults", "none", "--soak", "0", "--out", str(out))
-    assert res.returncode == 0, res.stderr
-    assert (out / ".bench_deploy").is_file() and out.with_suffix(".json").is_file()
-    (out / "run00").mkdir()  # as a run would leave it
-    (out / "run00" / "log.jsonl").write_text("{}\n")
-    (out / "mine.txt").write_text("kept\n")  # the user's, added later
-    res = _tool("bench_deploy.py", "--runs", "0", "--faults", "none", "--soak", "0", "--out", str(out))
-    assert res.returncode == 0, res.stderr
-    assert not (out / "run00").exists() and (out / "mine.txt").read_text() == "kept\n"
+def _bench_deploy_tool():
+    spec = importlib.util.spec_from_file_location("_bench_deploy", ROOT / "tools" / "bench_deploy.py")
+    tool = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(tool)
+    return tool
+
+
+def test_bench_deploy_rerun_removes_exactly_the_entries_it_wrote(tmp_path, monkeypatch, capsys):
+    """The marker lists what the tool wrote; a rerun removes those, never a user's ``run_old/`` or
+    ``runtime_notes.txt`` beside them, and refuses to write over a ``run00`` it did not write."""
+    from ssbl_pb.bench import deploy as bench
+
+    def approach(folder, *_args, **_kw):  # as a lockstep run leaves its folder
+        (folder / "deploy").mkdir(parents=True)
+        (folder / "deploy" / "log.jsonl").write_text("{}\n")
+        return {}
+
+    monkeypatch.setattr(bench, "lockstep_approach", approach)
+    monkeypatch.setattr(bench, "perception_report", lambda folders, *_a: ([{} for _ in folders], None))
+    monkeypatch.setattr(bench, "markdown", lambda res: "")
+    tool, out = _bench_deploy_tool(), tmp_path / "bench"
+    argv = ["--lockstep", "--faults", "none", "--soak", "0", "--out", str(out)]
+    assert tool.main(["--runs", "2", *argv]) == 0
+    assert (out / "run01" / "deploy" / "log.jsonl").is_file()
+    (out / "run_old").mkdir()  # the user's, added later
+    (out / "runtime_notes.txt").write_text("kept\n")
+    assert tool.main(["--runs", "0", *argv]) == 0
+    capsys.readouterr()
+    assert sorted(p.name for p in out.iterdir()) == [".bench_deploy", "run_old", "runtime_notes.txt"]
+    (out / "run00").mkdir()  # not listed in the marker: never written over
+    with pytest.raises(UserError, match="run00 exists and this tool did not write it"):
+        tool.main(["--runs", "1", *argv])
+    assert sorted(p.name for p in out.iterdir()) == [".bench_deploy", "run00", "run_old", "runtime_notes.txt"]
 
 
 def test_virtual_pepper_on_a_port_in_use_writes_no_map_and_says_so_in_one_line(tmp_path):

@@ -280,3 +280,15 @@ def test_calibrate_groups_tool_writes_yaml_figure_and_table(tmp_path):
     res = run_tool("calibrate_groups.py", [str(tmp_path / "data"), "--out", str(out2)])
     assert res.returncode == 2 and "groundtruth.mat: 'GTgroups' frame 0: member id(s) [9]" in res.stderr
     assert not (tmp_path / "res2").exists()
+
+
+def test_calibrate_groups_given_a_file_says_it_wants_the_dataset_folder(tmp_path):
+    from test_contracts import run_tool
+
+    write_dataset(tmp_path / "data" / "a", [PAIR_AND_TRIO] * 3, [[[1, 2], [3, 4, 5]]] * 3)
+    given = tmp_path / "data" / "a" / "features.mat"
+    res = run_tool("calibrate_groups.py", [str(given), "--out", str(tmp_path / "res" / "groups.yaml")])
+    assert res.returncode == 2 and res.stderr.splitlines() == [
+        f"error: {given}: a file; expected a dataset folder holding features.mat and groundtruth.mat, or a folder "
+        f"above such folders (layout in shared/data/fformations/SOURCES.md): give its folder, {given.parent}"]
+    assert not (tmp_path / "res").exists()

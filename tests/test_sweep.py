@@ -47,6 +47,15 @@ class Echo:
         if self.mode == "sleep":
             (trial_dir / "pid").write_text(str(os.getpid()))
             time.sleep(120)
+        if self.mode == "defer":  # as training does: a signal stops it at its next safe point and is re-raised
+            from ssbl_pb.cli import DeferredSignals
+
+            with DeferredSignals() as signals:
+                (trial_dir / "pid").write_text(str(os.getpid()))
+                deadline = time.time() + 120
+                while signals.signum is None and time.time() < deadline:
+                    time.sleep(0.05)
+                signals.raise_if_signalled()
         return {"square": self.value ** 2}
 
 
@@ -54,6 +63,33 @@ def _spec(tmp_path: Path, text: str) -> Path:
     path = tmp_path / "spec.yaml"
     path.write_text(text)
     return path
+
+
+def test_summary_intervals_stay_where_the_quantities_can_be(tmp_path):
+    """Two seeds that disagree: the Student t interval of a time or a distance would reach below 0 and is cut at
+    0 (the mean kept), a rate's stays in 0-1, the return's is left as it is; the table's note says so."""
+    from ssbl_pb.sweep import summary
+    from ssbl_pb.sweep.trial import METRICS
+
+    spec = load_spec(SPECS / "tiny.yaml")
+    values = [{m: 0.0 for m in METRICS} | {"success_rate": 1.0, "mean_return": -1.0},
+              {m: 3.0 for m in METRICS} | {"success_rate": 0.0, "collision_rate": 1.0, "violation_rate": 1.0}]
+    trials = [t for t in spec.trials() if t.group == "learning_rate=0.001"]
+    records = {t.name: {"result": v} for t, v in zip(trials, values, strict=True)}
+    row = summary.rows(spec, records)[0]
+    assert row["seeds"] == 2
+    for m in METRICS:
+        mean, low, high = (row[f"{m}_{k}"] for k in ("mean", "ci_low", "ci_high"))
+        if m == "mean_return":  # 1 +- 12.7 * 2.83 / sqrt(2): no bound
+            assert low < -20 and high > 20 and mean == 1.0
+        elif m in summary.RATES:
+            assert 0.0 <= low < mean < high <= 1.0
+        else:  # 1.5 +- 12.7 * 2.12 / sqrt(2) = 1.5 +- 19.1
+            assert (low, mean) == (0.0, 1.5) and high == pytest.approx(1.5 + 19.06, abs=0.01), m
+    text = summary.markdown(spec, summary.rows(spec, records), 2, "python tools/sweep.py tiny.yaml")
+    assert "| learning_rate=0.001 | 2 | 50.0 [0.2, 99.8] | 1.00 [-24.41, 26.41] | 50.0 [0.2, 99.8] |" in text
+    assert text.count("1.50 [0.00, 20.56]") == 2 and text.count("1.500 [0.000, 20.559]") == 3
+    assert "is cut at 0" in text
 
 
 def test_spec_grid_product_names_and_resolved_configs(tmp_path):
@@ -208,6 +244,37 @@ def test_ctrl_c_while_a_worker_starts_is_one_line_from_the_parent(tmp_path):
     out, err = proc.communicate(timeout=60)
     assert proc.returncode == 130 and err.splitlines() == ["interrupted (Ctrl-C)"], err
     assert not list((tmp_path / "root").glob("trials/*/result.json"))
+
+
+@pytest.mark.parametrize("sig, code, line", [(signal.SIGINT, 130, "interrupted (Ctrl-C)"),
+                                             (signal.SIGTERM, 143, "terminated (SIGTERM)")])
+def test_a_stopped_sweep_is_one_line_from_the_parent_not_its_workers_tracebacks(tmp_path, sig, code, line):
+    """Ctrl-C or SIGTERM while the workers run trials that stop at a safe point on a signal (training does): the
+    parent stops them, and they leave quietly (no traceback of the signal re-raised in them)."""
+    script = tmp_path / "sweep_two.py"
+    script.write_text(
+        "import sys\nfrom pathlib import Path\n"
+        f"sys.path.insert(0, {str(ROOT / 'tests')!r})\n"
+        "if __name__ == '__main__':\n"
+        "    from test_sweep import Echo\n    from ssbl_pb.cli import run\n    from ssbl_pb.sweep import run_trials\n"
+        "    trials = [Echo('a', 1.0, 'defer'), Echo('b', 2.0, 'defer')]\n"
+        "    run(lambda argv: run_trials(trials, Path(sys.argv[1]), workers=2) and 0)\n")
+    proc = subprocess.Popen([sys.executable, str(script), str(tmp_path / "root")], start_new_session=True,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    pids = [tmp_path / "root" / "trials" / n / "pid" for n in "ab"]
+    deadline = time.time() + 90
+    while time.time() < deadline and not all(p.exists() for p in pids) and proc.poll() is None:
+        time.sleep(0.05)
+    assert all(p.exists() for p in pids), proc.communicate()
+    os.killpg(proc.pid, sig)  # as a terminal's Ctrl-C (the process group); the workers have sessions of their own
+    out, err = proc.communicate(timeout=60)
+    time.sleep(0.5)  # a worker's last words would come after its parent's
+    workers = [int(p.read_text()) for p in pids]
+    deadline = time.time() + 10
+    while time.time() < deadline and not all(_gone(w) for w in workers):
+        time.sleep(0.1)
+    assert proc.returncode == code and err.splitlines() == [line], err
+    assert all(_gone(w) for w in workers)
 
 
 # -- a real sweep: 2 configurations x 2 seeds of 1024 training steps, evaluated on 3 held-out episodes -------------

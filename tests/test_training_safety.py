@@ -227,6 +227,28 @@ def test_a_run_killed_while_setting_up_resumes(tmp_path: Path, monkeypatch) -> N
     assert set(json.loads((run / "baselines.json").read_text())) == {"random", "sffm"}
 
 
+def test_a_new_run_removes_the_temporaries_of_one_killed_before_its_config(tmp_path: Path, monkeypatch) -> None:
+    """Killed while writing checkpoint 0 (before config.yaml): its 0-byte temporaries stay in checkpoints/; the
+    same command again removes them (its own names only) and writes a real checkpoint 0."""
+    import ssbl_pb.training.run as R
+
+    run = tmp_path / "run"
+    (run / "checkpoints").mkdir(parents=True)
+    for name in (".ckpt_000000000.ab12cd34.zip", ".ckpt_000000000_vecnormalize.x9y8z7w6.pkl"):
+        (run / "checkpoints" / name).write_bytes(b"")
+    (run / "checkpoints" / ".notes-of-mine").write_text("kept")
+
+    def killed(cfg):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(R, "baseline_returns", killed)  # stop once the checkpoint and config.yaml are written
+    with pytest.raises(KeyboardInterrupt):
+        R.train(tiny_config(), run)
+    assert sorted(p.name for p in (run / "checkpoints").iterdir()) == [
+        ".notes-of-mine", "ckpt_000000000.zip", "ckpt_000000000_vecnormalize.pkl", "latest.json"]
+    assert R.latest_checkpoint(run)[0].stat().st_size > 1000
+
+
 def test_sigkill_as_soon_as_the_run_appears_leaves_it_resumable(tmp_path: Path) -> None:
     from ssbl_pb.training.run import latest_checkpoint
 

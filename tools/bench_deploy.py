@@ -14,12 +14,14 @@ and the true observation; per run and pooled in OUT.json, a table in OUT.md and 
 ``--lockstep`` runs the approaches in this process on a simulated clock (deterministic, no qi, faster than real
 time); faults and the soak always run over qi.
 
-The runs' logs go to the folder OUT/ (OUT without its suffix). A rerun replaces the runs it wrote there before
-(the folder carries a ``.bench_deploy`` marker) and nothing else; a folder it did not write is refused.
+The runs' logs go to the folder OUT/ (OUT without its suffix). Its ``.bench_deploy`` marker lists each entry the
+tool wrote there, recorded before writing it; a rerun removes exactly those and nothing else. A folder without the
+marker, or an entry about to be written that the marker does not list, is refused before anything is written.
 """
 
 from __future__ import annotations
 
+import os
 import shutil
 from pathlib import Path
 
@@ -28,17 +30,37 @@ from ssbl_pb.core.layouts import GROUP_MODELS
 from ssbl_pb.errors import UserError
 
 ROOT = Path(__file__).resolve().parents[1]
-MARKER = ".bench_deploy"  # in OUT/: this tool wrote the folder, so a rerun may replace its runs
+MARKER = ".bench_deploy"  # in OUT/: the entries this tool wrote there, one name a line after the header
+HEADER = "# written by tools/bench_deploy.py, one name a line; a rerun removes these and nothing else\n"
 
 
-def _written_before(logs: Path) -> list[Path]:
-    """What an earlier run of this tool left in ``logs`` (to replace); refuses a folder it did not write."""
+def _recorded(logs: Path) -> list[str]:
+    """The names ``logs``'s marker lists (plain names in ``logs``, nothing above or below it)."""
+    lines = (logs / MARKER).read_text(errors="replace").splitlines()[1:]
+    return [n for n in lines if n and n not in (".", "..", MARKER) and "/" not in n and "\\" not in n]
+
+
+def _written_before(logs: Path, planned: list[str]) -> list[Path]:
+    """What an earlier run of this tool wrote in ``logs`` (to remove), as its marker lists it; refuses a folder it
+    did not write, or one where an entry in ``planned`` exists that the marker does not list."""
     if not logs.is_dir() or not any(logs.iterdir()):
         return []
     if not (logs / MARKER).is_file():
         raise UserError(f"--out: {logs}/ holds files this tool did not write (no {MARKER} marker); choose another "
                         f"--out or move them away")
-    return [p for p in logs.iterdir() if p.name == MARKER or p.name == "soak" or p.name.startswith(("run", "fault_"))]
+    recorded = set(_recorded(logs))
+    foreign = [n for n in planned if n not in recorded and os.path.lexists(logs / n)]
+    if foreign:
+        raise UserError(f"--out: {logs}/{foreign[0]} exists and this tool did not write it (not listed in {MARKER}); "
+                        f"choose another --out or move it away")
+    return [logs / n for n in sorted(recorded) if os.path.lexists(logs / n)]
+
+
+def _record(logs: Path, name: str) -> Path:
+    """``logs / name``, listed in the marker before anything is written there (a killed run is still removed)."""
+    with open(logs / MARKER, "a") as fh:
+        fh.write(name + "\n")
+    return logs / name
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -47,7 +69,7 @@ def main(argv: list[str] | None = None) -> int:
 
     ap = ArgumentParser(description=__doc__)
     ap.add_argument("--runs", type=int_at_least(0), default=20, help="seeded approaches (default 20)")
-    ap.add_argument("--seed", type=int, default=500_000, help="first held-out seed")
+    ap.add_argument("--seed", type=int_at_least(0), default=500_000, help="first held-out seed (>= 0)")
     ap.add_argument("--scenario", default="default", help="the virtual Pepper's scenario (default: the paper's)")
     ap.add_argument("--policy", default="vector", help="the policy deploy runs (default: the shipped vector)")
     ap.add_argument("--groups", choices=GROUP_MODELS, help="the group model of the virtual Pepper and deploy "
@@ -83,23 +105,24 @@ def main(argv: list[str] | None = None) -> int:
     check_output_path(figure, is_dir=False)
     logs = args.out.with_suffix("")
     check_output_path(logs)
-    written = _written_before(logs)
+    planned = [f"run{i:02d}" for i in range(args.runs)] + [f"fault_{f}" for f in faults] + ["soak"] * (args.soak > 0)
+    written = _written_before(logs, planned)
 
     from ssbl_pb.bench import deploy as bench
     from ssbl_pb.files import write_json, write_text
 
-    for old in written:  # the runs of an earlier benchmark into the same folder, and only those
-        shutil.rmtree(old) if old.is_dir() else old.unlink()
+    for old in written:  # what an earlier benchmark wrote into the same folder, and only that
+        shutil.rmtree(old) if old.is_dir() and not old.is_symlink() else old.unlink()
     logs.mkdir(parents=True, exist_ok=True)
-    (logs / MARKER).write_text("runs of tools/bench_deploy.py; a rerun replaces them\n")
+    (logs / MARKER).write_text(HEADER)
     res = {"environment": bench.environment(), "scenario": args.scenario, "policy": args.policy, "groups": args.groups,
            "lockstep": args.lockstep, "detector": args.detector, "map": not args.no_map, "approaches": [], "faults": []}
     approach = bench.lockstep_approach if args.lockstep else bench.run_approach
     with progress_bar(args.runs, "approaches", "run") as bar:
         for i in range(args.runs):
-            res["approaches"].append(approach(logs / f"run{i:02d}", args.seed + i, args.policy, args.scenario,
-                                              groups=args.groups, detector=args.detector,
-                                              room_map=not args.no_map))
+            folder = _record(logs, f"run{i:02d}")
+            res["approaches"].append(approach(folder, args.seed + i, args.policy, args.scenario, groups=args.groups,
+                                              detector=args.detector, room_map=not args.no_map))
             bar(1)
     if args.runs:
         per_run, pooled = bench.perception_report([logs / f"run{i:02d}" for i in range(args.runs)], args.policy, figure)
@@ -108,9 +131,9 @@ def main(argv: list[str] | None = None) -> int:
         if pooled is not None:
             res["perception"], res["perception_figure"] = pooled, str(figure)
     for f in faults:
-        res["faults"].append(bench.run_fault(f, logs / f"fault_{f}"))
+        res["faults"].append(bench.run_fault(f, _record(logs, f"fault_{f}")))
     if args.soak > 0:
-        res["soak"] = bench.soak(logs / "soak", args.soak, args.seed, args.policy)
+        res["soak"] = bench.soak(_record(logs, "soak"), args.soak, args.seed, args.policy)
     write_json(args.out.with_suffix(".json"), res)
     text = bench.markdown(res)
     write_text(args.out.with_suffix(".md"), text)

@@ -25,7 +25,7 @@ def main(argv: list[str] | None = None) -> int:
     ap = ArgumentParser(description=__doc__)
     ap.add_argument("--frames", type=int_at_least(1), default=400,
                     help="frames of each scene: one person, an occluded pair, a group (default 400)")
-    ap.add_argument("--seed", type=int, default=0, help="scene seed (default 0)")
+    ap.add_argument("--seed", type=int_at_least(0), default=0, help="scene seed (default 0)")
     ap.add_argument("--out", type=Path, default=ROOT / "results" / "bench_facing",
                     help="results stem: OUT.json and OUT.md (default results/bench_facing)")
     args = ap.parse_args(argv)

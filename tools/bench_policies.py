@@ -30,7 +30,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--perception", default="off", help="comma list of off (the true state) and on (the group as "
                     "deploy's perception sees it: the observation model); default off")
     ap.add_argument("--episodes", type=int_at_least(1), default=200, help="episodes per scenario (default 200)")
-    ap.add_argument("--seed", type=int, default=500_000, help="first held-out seed")
+    ap.add_argument("--seed", type=int_at_least(0), default=500_000, help="first held-out seed")
     ap.add_argument("--out", type=Path, default=ROOT / "results" / "bench_policies",
                     help="results stem: OUT.json and OUT.md (default results/bench_policies)")
     args = ap.parse_args(argv)

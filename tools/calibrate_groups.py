@@ -24,7 +24,7 @@ from pathlib import Path
 from ssbl_pb.calib import groups
 from ssbl_pb.calib.fformations import load_datasets
 from ssbl_pb.calib.io import check_outputs, save_figure
-from ssbl_pb.cli import ArgumentParser, UserError, command_line, run
+from ssbl_pb.cli import ArgumentParser, UserError, command_line, int_at_least, run
 from ssbl_pb.core.layouts import GroupModel, parse_group_data
 from ssbl_pb.files import write_text, write_yaml
 from ssbl_pb.params import SocialParams
@@ -38,7 +38,7 @@ def main(argv: list[str] | None = None) -> int:
                     help=f"dataset folders or folders above them (default {DEFAULT_DATA})")
     ap.add_argument("--out", type=Path, required=True, help="groups YAML to write (+ .png figure, .md table)")
     ap.add_argument("--per-size", type=int, default=2000, help="simulated groups per size (default 2000)")
-    ap.add_argument("--seed", type=int, default=0, help="seed of the simulated groups")
+    ap.add_argument("--seed", type=int_at_least(0), default=0, help="seed of the simulated groups")
     args = ap.parse_args(argv)
     if args.per_size < 1:
         raise UserError(f"--per-size {args.per_size}: expected an integer >= 1")

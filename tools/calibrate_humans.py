@@ -27,7 +27,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--scenes", nargs="+", default=list(SCENES), help="scene folders to use")
     ap.add_argument("--out", type=Path, required=True, help="YAML of SocialParams fields (+ .png, .md)")
     ap.add_argument("--episodes", type=int_at_least(1), default=40, help="simulated group episodes per parameter set")
-    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--seed", type=int_at_least(0), default=0)
     args = ap.parse_args(argv)
     check_outputs(args.out, (".png", ".md"))
     if not args.data.is_dir():

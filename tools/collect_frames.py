@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ssbl_pb.cli import ArgumentParser, progress_bar, run
+from ssbl_pb.cli import ArgumentParser, int_at_least, progress_bar, run
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -27,7 +27,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--policies", default="random,sffm,straight,vector",
                     help="comma-separated policies driving the episodes in turn (baselines or a trained model)")
     ap.add_argument("--scenario", default="mixed", help="default | mixed | behind | FORMATION[-N] | a,b,...")
-    ap.add_argument("--seed", type=int, default=0, help="seed of the first episode; episode i uses seed+i")
+    ap.add_argument("--seed", type=int_at_least(0), default=0, help="seed of the first episode; episode i uses seed+i")
     ap.add_argument("--camera-hfov", type=float, default=None, metavar="DEG",
                     help="the camera's field of view, degrees (default Pepper's top camera, 56.3; the paper's "
                          "Unity camera: 26.5). The encoder trained on these frames keeps it")

@@ -25,7 +25,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--policy", default="vector", help="the learned policy: vector (shipped) or a run dir / .zip")
     ap.add_argument("--baseline", default="sffm", help="sffm | straight | random | another model")
     ap.add_argument("--episodes", type=int_at_least(2), default=200, help="paired episodes (default 200)")
-    ap.add_argument("--seed", type=int, default=500_000, help="first held-out seed (default 500000)")
+    ap.add_argument("--seed", type=int_at_least(0), default=500_000, help="first held-out seed (default 500000)")
     ap.add_argument("--scenario", default="default")
     ap.add_argument("--out", type=Path, required=True)
     ap.add_argument("--pairs", type=int_at_least(0), default=3,

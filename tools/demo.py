@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ssbl_pb.cli import ArgumentParser, int_in, run
+from ssbl_pb.cli import ArgumentParser, int_at_least, int_in, run
 from ssbl_pb.params import APPEARANCES
 
 
@@ -18,7 +18,7 @@ def main(argv: list[str] | None = None) -> int:
     ap = ArgumentParser(description=__doc__)
     ap.add_argument("--out", type=Path, default=Path("results/demo"), help="output directory")
     ap.add_argument("--policy", default="sffm", help="who drives the robot (default: the SFFM baseline)")
-    ap.add_argument("--seed", type=int, default=1000)
+    ap.add_argument("--seed", type=int_at_least(0), default=1000)
     ap.add_argument("--width", type=int_in(64, 4096), default=480, help="video width in pixels (64-4096)")
     ap.add_argument("--appearance", choices=APPEARANCES, default="body",
                     help="how the people look: body (default) or proxy (boxes)")

@@ -21,7 +21,7 @@ import cv2
 import numpy as np
 
 from ssbl_pb.cli import ArgumentParser, progress, run
-from ssbl_pb.files import write_json, write_text
+from ssbl_pb.files import check_output_path, write_json, write_text
 
 ROOT = Path(__file__).resolve().parents[1]
 PETS = ROOT.parent / "shared" / "data" / "video" / "pets2009_s2l1"
@@ -95,6 +95,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: --range {args.range!r} / --step {args.step}: expected START:STOP with 0 <= START < STOP and "
               f"STEP >= 1", file=sys.stderr)
         return 2
+    for suffix in (".json", ".md"):  # before minutes of detection
+        check_output_path(args.out.with_suffix(suffix), is_dir=False)
     for p in (args.video, args.gt):
         if not p.is_file():
             print(f"error: {p}: not found", file=sys.stderr)

@@ -21,7 +21,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--policy", required=True,
                     help="sffm | random | straight | vector (the shipped model) | PATH (.zip or run directory)")
     ap.add_argument("--episodes", type=int_at_least(1), default=100, help="number of episodes (default 100)")
-    ap.add_argument("--seed", type=int, default=1000, help="seed of the first episode; episode i uses seed+i")
+    ap.add_argument("--seed", type=int_at_least(0), default=1000,
+                    help="seed of the first episode; episode i uses seed+i")
     ap.add_argument("--obs-mode", default="vector", choices=["vector", "camera", "camera_speed"])
     ap.add_argument("--scenario", default="default",
                     help="default | mixed | behind | FORMATION[-N] | a,b,...; each may end in "
@@ -59,7 +60,8 @@ def main(argv: list[str] | None = None) -> int:
     setup = Setup(args.policy, args.obs_mode, args.scenario, calib, shield)
     with progress_bar(args.episodes, f"evaluate {args.policy}") as bar:
         summary, _ = evaluate(setup, args.episodes, args.seed, args.out, workers, args.paths, bar)
-    print(f"success {summary['success_rate']:.1%}  collision {summary['collision_rate']:.1%}  "
+    print(f"perception {summary['perception']}  success {summary['success_rate']:.1%}  "
+          f"collision {summary['collision_rate']:.1%}  "
           f"shield {summary['shield_intervention_rate']:.1%} of steps  "
           f"return {summary['mean_return']:.3f}  personal-zone {summary['personal_zone_time_s']:.2f}s  "
           f"-> {args.out}/summary.json")

@@ -13,7 +13,7 @@ from pathlib import Path
 
 from ssbl_pb.calib.io import check_outputs
 from ssbl_pb.calib.pointcloud import analyse, load_points, parse_up, scan_figure, scan_yaml
-from ssbl_pb.cli import ArgumentParser, command_line, run
+from ssbl_pb.cli import ArgumentParser, command_line, int_at_least, run
 from ssbl_pb.files import write_text, write_yaml
 
 
@@ -24,7 +24,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, required=True, help="YAML to write (+ .png and .md beside it)")
     ap.add_argument("--distance", type=float, default=0.02, help="RANSAC inlier distance (m)")
     ap.add_argument("--min-floor-share", type=float, default=0.02, help="smallest share of points for the floor")
-    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--seed", type=int_at_least(0), default=0)
     args = ap.parse_args(argv)
     check_outputs(args.out, (".png", ".md"))
     up = parse_up(args.up)

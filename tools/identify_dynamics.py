@@ -16,7 +16,7 @@ from ssbl_pb.calib import reports
 from ssbl_pb.calib.dynamics import identify
 from ssbl_pb.calib.dynamics_log import excitation_plan, read_log, simulate_log, write_log
 from ssbl_pb.calib.io import check_outputs
-from ssbl_pb.cli import ArgumentParser, command_line, run
+from ssbl_pb.cli import ArgumentParser, command_line, int_at_least, run
 from ssbl_pb.files import write_yaml
 from ssbl_pb.params import RobotParams, from_dict, load_yaml
 
@@ -32,7 +32,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--speed", type=float, default=0.3, help="--simulate: max_speed")
     ap.add_argument("--dt", type=float, default=0.02, help="--simulate: log period (s)")
     ap.add_argument("--noise", type=float, default=0.001, help="--simulate: odometry position noise (m)")
-    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--seed", type=int_at_least(0), default=0)
     ap.add_argument("--truth", type=Path, help="YAML of the true RobotParams fields (--simulate writes "
                     "LOG.truth.yaml); the report then lists the errors")
     args = ap.parse_args(argv)

@@ -15,7 +15,8 @@ import math
 import os
 from pathlib import Path
 
-from ssbl_pb.cli import ArgumentParser, int_at_least, progress_bar, run
+from ssbl_pb.cli import ArgumentParser, int_at_least, int_in, progress_bar, run
+from ssbl_pb.training.config import SEED_MAX
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -26,7 +27,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--steps", type=int_at_least(2048), default=None,
                     help="training steps (default: configs/demo.yaml's 450k, about 1.5 min)")
     ap.add_argument("--episodes", type=int_at_least(1), default=60, help="evaluation episodes per policy")
-    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--seed", type=int_in(0, SEED_MAX), default=0)
     args = ap.parse_args(argv)
 
     from ssbl_pb.analysis.compare_plot import plot_summaries

@@ -12,14 +12,14 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ssbl_pb.cli import ArgumentParser, fail, int_in, run
+from ssbl_pb.cli import ArgumentParser, fail, int_at_least, int_in, run
 from ssbl_pb.params import APPEARANCES
 
 
 def main(argv: list[str] | None = None) -> int:
     ap = ArgumentParser(description=__doc__)
     ap.add_argument("--policy", required=True, help="sffm | random | straight | vector | PATH (.zip or run dir)")
-    ap.add_argument("--seed", type=int, default=0, help="episode seed (the same seed gives the same start)")
+    ap.add_argument("--seed", type=int_at_least(0), default=0, help="episode seed (the same seed gives the same start)")
     ap.add_argument("--scenario", default="default")
     ap.add_argument("--out", type=Path, required=True, help="output .mp4")
     ap.add_argument("--width", type=int_in(64, 4096), default=480, help="video width in pixels (64-4096)")

@@ -71,7 +71,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("run", type=Path, help="training run directory")
     ap.add_argument("--episodes", type=int_at_least(1), default=200,
                     help="held-out episodes per scenario (default 200)")
-    ap.add_argument("--seed", type=int, default=500_000, help="first held-out seed")
+    ap.add_argument("--seed", type=int_at_least(0), default=500_000, help="first held-out seed")
     ap.add_argument("--name", default="vector", help="shipped policy name (default vector)")
     ap.add_argument("--model", choices=["best", "final"], default="best",
                     help="the run's best evaluated model (best/, default) or its final one (model.zip)")

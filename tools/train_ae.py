@@ -21,7 +21,7 @@ import shutil
 import sys
 from pathlib import Path
 
-from ssbl_pb.cli import ArgumentParser, command_line, run
+from ssbl_pb.cli import ArgumentParser, command_line, int_at_least, run
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -39,7 +39,7 @@ def main(argv: list[str] | None = None) -> int:
                     help="weight of Finn's smoothness loss, the keypoints' (SAEV) or code's (conv) squared second "
                          "difference over consecutive frames (default 0.001, the original's; "
                          "larger: steadier features)")
-    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--seed", type=int_at_least(0), default=0)
     ap.add_argument("--threads", type=int, default=2, help="torch threads (default 2)")
     ap.add_argument("--snapshot-every", type=int, default=0, metavar="N",
                     help="also write DIR/snapshots/encoder_stepN.pt every N steps (a multiple of the evaluation "

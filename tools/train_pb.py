@@ -13,7 +13,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ssbl_pb.cli import ArgumentParser, fail, run
+from ssbl_pb.cli import ArgumentParser, fail, int_at_least, int_in, run
+from ssbl_pb.training.config import SEED_MAX
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -30,8 +31,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--n-envs", type=int, help="parallel environments")
     ap.add_argument("--vec-env", choices=["auto", "batched", "dummy", "subproc"],
                     help="auto (default): batched for the Vector mode (all envs in one array step), else dummy")
-    ap.add_argument("--total-steps", type=int)
-    ap.add_argument("--seed", type=int)
+    ap.add_argument("--total-steps", type=int_at_least(1))
+    ap.add_argument("--seed", type=int_in(0, SEED_MAX))
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                     help="override any config key, e.g. reward.w_smooth=0.1 or ppo.learning_rate=1e-4")
     ap.add_argument("--out", type=Path, help="run directory (default runs/<name>)")

@@ -156,10 +156,13 @@ def run_episodes(make: Callable[[], tuple[gym.Env, Policy]], seeds: Iterable[int
                  chunk: int = 50) -> list[EpisodeResult]:
     """Episodes for ``seeds`` (in that order); ``make`` builds (env, policy) and must be picklable for
     ``workers > 1``. Trajectories are kept for the first ``keep_trajectories`` episodes only. Episodes go in
-    chunks of up to ``chunk``, each played at once where ``batchable`` (else one by one)."""
+    chunks of up to ``chunk``, each played at once where ``batchable`` (else one by one). The chunks depend on
+    the seeds alone, not on ``workers``: a network's batched forward pass rounds differently in batches of other
+    sizes, so results are the same to the bit with any number of workers."""
     seeds = list(seeds)
     jobs = [(s, i < keep_trajectories) for i, s in enumerate(seeds)]
-    size = max(1, min(chunk, -(-len(jobs) // (4 * max(workers, 1)))))
+    # enough chunks for 16 workers (the most cores we run on), none under 8 episodes (a batch still pays off)
+    size = max(1, min(chunk, max(8, -(-len(jobs) // 16))))
     chunks = [jobs[k:k + size] for k in range(0, len(jobs), size)]
     out: list[EpisodeResult] = []
     if workers <= 1:

@@ -15,6 +15,7 @@ from ..agents.rollout import EpisodeResult, run_episodes
 from ..env.gymenv.approach import make_env
 from ..errors import UserError
 from ..files import check_output_path, make_stage_dir, output_dir
+from ..perception.groups.observation_model import PerceptionParams
 from ..policies import SHIPPED
 from .report import plot_paths, summarize, write_csv, write_json
 
@@ -79,8 +80,10 @@ def evaluate(setup: Setup, episodes: int, seed: int, out: Path, workers: int = 1
     results = run_episodes(setup, range(seed, seed + episodes), workers, keep_trajectories=n_paths,
                            progress=progress)
     rows = [r.metrics for r in results]
+    # the observation model on (the policy saw the group as deploy's perception would) or off (the true state)
+    perceived = PerceptionParams.of(dict(setup.env_kwargs).get("perception")) is not None
     summary = summarize(rows, {"policy": setup.policy, "obs_mode": setup.obs_mode, "scenario": setup.scenario,
-                               "seed": seed})
+                               "perception": "on" if perceived else "off", "seed": seed})
     with output_dir(out) as out:
         stage = make_stage_dir(out, ".staging-")
         try:

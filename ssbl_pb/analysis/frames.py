@@ -118,16 +118,31 @@ def save_frames(path: str | Path, data: dict[str, np.ndarray]) -> Path:
     return atomic_write(path, writer)
 
 
+def _read_npz(path: Path) -> dict[str, np.ndarray]:
+    """The arrays of an .npz archive; anything else is one line saying what the file is instead."""
+    def refuse(what: str) -> FramesError:
+        return FramesError(f"--frames {path}: not a frames file written by tools/collect_frames.py (expected an "
+                           f".npz archive of the arrays {sorted(KEYS)}; this is {what})")
+
+    with open(path, "rb") as fh:
+        head = fh.read(6)
+    if not head.startswith(b"PK"):  # numpy reads a text file as pickled data and an .npy as one array
+        raise refuse("a single .npy array" if head == b"\x93NUMPY" else "not an .npz (zip) archive")
+    try:
+        with np.load(path, allow_pickle=False) as npz:
+            return {k: npz[k] for k in npz.files}
+    except ValueError as exc:  # object arrays: pickled data, which a frames file never holds
+        raise refuse("an archive of pickled (object) arrays") from exc
+    except (OSError, EOFError, zipfile.BadZipFile, zlib.error) as exc:
+        raise refuse("a damaged or cut-short .npz archive") from exc
+
+
 def load_frames(path: str | Path, size: int | None = None) -> dict[str, np.ndarray]:
     """Read and check a frames file; ``size`` (the encoder's input) must match the frames' resolution."""
     path = Path(path)
     if not path.is_file():
         raise FramesError(f"--frames {path}: file not found (expected an .npz from tools/collect_frames.py)")
-    try:
-        with np.load(path, allow_pickle=False) as npz:
-            data = {k: npz[k] for k in npz.files}
-    except (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error) as exc:  # not an archive, or cut short
-        raise FramesError(f"--frames {path}: not a readable .npz ({exc})") from exc
+    data = _read_npz(path)
     missing = sorted(set(KEYS) - set(data))
     if missing:
         raise FramesError(f"--frames {path}: missing key(s) {missing}; expected {sorted(KEYS)} "

@@ -149,6 +149,10 @@ def find_datasets(paths: Iterable[str | Path]) -> list[Path]:
     for p in map(Path, paths):
         if not p.exists():
             raise CalibrationError(f"{p}: not found (give F-formation dataset folders or a folder above them)")
+        if not p.is_dir():
+            raise CalibrationError(f"{p}: a file; expected a dataset folder holding {FEATURES} and {GROUNDTRUTH}, or "
+                                   "a folder above such folders (layout in shared/data/fformations/SOURCES.md)"
+                                   + (f": give its folder, {p.parent}" if p.name in (FEATURES, GROUNDTRUTH) else ""))
         found = sorted({f.parent for f in ([p / FEATURES] if (p / FEATURES).is_file() else p.rglob(FEATURES))})
         if not found:
             raise CalibrationError(f"{p}: no {FEATURES} at or below it (expected the layout in "

@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from ..cli import children_ignore_sigint
+from ..errors import EXIT_SIGINT, EXIT_SIGTERM, Terminated
 from .runner import Trial, run_task
 
 
@@ -117,6 +118,15 @@ def _serve(conn: Connection, parent: int) -> None:
     os.setsid()
     _die_with_parent()
     threading.Thread(target=_exit_with_parent, args=(parent,), daemon=True).start()
+    try:
+        _serve_trials(conn)
+    except KeyboardInterrupt as exc:  # the parent stops its workers (a trial may re-raise the signal, as training
+        # does after its safe point): leave quietly, the parent reports the interruption in one line
+        raise SystemExit(EXIT_SIGTERM if isinstance(exc, Terminated) else EXIT_SIGINT) from None
+
+
+def _serve_trials(conn: Connection) -> None:
+    """Run each trial received on ``conn`` and send back its record or its error text, until None or EOF."""
     while True:
         try:
             job = conn.recv()

@@ -27,7 +27,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, Protocol
 
-from ..errors import UserError
+from ..errors import Terminated, UserError
 from ..files import write_json
 
 RESULT = "result.json"
@@ -115,6 +115,9 @@ def run_task(task: Trial, root: Path, node_id: str | None = None) -> dict[str, A
         print(f"== {time.strftime('%Y-%m-%d %H:%M:%S')} on {socket.gethostname()} (pid {os.getpid()})", flush=True)
         try:
             result = task(folder)
+        except KeyboardInterrupt as exc:  # stopped (Ctrl-C, SIGTERM): no traceback, the trial runs again next time
+            print(f"== stopped by {'SIGTERM' if isinstance(exc, Terminated) else 'Ctrl-C'}; unfinished", flush=True)
+            raise
         except BaseException:
             traceback.print_exc()
             raise

@@ -23,6 +23,12 @@ SHOWN = (("success_rate", "success %", 100, 1), ("mean_return", "return", 1, 2),
          ("outside_fov_time_s", "outside view s", 1, 2))
 PLOTTED = ("success_rate", "mean_return", "personal_zone_time_s", "mean_jerk")
 RATES = ("success_rate", "collision_rate", "violation_rate")  # proportions of episodes: Wilson intervals
+# what each metric can be: rates of episodes lie in 0-1, times, lengths and speed or jerk magnitudes are >= 0 (a t
+# interval over a few seeds reaches past that; it is clipped there); the return has no bound
+BOUNDS: dict[str, tuple[float, float]] = {
+    **{m: (0.0, 1.0) for m in RATES},
+    **{m: (0.0, math.inf) for m in ("personal_zone_time_s", "human_displacement_m", "mean_jerk", "arrival_speed",
+                                    "outside_fov_time_s", "time_to_success_s", "path_length_m")}}
 
 
 def rows(spec: SweepSpec, records: dict[str, dict[str, Any]]) -> list[dict[str, Any]]:
@@ -34,7 +40,8 @@ def group_rows(groups: dict[str, dict[str, Any]], trials: Sequence[TrainEvalTria
                records: dict[str, dict[str, Any]]) -> list[dict[str, Any]]:
     """One dict per group (``groups``: name -> the columns that describe it) over the finished ``trials`` of each
     (their ``group``): seeds finished and, per metric, the mean and 95 % CI over them (rates: a Wilson interval
-    over the seeds' episodes, inside 0-1; ``analysis.report.proportion_ci``)."""
+    over the seeds' episodes, inside 0-1; ``analysis.report.proportion_ci``), each interval clipped to the
+    metric's ``BOUNDS``."""
     out = []
     by_group: dict[str, list[dict[str, Any]]] = {}
     episodes: dict[str, int] = {}
@@ -48,10 +55,16 @@ def group_rows(groups: dict[str, dict[str, Any]], trials: Sequence[TrainEvalTria
         for m in METRICS:
             seeds = [r.get(m) for r in results]
             ci = proportion_ci(seeds, episodes.get(name, 1)) if m in RATES else mean_ci(seeds)
-            row.update({f"{m}_mean": ci["mean"], f"{m}_ci_low": ci["ci_low"], f"{m}_ci_high": ci["ci_high"]})
+            low, high = BOUNDS.get(m, (-math.inf, math.inf))
+            row.update({f"{m}_mean": ci["mean"], f"{m}_ci_low": _clip(ci["ci_low"], low, high),
+                        f"{m}_ci_high": _clip(ci["ci_high"], low, high)})
         row["_per_seed"] = results
         out.append(row)
     return out
+
+
+def _clip(v: float, low: float, high: float) -> float:
+    return min(max(v, low), high) if math.isfinite(v) else v
 
 
 def _cell(v: Any) -> str:
@@ -107,7 +120,8 @@ def markdown(spec: SweepSpec, table: list[dict[str, Any]], done: int, command: s
              f"{ev.scenario or 'as trained'}, default reward weights (returns comparable across configurations)",
              "- cells: mean over seeds [95 % CI: Student t over seeds; for the % of episodes a Wilson interval over "
              "the seeds' episodes, as wide as the t interval where the seeds disagree more than chance, always in "
-             "0-100 %]; with few seeds the CI is wide, and seed-to-seed variance is often as large as a setting's "
+             "0-100 %; an interval of a time, a distance, a speed or the jerk is cut at 0, as these cannot be "
+             "negative]; with few seeds the CI is wide, and seed-to-seed variance is often as large as a setting's "
              "effect (docs/benchmarks.md)", "",
              "| config | seeds | " + " | ".join(h for _, h, _, _ in SHOWN) + " |",
              "|---|---|" + "---|" * len(SHOWN)]

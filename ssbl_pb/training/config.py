@@ -28,11 +28,13 @@ import yaml
 
 from ..errors import UserError
 from ..params import ConfigError, _check, from_dict, load_yaml, parse_yaml
+from ..perception.groups.observation_model import PerceptionParams
 
 OBS_MODES = ("vector", "camera", "camera_speed")
 ENCODERS = ("none", "cnn", "conv", "saev")  # cnn: end-to-end NatureCNN; conv / saev: a frozen autoencoder
 POLICIES = ("ff", "lstm")
 VEC_ENVS = ("auto", "batched", "dummy", "subproc")
+SEED_MAX = 2**32 - 1  # SB3 seeds numpy's legacy generator, which takes 0 .. 2**32 - 1
 
 
 @dataclasses.dataclass(frozen=True)
@@ -163,7 +165,10 @@ class TrainConfig:
         for name in ("n_envs", "total_steps", "eval_every", "eval_episodes", "checkpoint_every", "torch_threads"):
             v = getattr(self, name)
             _check(isinstance(v, int) and v >= 1, "config", name, v, "an integer >= 1")
-        _check(isinstance(self.seed, int), "config", "seed", self.seed, "an integer")
+        _check(isinstance(self.seed, int) and not isinstance(self.seed, bool) and 0 <= self.seed <= SEED_MAX, "config",
+               "seed", self.seed, f"an integer in [0, {SEED_MAX}]")
+        _check(isinstance(self.eval_seed, int) and not isinstance(self.eval_seed, bool) and self.eval_seed >= 0,
+               "config", "eval_seed", self.eval_seed, "an integer >= 0")
         _check(isinstance(self.safety_shield, bool), "config", "safety_shield", self.safety_shield, "true or false")
         _check(self.normalize_obs is None or isinstance(self.normalize_obs, bool), "config", "normalize_obs",
                self.normalize_obs, "true, false or unset (auto)")
@@ -302,10 +307,14 @@ def _from_dict(data: dict[str, Any], where: str) -> TrainConfig:
 
 def check_env(cfg: TrainConfig) -> None:
     """The config's env parameters as the env will check them (room size for its groups, group data, room
-    YAMLs), before anything is built."""
+    YAMLs, the observation model), before anything is built."""
     from ..env.engine.env_params import parse_env_params
 
     env = cfg.env
+    try:
+        PerceptionParams.of(env.get("perception"))
+    except ConfigError as exc:  # the config's key is env.perception
+        raise ConfigError(f"env.{exc}") from None
     parse_env_params(cfg.scenario, env.get("world"), env.get("robot"), env.get("social"), cfg.reward,
                      env.get("task"), env.get("groups"), env.get("groups_yaml"), env.get("room_yaml"),
                      env.get("furniture"))

@@ -310,8 +310,8 @@ def train(cfg: TrainConfig, run_dir: Path, overwrite: bool = False, init_from: P
         model = build_model(cfg, venv, run_dir / "tb")
         if init_from is not None:
             venv = _init_from(model, venv, init_from)
-        if overwrite and run_dir.is_dir():
-            remove_run(run_dir)
+        if run_dir.is_dir():  # the old run (--overwrite), else the temporaries a run killed before config.yaml left
+            (remove_run if overwrite else clean_temporaries)(run_dir)
         with output_dir(run_dir, "--out"):
             save_checkpoint(model, venv, run_dir)
             save_config(cfg, run_dir / "config.yaml")
@@ -410,9 +410,10 @@ def _widen_normalisation(norm: Any, venv: Any) -> None:
 
 def latest_checkpoint(run_dir: Path) -> tuple[Path, Path, int]:
     latest = run_dir / "checkpoints" / "latest.json"
-    if not latest.is_file():
-        raise RunError(f"{run_dir}: no checkpoint to resume from (expected {latest}); start the run again with "
-                       f"--overwrite --out {run_dir}")
+    if not latest.is_file():  # a model alone (shipped, copied) is no run to start over: a new run starts from it
+        how = f"a new run with --init-from {run_dir} --out NEW_DIR" if (run_dir / "model.zip").is_file() else \
+            f"the run again with --overwrite --out {run_dir}"
+        raise RunError(f"{run_dir}: no checkpoint to resume from (expected {latest}); start {how}")
     try:
         info = json.loads(latest.read_text())
     except (OSError, ValueError) as exc:
@@ -441,7 +442,7 @@ def resume(run_dir: Path, total_steps: int | None = None) -> dict[str, Any]:
         hint = "; it was killed as it was created: start it again with the same command" if (
             run_dir.is_dir() and _only_checkpoints(run_dir)) else ""
         raise RunError(f"{run_dir}: not a run directory (no config.yaml){hint}")
-    cfg = load_config(run_dir / "config.yaml", {"total_steps": total_steps} if total_steps else None)
+    cfg = load_config(run_dir / "config.yaml", None if total_steps is None else {"total_steps": total_steps})
     model_path, norm_path, step = latest_checkpoint(run_dir)
     if step >= cfg.total_steps and _finished_at(run_dir) == step:
         raise RunError(f"{run_dir}: already finished ({step} of {cfg.total_steps} steps); nothing changed. To train "
@@ -481,11 +482,9 @@ def _finished_at(run_dir: Path) -> int | None:
 
 def _truncate_log(path: Path, step: int) -> None:
     """Drop log lines written after the checkpoint (they will be produced again)."""
-    if not path.exists():
-        return
-    lines = path.read_text().splitlines()
+    lines = path.read_text().splitlines() if path.exists() else []
     if not lines:
-        path.unlink()
+        path.unlink(missing_ok=True)
         return
 
     def before(line: str) -> bool:

@@ -10,6 +10,7 @@ from __future__ import annotations
 import dataclasses
 import time
 import warnings
+import zipfile
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -200,8 +201,10 @@ def read_checkpoint(path: str | Path, flag: str = "encoder checkpoint") -> dict[
         raise CheckpointError(f"{flag} {path}: file not found (tools/train_ae.py writes one)")
     try:
         blob = torch.load(path, map_location="cpu", weights_only=True)
-    except Exception as exc:  # a torch archive that is not ours, a truncated file, ...
-        raise CheckpointError(f"{flag} {path}: unreadable ({type(exc).__name__}: {exc})") from exc
+    except Exception as exc:  # a torch archive that is not ours, a truncated file, ... (torch's text: load advice)
+        what = "a zip archive but no whole torch file" if zipfile.is_zipfile(path) else "not a torch file"
+        raise CheckpointError(f"{flag} {path}: unreadable, {what} (expected an autoencoder checkpoint of "
+                              f"tools/train_ae.py)") from exc
     if not isinstance(blob, dict) or blob.get("format") != FORMAT or blob.get("arch") not in ARCHS:
         raise CheckpointError(f"{flag} {path}: not an autoencoder checkpoint of tools/train_ae.py")
     return blob
