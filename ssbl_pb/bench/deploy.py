@@ -265,8 +265,8 @@ def run_fault(fault: str, folder: Path, seed: int = 11, policy: str = "straight"
 
     ``policy_exception`` runs the loop in a fresh interpreter (a policy that raises) over qi; ``deploy_killed``
     kills deploy with SIGKILL (the virtual Pepper's watchdog stops the base); ``watchdog_stop_hangs`` does the same
-    with a virtual Pepper that leaves the first ``hang_stops`` stopMove calls unanswered for 2 s, doing nothing
-    (the watchdog must send again until the base reads still); ``sighup`` is the ssh connection to deploy's
+    with a virtual Pepper that leaves the ``hang_stops`` stopMove calls after the kill unanswered for 2 s, doing
+    nothing (the watchdog must send again until the base reads still); ``sighup`` is the ssh connection to deploy's
     machine dropping; ``odometry_frozen`` freezes the virtual Pepper's odometry (SIGUSR2); ``robot_frozen`` stops
     the robot process (SIGSTOP) until deploy exits. ``stale``: deploy's staleness limit (tests on a loaded machine
     raise it, so that late frames do not end a run before its fault). ``vp_extra``: more virtual Pepper flags."""
@@ -275,8 +275,7 @@ def run_fault(fault: str, folder: Path, seed: int = 11, policy: str = "straight"
     folder.mkdir(parents=True, exist_ok=True)
     vp_log = folder / "virtual_pepper.jsonl"
     out: dict[str, Any] = {"fault": fault}
-    extra = ("--hang-stops", str(hang_stops)) if fault == "watchdog_stop_hangs" else ()
-    with virtual_pepper(vp_log, seed, "default", *extra, *vp_extra) as (vp, url):
+    with virtual_pepper(vp_log, seed, "default", *vp_extra) as (vp, url):
         if fault == "policy_exception":  # in a fresh interpreter, as deploy runs: in the benchmark's own
             # process (scipy, matplotlib and the approaches' imports loaded) its first frames arrived > 0.5 s late
             code = ("import json, sys; from pathlib import Path; from ssbl_pb.bench.deploy import _policy_exception;"
@@ -293,6 +292,8 @@ def run_fault(fault: str, folder: Path, seed: int = 11, policy: str = "straight"
             proc.kill()
             said = proc.communicate()[1][-500:]
             raise RuntimeError(f"{fault}: the base did not move; deploy said {said!r}") from None
+        if fault == "watchdog_stop_hangs":  # armed now: a stall before the kill must not spend them
+            hang_stops_now(url, hang_stops)
         t_event = time.time()
         target = {"robot_killed": (vp, signal.SIGKILL), "camera_frozen": (vp, signal.SIGUSR1),
                   "odometry_frozen": (vp, signal.SIGUSR2), "robot_frozen": (vp, signal.SIGSTOP),
@@ -321,6 +322,19 @@ def run_fault(fault: str, folder: Path, seed: int = 11, policy: str = "straight"
         out["stop_calls"] = sum(c.get("call") == "stopMove" for c in calls if c["wall"] >= t_event)
         out["hung_stops"] = sum(c.get("call") == "stopMove_hung" for c in calls if c["wall"] >= t_event)
     return out
+
+
+def hang_stops_now(url: str, n: int) -> None:
+    """Make the virtual Pepper at ``url`` leave its next ``n`` stopMove calls unanswered (``--hang-stops``, from
+    now on)."""
+    from ..deploy.naoqi import IDENTITY, import_qi
+
+    session = import_qi().Session()
+    session.connect(url, _async=True).value(5000)
+    try:
+        session.service(IDENTITY, _async=True).value(5000).hangStops(n, _async=True).value(5000)
+    finally:
+        session.close()
 
 
 def _policy_exception(url: str, vp_log: Path, stale: float) -> dict[str, Any]:

@@ -350,13 +350,20 @@ def make_services(vp: VirtualPepper) -> tuple[Any, Any, Any]:
 
 
 class Identity:
-    """``SSBLVirtualPepper``: what deploy needs to know of this robot (``describe``)."""
+    """``SSBLVirtualPepper``: what deploy needs to know of this robot (``describe``), and its fault switch for
+    harnesses (``hangStops``: ``--hang-stops`` armed at a chosen moment)."""
 
-    def __init__(self, facts: dict[str, str]) -> None:
-        self.facts = facts
+    def __init__(self, facts: dict[str, str], vp: VirtualPepper | None = None) -> None:
+        self.facts, self._vp = facts, vp
 
     def describe(self) -> dict[str, str]:
         return dict(self.facts)
+
+    def hangStops(self, n: int) -> None:  # noqa: N802 - a qi method, NAOqi's style
+        """Leave the next ``n`` stopMove calls unanswered for ``HANG_S``, doing nothing."""
+        if self._vp is not None:
+            self._vp.hang_stops = int(n)
+            self._vp.write({"kind": "call", "wall": time.time(), "t": self._vp.robot.t, "call": "hangStops", "n": n})
 
 
 def deploy_command(url: str, groups: str | None = None, on_map: tuple[Path, np.ndarray] | None = None,
@@ -425,7 +432,7 @@ def main(argv: list[str] | None = None) -> int:
     for name, service in zip(("ALMotion", "ALVideoDevice", "ALMemory"), make_services(vp), strict=True):
         session.registerService(name, service)
     session.registerService(IDENTITY, Identity({"detector": "colour", "scenario": args.scenario,
-                                                "seed": str(args.seed), "groups": groups}))
+                                                "seed": str(args.seed), "groups": groups}, vp))
     watching = None if args.no_watchdog else host_watchdog(session, say=vp.watchdog_line)[1]
     signal.signal(signal.SIGUSR1, lambda *_: setattr(vp, "frozen", not vp.frozen))
     signal.signal(signal.SIGUSR2, lambda *_: vp.toggle_odometry_freeze())
