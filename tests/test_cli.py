@@ -163,7 +163,8 @@ def test_sighup_in_a_tool_exits_143_unless_started_under_nohup(tmp_path):
     """SIGHUP (the terminal or the ssh connection closed) ends a tool as SIGTERM does, through its clean-up;
     a tool started with SIGHUP ignored (nohup) keeps it ignored."""
     script = _sleeping_tool(tmp_path, 30)
-    proc = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGHUP, signal.SIG_DFL))  # (pytest under nohup)
     assert proc.stdout.readline().strip() == "ready"
     proc.send_signal(signal.SIGHUP)
     _, err = proc.communicate(timeout=30)
