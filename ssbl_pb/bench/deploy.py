@@ -28,6 +28,7 @@ from typing import Any
 
 from ..core.task import TaskParams
 from ..deploy.log import LOG, SUMMARY
+from ..deploy.watchdog import RETRY_S
 from ..virtual.pepper import load_log
 
 FAULTS = ("robot_killed", "camera_frozen", "odometry_frozen", "robot_frozen", "sigint", "sigterm", "sighup",
@@ -309,7 +310,8 @@ def run_fault(fault: str, folder: Path, seed: int = 11, policy: str = "straight"
         out.update(exit_code=proc.returncode, exit_s=time.time() - t_event, stderr=err.strip().splitlines()[-1:])
         if fault == "robot_frozen":
             vp.send_signal(signal.SIGCONT)
-        settle = time.time() + 4.0  # let the log show what the base did next: braking from 0.35 m/s takes 1.2 s
+        # let the log show what the base did next: braking from 0.35 m/s takes 1.2 s, after a retry period per hung stop
+        settle = time.time() + 4.0 + (RETRY_S * hang_stops if fault == "watchdog_stop_hangs" else 0.0)
         while fault != "robot_killed" and time.time() < settle:
             time.sleep(0.25)
             if stop_times(vp_log, t_event)["standstill_s"] is not None:
