@@ -3,7 +3,8 @@
 A tool's ``if __name__ == "__main__": run(main)`` gives it the contract the README promises: a ``UserError`` is
 one line on stderr and exit 2; Ctrl-C exits 130 and SIGTERM 143 with one line (code that must save or stop
 first catches ``KeyboardInterrupt``, which SIGTERM raises too, as ``Terminated``), also when a shell started the
-tool in the background (with SIGINT ignored); any other exception is a bug and keeps its traceback.
+tool in the background (with SIGINT ignored); SIGHUP (the terminal or the ssh connection closed) is SIGTERM's
+twin, unless the tool was started under ``nohup``; any other exception is a bug and keeps its traceback.
 """
 
 from __future__ import annotations
@@ -108,26 +109,34 @@ def command_line(tool: str, argv: list[str] | None = None) -> str:
 
 
 def _raise_terminated(signum: int, frame: Any) -> None:
-    raise Terminated()
+    raise Terminated(signal.Signals(signum).name)
 
 
 def run(main: Callable[..., int], argv: list[str] | None = None) -> NoReturn:
     """Run a tool's ``main(argv) -> exit code`` under the contract above and exit with its code."""
     with contextlib.suppress(ValueError):  # not the main thread (tests calling run): leave the handlers alone
         signal.signal(signal.SIGTERM, _raise_terminated)
+        if hasattr(signal, "SIGHUP") and signal.getsignal(signal.SIGHUP) is not signal.SIG_IGN:  # not under nohup
+            signal.signal(signal.SIGHUP, _raise_terminated)
         # a shell starts background jobs with SIGINT ignored, and Python then installs no handler of its own
         signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
         code = main(argv)
     except UserError as exc:
         code = fail(exc)
-    except Terminated:
-        print("terminated (SIGTERM)", file=sys.stderr)
+    except Terminated as sig:
+        _tell(f"terminated ({sig.args[0] if sig.args else 'SIGTERM'})")
         code = EXIT_SIGTERM
     except KeyboardInterrupt:
-        print("interrupted (Ctrl-C)", file=sys.stderr)
+        _tell("interrupted (Ctrl-C)")
         code = EXIT_SIGINT
     sys.exit(code)
+
+
+def _tell(line: str) -> None:
+    """The exit line on stderr; a terminal gone with the SIGHUP that ended the tool must not change its code."""
+    with contextlib.suppress(OSError, ValueError):
+        print(line, file=sys.stderr)
 
 
 def die_with_parent(parent: int) -> None:

@@ -159,6 +159,26 @@ def test_sigterm_in_a_tool_exits_143(tmp_path):
     assert proc.returncode == 143 and err.strip() == "terminated (SIGTERM)"
 
 
+def test_sighup_in_a_tool_exits_143_unless_started_under_nohup(tmp_path):
+    """SIGHUP (the terminal or the ssh connection closed) ends a tool as SIGTERM does, through its clean-up;
+    a tool started with SIGHUP ignored (nohup) keeps it ignored."""
+    script = _sleeping_tool(tmp_path, 30)
+    proc = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGHUP, signal.SIG_DFL))  # (pytest under nohup)
+    assert proc.stdout.readline().strip() == "ready"
+    proc.send_signal(signal.SIGHUP)
+    _, err = proc.communicate(timeout=30)
+    assert proc.returncode == 143 and err.strip() == "terminated (SIGHUP)"
+    proc = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGHUP, signal.SIG_IGN))  # as nohup starts it
+    assert proc.stdout.readline().strip() == "ready"
+    proc.send_signal(signal.SIGHUP)
+    with pytest.raises(subprocess.TimeoutExpired):
+        proc.wait(1.0)  # still running
+    proc.terminate()
+    assert proc.wait(30) == 143
+
+
 def test_tools_do_not_edit_sys_path():
     tools = Path(__file__).resolve().parents[1] / "tools"
     offenders = [p.name for p in tools.glob("*.py") if "sys.path" in p.read_text()]

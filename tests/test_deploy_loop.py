@@ -198,6 +198,21 @@ def test_a_failing_stop_still_stops_perception_and_closes_the_robot_and_is_repor
     assert loop.stop_note.startswith("stop not confirmed (RuntimeError")
 
 
+def test_a_faults_exit_code_survives_a_failing_shutdown():
+    """A person too close ends the run (exit 4) and the shutdown then meets a robot error and a broken camera
+    worker: the run still ends as the fault it was (docs/deploy.md), the shutdown's error noted beside it."""
+    loop, robot, _ = make_loop(11, stop_distance=3.0, robot_cls=StopRaises)
+
+    def perception_fails():
+        raise OSError("camera thread")
+
+    loop.s.perception.stop = perception_fails
+    outcome, message = loop.run()
+    assert outcome == "human_too_close" and loop.exit_code == 4, message
+    assert loop.stop_note.startswith("stop not confirmed (RuntimeError") and "robot error" in loop.shutdown_error
+    assert robot._cmd.tolist() == [0.0, 0.0, 0.0] and robot.closed
+
+
 def test_a_failing_stop_does_not_mask_the_runs_own_error():
     class Broken:
         def predict(self, obs, state=None, episode_start=None, deterministic=True):

@@ -3,7 +3,13 @@ ground truth, faults timed from the virtual Pepper's own log, and a soak. Used b
 the tests.
 
 Times: "stop commanded" is when the virtual base received the stop (its command became zero); "standstill" is
-when it stood still (it decelerates at Pepper's 0.3 m/s^2, about 1.2 s from full speed, as the real base does).
+when it stood still (it decelerates at Pepper's 0.3 m/s^2, about 1.2 s from full speed, as the real base does);
+"robot time" counts the simulated base's own seconds (its ``t``), which stand still while the robot process is
+stopped (``robot_frozen``): the time the base drove on under its last command.
+
+The virtual Pepper serves the ``SSBLWatchdog`` itself (as a Pepper on which the user started the watchdog), so
+every run has one and ``deploy_killed``/``watchdog_stop_hangs`` need no separate watchdog process: the hosted one
+is the arrangement users get, and its lines are in the virtual Pepper's log (``kind: watchdog``).
 """
 
 from __future__ import annotations
@@ -22,11 +28,12 @@ from typing import Any
 
 from ..core.task import TaskParams
 from ..deploy.log import LOG, SUMMARY
+from ..deploy.watchdog import RETRY_S
 from ..virtual.pepper import load_log
 
-FAULTS = ("robot_killed", "camera_frozen", "odometry_frozen", "robot_frozen", "sigint", "sigterm", "policy_exception",
-          "deploy_killed", "watchdog_stop_hangs")
-WATCHED = ("deploy_killed", "watchdog_stop_hangs")  # deploy killed: the watchdog beside the robot stops the base
+FAULTS = ("robot_killed", "camera_frozen", "odometry_frozen", "robot_frozen", "sigint", "sigterm", "sighup",
+          "policy_exception", "deploy_killed", "watchdog_stop_hangs")
+WATCHED = ("deploy_killed", "watchdog_stop_hangs")  # deploy killed: the watchdog on the robot stops the base
 
 
 def _module(name: str, *args: str) -> list[str]:
@@ -50,8 +57,8 @@ def virtual_pepper(log: Path, seed: int = 0, scenario: str = "default", *extra: 
     """A virtual Pepper on a free loopback port: (process, url); terminated (and continued, if stopped) on exit."""
     proc = subprocess.Popen(_module("ssbl_pb.virtual", "--listen", "tcp://127.0.0.1:0", "--seed",
                                     str(seed), "--scenario", scenario, "--log", str(log), *extra),
-                            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
-    try:
+                            stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    try:  # (stdin /dev/null: with a job-control shell's stdin it was seen not to step at all)
         url = _first_line(proc, 60.0).split()[-1]
         yield proc, url
     finally:
@@ -66,14 +73,12 @@ def virtual_pepper(log: Path, seed: int = 0, scenario: str = "default", *extra: 
                 proc.wait()
 
 
-def start_deploy(url: str, folder: Path, policy: str = "vector", *extra: str, watchdog: bool = False
-                 ) -> subprocess.Popen:
-    """Deploy as a user starts it against the virtual Pepper (its detector chosen by ``--detector auto``);
-    ``watchdog``: one runs beside the virtual Pepper (else deploy is told ``--no-watchdog``)."""
-    dog = () if watchdog else ("--no-watchdog",)
+def start_deploy(url: str, folder: Path, policy: str = "vector", *extra: str) -> subprocess.Popen:
+    """Deploy as a user starts it against the virtual Pepper (its detector chosen by ``--detector auto``, its
+    watchdog the one the virtual Pepper serves)."""
     return subprocess.Popen(_module("ssbl_pb.deploy", "--url", url, "--policy", policy, "--log-dir", str(folder),
-                                    "--quiet", *dog, *extra),
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                                    "--quiet", *extra),
+                            stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
 def wait_moving(log: Path, timeout: float = 60.0, speed: float = 0.15) -> float:
@@ -91,15 +96,21 @@ def wait_moving(log: Path, timeout: float = 60.0, speed: float = 0.15) -> float:
 
 
 def stop_times(log: Path, t_event: float) -> dict[str, float | None]:
-    """Seconds from ``t_event`` (wall) until the base's command was zero, and until it stood still, for good."""
+    """Seconds from ``t_event`` (wall) until the base's command was zero, and until it stood still, for good; and
+    the command's zero in robot time (``stop_commanded_robot_s``: the base's own seconds since its last state
+    at or before ``t_event``)."""
     _, states, _ = load_log(log)
     after = [s for s in states if s["wall"] >= t_event]
-    out: dict[str, float | None] = {"stop_commanded_s": None, "standstill_s": None}
+    before = [s for s in states if s["wall"] < t_event]
+    t0 = before[-1]["t"] if before else after[0]["t"] if after else 0.0
+    out: dict[str, float | None] = {"stop_commanded_s": None, "standstill_s": None, "stop_commanded_robot_s": None}
     for key, still in (("stop_commanded_s", lambda s: not any(s["cmd"])),
                        ("standstill_s", lambda s: max(abs(v) for v in s["vel"]) < 1e-3)):
         for i, s in enumerate(after):
             if all(still(r) for r in after[i:]):
                 out[key] = s["wall"] - t_event
+                if key == "stop_commanded_s":
+                    out["stop_commanded_robot_s"] = s["t"] - t0
                 break
     return out
 
@@ -249,22 +260,23 @@ def _rss_mb(pid: int) -> float | None:
     return None
 
 
-def run_fault(fault: str, folder: Path, seed: int = 11, policy: str = "straight", stale: float = 0.5
-              ) -> dict[str, Any]:
+def run_fault(fault: str, folder: Path, seed: int = 11, policy: str = "straight", stale: float = 0.5,
+              hang_stops: int = 1, vp_extra: tuple[str, ...] = ()) -> dict[str, Any]:
     """Inject ``fault`` (one of ``FAULTS``) once the base moves; exit code, exit and stop times.
 
-    ``policy_exception`` runs the loop in this process (a policy that raises) over qi; ``deploy_killed`` runs
-    the watchdog beside the virtual Pepper and kills deploy with SIGKILL; ``watchdog_stop_hangs`` does the same
-    with a virtual Pepper that leaves the first stopMove unanswered (the watchdog must send it again);
-    ``odometry_frozen`` freezes the virtual Pepper's odometry (SIGUSR2). ``stale``: deploy's staleness limit
-    (tests on a loaded machine raise it, so that late frames do not end a run before its fault)."""
+    ``policy_exception`` runs the loop in a fresh interpreter (a policy that raises) over qi; ``deploy_killed``
+    kills deploy with SIGKILL (the virtual Pepper's watchdog stops the base); ``watchdog_stop_hangs`` does the same
+    with a virtual Pepper that leaves the ``hang_stops`` stopMove calls after the kill unanswered for 2 s, doing
+    nothing (the watchdog must send again until the base reads still); ``sighup`` is the ssh connection to deploy's
+    machine dropping; ``odometry_frozen`` freezes the virtual Pepper's odometry (SIGUSR2); ``robot_frozen`` stops
+    the robot process (SIGSTOP) until deploy exits. ``stale``: deploy's staleness limit (tests on a loaded machine
+    raise it, so that late frames do not end a run before its fault). ``vp_extra``: more virtual Pepper flags."""
     if fault not in FAULTS:
         raise ValueError(f"fault {fault!r}: expected one of {FAULTS}")
     folder.mkdir(parents=True, exist_ok=True)
     vp_log = folder / "virtual_pepper.jsonl"
     out: dict[str, Any] = {"fault": fault}
-    extra = ("--hang-stops", "1") if fault == "watchdog_stop_hangs" else ()
-    with virtual_pepper(vp_log, seed, "default", *extra) as (vp, url):
+    with virtual_pepper(vp_log, seed, "default", *vp_extra) as (vp, url):
         if fault == "policy_exception":  # in a fresh interpreter, as deploy runs: in the benchmark's own
             # process (scipy, matplotlib and the approaches' imports loaded) its first frames arrived > 0.5 s late
             code = ("import json, sys; from pathlib import Path; from ssbl_pb.bench.deploy import _policy_exception;"
@@ -274,44 +286,57 @@ def run_fault(fault: str, folder: Path, seed: int = 11, policy: str = "straight"
             if res.returncode != 0:
                 raise RuntimeError(f"policy_exception fault: exit {res.returncode}: {res.stderr.strip()[-500:]}")
             return {**out, **json.loads(res.stdout.strip().splitlines()[-1])}
-        dog = None
-        if fault in WATCHED:
-            dog = subprocess.Popen(_module("ssbl_pb.deploy.watchdog", "--robot", url), stdout=subprocess.PIPE,
-                                   stderr=subprocess.DEVNULL, text=True)
-            _first_line(dog, 30.0)
+        proc = start_deploy(url, folder / "deploy", policy, "--duration", "60", "--stale", str(stale))
         try:
-            proc = start_deploy(url, folder / "deploy", policy, "--duration", "60", "--stale", str(stale),
-                                watchdog=dog is not None)
             wait_moving(vp_log)
-            t_event = time.time()
-            target = {"robot_killed": (vp, signal.SIGKILL), "camera_frozen": (vp, signal.SIGUSR1),
-                      "odometry_frozen": (vp, signal.SIGUSR2), "robot_frozen": (vp, signal.SIGSTOP),
-                      "sigint": (proc, signal.SIGINT), "sigterm": (proc, signal.SIGTERM),
-                      "deploy_killed": (proc, signal.SIGKILL), "watchdog_stop_hangs": (proc, signal.SIGKILL)}[fault]
-            target[0].send_signal(target[1])
-            try:
-                _, err = proc.communicate(timeout=30)
-            except subprocess.TimeoutExpired:
-                proc.kill()
-                _, err = proc.communicate()
-                out["hung"] = True
-            out.update(exit_code=proc.returncode, exit_s=time.time() - t_event, stderr=err.strip().splitlines()[-1:])
-            if fault == "robot_frozen":
-                vp.send_signal(signal.SIGCONT)
-            settle = time.time() + 4.0  # let the log show what the base did next: braking from 0.35 m/s takes 1.2 s
-            while fault != "robot_killed" and time.time() < settle:
-                time.sleep(0.25)
-                if stop_times(vp_log, t_event)["standstill_s"] is not None:
-                    time.sleep(0.5)  # and that it stays still
-                    break
-        finally:
-            if dog is not None:
-                dog.terminate()
-                said, _ = dog.communicate(timeout=10)
-                out["watchdog"] = said.strip().splitlines()
+        except RuntimeError:
+            proc.kill()
+            said = proc.communicate()[1][-500:]
+            raise RuntimeError(f"{fault}: the base did not move; deploy said {said!r}") from None
+        if fault == "watchdog_stop_hangs":  # armed now: a stall before the kill must not spend them
+            hang_stops_now(url, hang_stops)
+        t_event = time.time()
+        target = {"robot_killed": (vp, signal.SIGKILL), "camera_frozen": (vp, signal.SIGUSR1),
+                  "odometry_frozen": (vp, signal.SIGUSR2), "robot_frozen": (vp, signal.SIGSTOP),
+                  "sigint": (proc, signal.SIGINT), "sigterm": (proc, signal.SIGTERM), "sighup": (proc, signal.SIGHUP),
+                  "deploy_killed": (proc, signal.SIGKILL), "watchdog_stop_hangs": (proc, signal.SIGKILL)}[fault]
+        target[0].send_signal(target[1])
+        try:
+            _, err = proc.communicate(timeout=30)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            _, err = proc.communicate()
+            out["hung"] = True
+        out.update(exit_code=proc.returncode, exit_s=time.time() - t_event, stderr=err.strip().splitlines()[-1:])
+        if fault == "robot_frozen":
+            vp.send_signal(signal.SIGCONT)
+        # let the log show what the base did next: braking from 0.35 m/s takes 1.2 s, after a retry period per hung stop
+        settle = time.time() + 4.0 + (RETRY_S * hang_stops if fault == "watchdog_stop_hangs" else 0.0)
+        while fault != "robot_killed" and time.time() < settle:
+            time.sleep(0.25)
+            if stop_times(vp_log, t_event)["standstill_s"] is not None:
+                time.sleep(0.5)  # and that it stays still
+                break
     if fault != "robot_killed":
         out.update(stop_times(vp_log, t_event))
+        calls = load_log(vp_log)[2]
+        out["watchdog"] = [c["line"] for c in calls if c["kind"] == "watchdog" and c["wall"] >= t_event]
+        out["stop_calls"] = sum(c.get("call") == "stopMove" for c in calls if c["wall"] >= t_event)
+        out["hung_stops"] = sum(c.get("call") == "stopMove_hung" for c in calls if c["wall"] >= t_event)
     return out
+
+
+def hang_stops_now(url: str, n: int) -> None:
+    """Make the virtual Pepper at ``url`` leave its next ``n`` stopMove calls unanswered (``--hang-stops``, from
+    now on)."""
+    from ..deploy.naoqi import IDENTITY, import_qi
+
+    session = import_qi().Session()
+    session.connect(url, _async=True).value(5000)
+    try:
+        session.service(IDENTITY, _async=True).value(5000).hangStops(n, _async=True).value(5000)
+    finally:
+        session.close()
 
 
 def _policy_exception(url: str, vp_log: Path, stale: float) -> dict[str, Any]:
@@ -446,11 +471,13 @@ def markdown(res: dict[str, Any]) -> str:
                 markdown_table(res.get("approaches", []), per)]
     faults = res.get("faults", [])
     if faults:
-        out += ["**Faults** (each injected once the base moved; times from the virtual Pepper's own log):", "",
-                "| fault | exit code | process exit (s) | stop commanded (s) | standstill (s) |",
-                "|---|---|---|---|---|"]
+        out += ["**Faults** (each injected once the base moved; times from the virtual Pepper's own log; robot time: "
+                "the simulated base's own seconds, which stand still while its process is stopped):", "",
+                "| fault | exit code | process exit (s) | stop commanded (s) | stop commanded, robot time (s) | "
+                "standstill (s) |", "|---|---|---|---|---|---|"]
         for f in faults:
-            cells = ["-" if f.get(k) is None else f"{f[k]:.2f}" for k in ("exit_s", "stop_commanded_s", "standstill_s")]
+            cells = ["-" if f.get(k) is None else f"{f[k]:.2f}"
+                     for k in ("exit_s", "stop_commanded_s", "stop_commanded_robot_s", "standstill_s")]
             out.append(f"| {f['fault']} | {f['exit_code']} | " + " | ".join(cells) + " |")
         out.append("")
     if res.get("soak"):

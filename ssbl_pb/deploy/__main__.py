@@ -2,15 +2,15 @@
 
     python -m ssbl_pb.deploy --robot-ip 192.168.1.20 --policy vector --log-dir runs/deploy1        # NAOqi 2.5
     python -m ssbl_pb.deploy --url tcps://192.168.1.20:9503 --user nao --token PASS ...           # NAOqi 2.9
-    python -m ssbl_pb.deploy --robot-ip 127.0.0.1 --port 9559 --no-watchdog --log-dir runs/vp   # the virtual Pepper
+    python -m ssbl_pb.deploy --robot-ip 127.0.0.1 --port 9559 --log-dir runs/vp               # the virtual Pepper
     python -m ssbl_pb.deploy ... --map room.yaml --start-pose 3.2 1.5 90   # paths on the map, the real walls
 
 Ends on success (joined the group), on --duration, or on a fault; the base is stopped first in every case and the
 exit code says which (0 success, 1 a bug, 2 bad input, 3 duration, 4 person too close, 5 stale frame, 6 stale
-odometry, 7 connection lost, 8 robot not responding, 130 Ctrl-C, 143 SIGTERM; docs/deploy.md). DIR gets
-log.jsonl (one line per tick), run.json, summary.json and paths.png. Start ``python -m ssbl_pb.deploy.watchdog``
-beside the robot first, so the base stops even if this process dies: deploy refuses to start without it unless
-told ``--no-watchdog``.
+odometry, 7 connection lost, 8 robot not responding, 130 Ctrl-C, 143 SIGTERM or SIGHUP; docs/deploy.md). DIR
+gets log.jsonl (one line per tick), run.json, summary.json and paths.png. Start ``python -m ssbl_pb.deploy.watchdog``
+beside the robot first, so the base stops even if this process dies: deploy refuses to start without it (the
+virtual Pepper serves one itself; ``--no-watchdog`` is accepted for the virtual Pepper only).
 """
 
 from __future__ import annotations
@@ -19,6 +19,7 @@ import argparse
 import dataclasses
 import math
 import os
+import shutil
 import signal
 import sys
 import threading
@@ -30,9 +31,8 @@ import numpy as np
 
 from ..cli import ArgumentParser, run
 from ..core.layouts import GROUP_MODELS
-from ..errors import UserError
+from ..errors import Terminated, UserError
 from ..files import check_output_path
-from .faults import EXIT_CODES
 from .log import LOG, RunLog, write_run, write_summary
 
 BASELINES = ("sffm", "straight", "random")
@@ -74,8 +74,9 @@ def _parser() -> argparse.ArgumentParser:
     ap.add_argument("--stale", type=float, default=0.5, help="stop when frame or odometry is older (s, default 0.5)")
     ap.add_argument("--continue-after-success", action="store_true", help="hold the slot until --duration")
     ap.add_argument("--no-watchdog", action="store_true",
-                    help="run without python -m ssbl_pb.deploy.watchdog beside the robot (default: refuse to start "
-                         "without it, since NAOqi keeps the base's last command if this process dies)")
+                    help="the virtual Pepper only: run without its watchdog (default: refuse a robot without the "
+                         "SSBLWatchdog service, since NAOqi keeps the base's last command if this process dies; on "
+                         "a real robot start python -m ssbl_pb.deploy.watchdog beside it)")
     ap.add_argument("--quiet", action="store_true", help="no status line")
     return ap
 
@@ -192,12 +193,19 @@ def _warm_up(policy: Any) -> None:
         policy.reset()
 
 
+def _hang_up(signum: int, frame: Any) -> None:
+    raise Terminated("SIGHUP")
+
+
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     if threading.current_thread() is threading.main_thread():
         # Ctrl-C must stop the robot even when this process inherited SIGINT ignored (started in the background
         # by a shell or a supervisor: measured, a background-started deploy kept driving through a SIGINT)
         signal.signal(signal.SIGINT, signal.default_int_handler)
+        # the ssh connection to this machine dropping stops the run, as SIGTERM, even under nohup (cli.run leaves
+        # an ignored SIGHUP ignored): a run nobody watches must not go on driving (tmux or screen outlive a drop)
+        signal.signal(signal.SIGHUP, _hang_up)
     from .naoqi import NaoqiRobot, robot_url
 
     url = robot_url(args.robot_ip, args.port, args.url)
@@ -209,19 +217,18 @@ def main(argv: list[str] | None = None) -> int:
     _warm_up(policy)
     limits = dataclasses.replace(robot_params, max_speed=params.max_speed)
     robot = NaoqiRobot(url, limits, user=args.user, token=args.token)
-    try:
-        if robot.watchdog is None:
-            if not args.no_watchdog:
-                raise UserError(f"{url}: no SSBLWatchdog service: if this process died the base would keep its last "
-                                f"command. Start python -m ssbl_pb.deploy.watchdog --robot {url} first "
-                                f"(docs/deploy.md), or pass --no-watchdog")
-            print("warning: --no-watchdog: if this process dies the base keeps its last command "
-                  "(docs/deploy.md, python -m ssbl_pb.deploy.watchdog)", file=sys.stderr)
-        folder.mkdir(parents=True, exist_ok=True)
-    except BaseException:
+    try:  # from here on every way out closes the robot (the loop closes it too; close runs once)
+        return _run(args, url, folder, robot, params, robot_params, social, task, policy, frames)
+    finally:
         robot.close()
-        raise
-    return _run(args, url, folder, robot, params, robot_params, social, task, policy, frames)
+
+
+def _new_folders(folder: Path) -> Path | None:
+    """The outermost of ``folder`` and its parents that does not exist yet (what making it would create)."""
+    top = None
+    while not folder.exists():
+        top, folder = folder, folder.parent
+    return top
 
 
 def _run(args: argparse.Namespace, url: str, folder: Path, robot: Any, params: Any, robot_params: Any, social: Any,
@@ -229,37 +236,65 @@ def _run(args: argparse.Namespace, url: str, folder: Path, robot: Any, params: A
     from ..agents.trained import policy_env_kwargs
     from ..perception.camera import PinholeCamera
     from .loop import DeployLoop, Setup, status_printer
+    from .naoqi import check_watchdog
     from .perceive import Perception
-    from .plot import draw
 
-    camera = PinholeCamera.from_yaml(args.camera_yaml) if args.camera_yaml else None
-    args.detector = detector_for(args.detector, robot)
-    perception = Perception(robot, time.monotonic, args.detector, robot_params, camera, social=social)
-    write_run(folder, {"url": url, "policy": args.policy, "groups": args.groups,
-                       "detector": args.detector, "map": args.map, "deploy": dataclasses.asdict(params),
-                       "robot": dataclasses.asdict(robot_params), "watchdog": robot.watchdog is not None,
-                       "started": time.strftime("%Y-%m-%d %H:%M:%S"), **frames.info()})
-    log = RunLog(folder)
-    seen = {} if args.policy in BASELINES else policy_env_kwargs(args.policy)
-    loop = DeployLoop(Setup(robot, policy, perception, frames, robot_params, social, task, args.groups,
-                            bool(seen.get("waypoints", False)), bool(seen.get("waypoints_near_group", False))),
-                      params, log, status=None if args.quiet else status_printer())
+    made = _new_folders(folder)
+    try:  # set-up: a failure here leaves no folder behind (and main closes the robot)
+        warning = check_watchdog(robot, url, args.no_watchdog)
+        camera = PinholeCamera.from_yaml(args.camera_yaml) if args.camera_yaml else None
+        args.detector = detector_for(args.detector, robot)
+        perception = Perception(robot, time.monotonic, args.detector, robot_params, camera, social=social)
+        seen = {} if args.policy in BASELINES else policy_env_kwargs(args.policy)
+        folder.mkdir(parents=True, exist_ok=True)
+        write_run(folder, {"url": url, "policy": args.policy, "groups": args.groups,
+                           "detector": args.detector, "map": args.map, "deploy": dataclasses.asdict(params),
+                           "robot": dataclasses.asdict(robot_params), "watchdog": robot.watchdog is not None,
+                           "started": time.strftime("%Y-%m-%d %H:%M:%S"), **frames.info()})
+        log = RunLog(folder)
+        loop = DeployLoop(Setup(robot, policy, perception, frames, robot_params, social, task, args.groups,
+                                bool(seen.get("waypoints", False)), bool(seen.get("waypoints_near_group", False))),
+                          params, log, status=None if args.quiet else status_printer())
+    except BaseException:
+        if made is not None:
+            shutil.rmtree(made, ignore_errors=True)
+        raise
+    if warning:
+        _tell(warning)
     try:
         outcome, message = loop.run()
     finally:
-        log.close()
-        code = EXIT_CODES[loop.outcome]
-        write_summary(folder, log.summary(loop.outcome, code, loop.message,
-                                          {"stop": loop.stop_note or "stopMove sent", **frames.info(),
-                                           "perception": perception.info()}))
-        if loop.outcome != "exception":
-            draw(folder)
+        _finish(folder, log, loop, frames, perception)
     stop = f"; {loop.stop_note}" if loop.stop_note else "; base stopped"
     if outcome == "success":
-        print(f"success: {message} -> {folder}")
+        _tell(f"success: {message} -> {folder}", sys.stdout)
     else:
-        print(f"stopped ({outcome}): {message}{stop} -> {folder}", file=sys.stderr)
-    return code
+        _tell(f"stopped ({outcome}): {message}{stop} -> {folder}")
+    return loop.exit_code
+
+
+def _finish(folder: Path, log: Any, loop: Any, frames: Any, perception: Any) -> None:
+    """The summary and the paths' figure, once the base is stopped; neither may change how the run ended."""
+    from .plot import draw
+
+    log.close()
+    extra = {"stop": loop.stop_note or "stopMove answered", **frames.info(), "perception": perception.info()}
+    if loop.shutdown_error:
+        extra["shutdown_error"] = loop.shutdown_error
+    write_summary(folder, log.summary(loop.outcome, loop.exit_code, loop.message, extra))
+    if loop.outcome != "exception":
+        try:
+            draw(folder)
+        except Exception as exc:  # noqa: BLE001 - a figure must not turn a fault's exit code into a bug's
+            _tell(f"warning: paths.png not drawn ({type(exc).__name__}: {exc})")
+
+
+def _tell(line: str, stream: Any = None) -> None:
+    """A report line; a terminal gone (SIGHUP: the ssh connection dropped) must not change the exit code."""
+    try:
+        print(line, file=stream or sys.stderr, flush=True)
+    except (OSError, ValueError):
+        pass
 
 
 def _run_and_exit() -> None:

@@ -4,7 +4,7 @@ the policy (with its smoothing and safety shield) -> the command clamp -> the ro
 Safety, on by default: every command clamped to ``max_speed`` here, whatever the robot; the run stops when a
 tracked person comes within ``stop_distance`` of the footprint, when the newest frame is older than ``stale_s``,
 when odometry is frozen for ``stale_s`` (its pose unchanged while its own velocity says the base moves), on any
-exception, on SIGINT/SIGTERM and on connection loss; every robot call is bounded; the base is stopped before
+exception, on SIGINT/SIGTERM/SIGHUP and on connection loss; every robot call is bounded; the base is stopped before
 the loop returns in every case, and each shutdown step runs whatever the one before it did
 (``faults.EXIT_CODES`` names how it ended). While fewer than two people are
 known the robot turns in place to find the group (``search``); the run succeeds by the task's own rule
@@ -386,8 +386,10 @@ class DeployLoop:
 
     def run(self) -> tuple[str, str]:
         """Until success, ``duration_s`` or a fault; the base is stopped on every way out. Faults return
-        (outcome, message); SIGINT/SIGTERM and exceptions propagate after the stop."""
+        (outcome, message) and keep them whatever the shutdown meets (its error, if any, in ``shutdown_error``);
+        SIGINT/SIGTERM/SIGHUP and exceptions propagate after the stop."""
         s, p = self.s, self.p
+        self.shutdown_error: str | None = None
         try:
             s.perception.start()
             self._wait_first_frame()
@@ -409,8 +411,8 @@ class DeployLoop:
                 self.sleep(max(0.0, start + k * self.period - self.now()))
         except DeployFault as fault:
             self.outcome, self.message = fault.outcome, str(fault)
-        except Terminated:
-            self.outcome, self.message = "sigterm", "SIGTERM"
+        except Terminated as sig:  # SIGTERM, or SIGHUP (the terminal or ssh connection closed): cli.run
+            self.outcome, self.message = "sigterm", str(sig.args[0]) if sig.args else "SIGTERM"
             raise
         except KeyboardInterrupt:
             self.outcome, self.message = "sigint", "SIGINT"
@@ -420,21 +422,25 @@ class DeployLoop:
             raise
         finally:
             failed = self._shutdown()
-        if failed is not None:  # the run itself ended cleanly: the shutdown's first error is the one to report
-            self.outcome, self.message = "exception", f"{type(failed).__name__}: {failed}"
+            if failed is not None:
+                self.shutdown_error = f"{type(failed).__name__}: {failed}"
+        if failed is not None and self.outcome in ("success", "duration"):
+            # the run itself ended cleanly: the shutdown's first error is the one to report; a fault keeps its own
+            self.outcome, self.message = "exception", self.shutdown_error or ""
             raise failed
         return self.outcome, self.message
 
     def _shutdown(self) -> BaseException | None:
         """Stop the base, the workers and the robot, each step whatever the one before it did (a camera left
         subscribed would refuse the next run); returns the first error that is not a ``DeployFault`` (a bug or a
-        robot error: the caller reports it unless the run already has an error of its own, which stays the one
-        reported). A ``DeployFault`` from the stop (robot gone or frozen) becomes ``stop_note``. A Ctrl-C or
-        SIGTERM meanwhile is ignored (the run is ending anyway; a second Ctrl-C must not cut the stop short)."""
+        robot error: the caller reports it only when the run has no fault or error of its own). A ``DeployFault``
+        from the stop (robot gone or frozen) becomes ``stop_note``. SIGINT, SIGTERM and SIGHUP meanwhile are
+        ignored (the run is ending anyway; a second Ctrl-C must not cut the stop short)."""
         old = {}
         if threading.current_thread() is threading.main_thread():
-            for sig in (signal.SIGINT, signal.SIGTERM):
-                old[sig] = signal.signal(sig, signal.SIG_IGN)
+            for sig in (signal.SIGINT, signal.SIGTERM, getattr(signal, "SIGHUP", None)):
+                if sig is not None:
+                    old[sig] = signal.signal(sig, signal.SIG_IGN)
         first: BaseException | None = None
         try:
             for name, step in (("stop", self.s.robot.stop), ("perception", self.s.perception.stop),

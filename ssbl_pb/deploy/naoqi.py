@@ -64,6 +64,8 @@ class NaoqiParams:
 
     connect_timeout_s: float = 3.0  # the issue allows 5 s for a clear 'unreachable' line
     call_timeout_s: float = 0.3  # odometry / move / stopMove; a frozen robot is noticed within one tick + this
+    stop_retry_s: float = 2.0  # s deploy's own stop keeps trying (each try call_timeout_s): a stall shorter than
+    #   this still gets a stop through; longer, the watchdog on the robot stops the base
     frame_timeout_s: float = 0.5  # a QVGA frame round trip (~1 ms on loopback)
     camera: int = 0  # CameraTop
     resolution: int = 1  # kQVGA 320x240
@@ -96,7 +98,9 @@ class NaoqiRobot:
         qi = import_qi()
         self.url, self.limits, self.p = url, limits or RobotParams(), params or NaoqiParams()
         self.lost = threading.Event()
-        self.unresponsive = False  # a bounded call timed out: close() tries nothing more
+        self.unresponsive = False  # a bounded call timed out (until a stop is answered): close() tries nothing more
+        self.stopped = False  # a stopMove answered since the last move
+        self.closed = False
         self.handle: str | None = None
         self.watchdog: Any = None
         self.identity: dict[str, str] | None = None  # a virtual Pepper's ``describe()``; None for a real robot
@@ -201,6 +205,7 @@ class NaoqiRobot:
 
     def send(self, cmd: np.ndarray) -> np.ndarray:
         c = clamp_command(cmd, self.limits)
+        self.stopped = False
         move = self._async(self.motion.move, float(c[0]), float(c[1]), float(c[2]), what="ALMotion.move")
         beat = self._async(self.watchdog.heartbeat, what="SSBLWatchdog.heartbeat") if self.watchdog else None
         self._call(move, "ALMotion.move")
@@ -209,7 +214,24 @@ class NaoqiRobot:
         return c
 
     def stop(self) -> None:
-        self._call(self._async(self.motion.stopMove, what="ALMotion.stopMove"), "ALMotion.stopMove")
+        """``stopMove``, tried again until one is answered or ``stop_retry_s`` has passed (each try bounded by
+        ``call_timeout_s``); raises the last try's fault, at once on a lost connection. An answered stop shows
+        the robot responsive again (``unresponsive`` cleared), so ``close`` still releases it."""
+        end = time.monotonic() + self.p.stop_retry_s
+        while True:
+            left = end - time.monotonic()
+            try:
+                self._call(self._async(self.motion.stopMove, what="ALMotion.stopMove"), "ALMotion.stopMove",
+                           min(self.p.call_timeout_s, max(left, 0.05)))
+            except ConnectionLost:
+                raise
+            except (RobotNotResponding, RuntimeError):
+                if time.monotonic() >= end:
+                    raise
+                time.sleep(0.02)  # an error may answer at once: no spinning
+                continue
+            self.stopped, self.unresponsive = True, False
+            return
 
     def events(self) -> list[dict[str, Any]]:
         """ALMotion/MoveFailed events since the last call (collision protection refusing or stopping a move)."""
@@ -217,12 +239,17 @@ class NaoqiRobot:
         return out
 
     def close(self) -> None:
-        """Stop, disarm the watchdog, release the camera and disconnect; never raises (best effort: after a lost
-        connection or a call that timed out nothing more is tried, so a frozen robot costs one timeout). The
-        watchdog is disarmed only once a stop is confirmed: otherwise it stays armed and stops the base itself
+        """Stop (unless a stop was answered since the last move), disarm the watchdog, release the camera and
+        disconnect; never raises, and runs once. Best effort: after a lost connection, or a call that timed out
+        with no stop answered since, nothing more is tried, so a frozen robot costs no further timeout. The
+        watchdog is disarmed only once a stop was answered: otherwise it stays armed and stops the base itself
         when the heartbeats stay away."""
-        stopped = self._attempt(self.stop)
-        if self.watchdog is not None and stopped:
+        if self.closed:
+            return
+        self.closed = True
+        if not self.stopped:
+            self._attempt(self.stop)
+        if self.watchdog is not None and self.stopped:
             self._attempt(lambda: self._call(self._async(self.watchdog.disarm, what="disarm"), "SSBLWatchdog.disarm"))
         if self.handle is not None:
             handle, self.handle = self.handle, None
@@ -246,3 +273,20 @@ class NaoqiRobot:
         except (RuntimeError, ConnectionLost, AttributeError):
             pass
         return False
+
+
+def check_watchdog(robot: NaoqiRobot, url: str, no_watchdog: bool) -> str | None:
+    """Refuse a run whose base nothing would stop if deploy died: a robot without the ``SSBLWatchdog`` service,
+    unless ``--no-watchdog`` and the robot is the virtual Pepper (its ``SSBLVirtualPepper`` identity); the flag
+    is refused for any other robot. Returns the warning to print when running without a watchdog."""
+    virtual = robot.identity is not None
+    start = f"start python -m ssbl_pb.deploy.watchdog --robot {url} beside it (docs/deploy.md)"
+    if no_watchdog and not virtual:
+        raise UserError(f"--no-watchdog: {url} is not the virtual Pepper, and if deploy died a real base would keep "
+                        f"its last command: {start} and drop --no-watchdog")
+    if robot.watchdog is None and not no_watchdog:
+        raise UserError(f"{url}: no SSBLWatchdog service: if this process died the base would keep its last command; "
+                        + (f"{start}, or (a virtual Pepper) pass --no-watchdog" if virtual else start))
+    if robot.watchdog is None:
+        return "warning: --no-watchdog: if this process dies the virtual base keeps its last command"
+    return None

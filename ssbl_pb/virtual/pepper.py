@@ -1,7 +1,7 @@
 """A virtual Pepper: ALMotion and ALVideoDevice served over libqi, backed by the simulated world (``SimRobot``).
 
     python -m ssbl_pb.virtual --listen tcp://127.0.0.1:9559 --seed 3 --log vp.jsonl
-    python -m ssbl_pb.deploy --robot-ip 127.0.0.1 --port 9559 --no-watchdog --log-dir runs/deploy1   # as it prints
+    python -m ssbl_pb.deploy --robot-ip 127.0.0.1 --port 9559 --log-dir runs/deploy1   # as it prints
 
 The group moves by the social force model; frames are TinyRenderer renders from CameraTop. Like a real Pepper
 it keeps executing the last ``move`` until told otherwise and clamps commands to its limits. It binds loopback
@@ -9,7 +9,10 @@ addresses only unless ``--allow-remote``. Port 0 picks a free port; the first st
 ``listening on URL``; a later line ``deploy: python -m ssbl_pb.deploy ...`` is the command that fits it. It
 identifies itself over qi (an ``SSBLVirtualPepper`` service), so deploy's ``--detector auto`` picks MoveNet for
 its people (``--appearance body``, the default) or the colour detector for box proxies (``--appearance proxy``).
-``--write-map DIR`` writes the room as a map with the flags deploy needs to use it.
+Like a Pepper on which the user started ``deploy.watchdog`` (docs/deploy.md), it serves the ``SSBLWatchdog``
+service (the same ``Watchdog``, on its own session, ticking in a thread; its lines go to the log and stderr), so a
+killed deploy leaves its base stopped; ``--no-watchdog`` serves none (deploy then refuses it unless told
+``--no-watchdog`` too). ``--write-map DIR`` writes the room as a map with the flags deploy needs to use it.
 ``--log`` (JSONL, flushed per line) records every simulation step: time, commanded and actual velocity,
 room-frame pose, odometry pose, the members, the free slot and the clearance, so tests can see when the base
 really stopped. ``--security-distance`` imitates NAOqi's collision protection (a move toward a person closer
@@ -17,7 +20,8 @@ than that is stopped and ``ALMotion/MoveFailed`` raised through ALMemory). Fault
 freezes the camera (frames keep their last time stamp; again to thaw), SIGUSR2 freezes odometry
 (``getRobotPosition``/``getRobotVelocity`` keep answering their last values while the base moves on; again to thaw),
 and ``--hang-stops N`` leaves the first N ``stopMove`` calls unanswered for 2 s, doing nothing (a lost call).
-ALMotion serves calls concurrently, as NAOqi's does, so a hanging call does not hold up the next one.
+ALMotion serves calls concurrently, as NAOqi's does, and a hung call holds no thread (its answer is a future
+set later): libqi's pool has about three threads here, so three sleeping calls held up every other call.
 qi 3.1.5 facts this relies on: a service is hosted with ``Session().listenStandalone(url)`` and
 ``registerService``; every public method is exported (helpers carry ``@qi.nobind``); image bytes must be
 declared (``@qi.bind("(iiiiiiriffff)", ...)``) or they arrive as their text repr.
@@ -28,6 +32,7 @@ from __future__ import annotations
 import json
 import math
 import signal
+import sys
 import threading
 import time
 from pathlib import Path
@@ -40,6 +45,7 @@ from ..cli import ArgumentParser, float_in, int_at_least, run
 from ..core.layouts import GROUP_MODELS
 from ..deploy.naoqi import BGR, IDENTITY, RESOLUTIONS, RGB, import_qi
 from ..deploy.robot import Frame, compose, relative
+from ..deploy.watchdog import host as host_watchdog
 from ..errors import UserError
 from ..files import check_output_path
 from ..params import APPEARANCES, HumansLook, WorldParams
@@ -163,6 +169,15 @@ class VirtualPepper:
             with self._log_lock:
                 self._log.write(json.dumps(row) + "\n")
 
+    def watchdog_line(self, line: str) -> None:
+        """A line of the hosted watchdog: a ``kind: watchdog`` log row, and stderr (never blocking the watchdog
+        on a full pipe: whoever starts the virtual Pepper reads its stdout only up to the deploy line)."""
+        self.write({"kind": "watchdog", "wall": time.time(), "t": self.robot.t, "line": line})
+        try:
+            print(f"watchdog: {line}", file=sys.stderr, flush=True)
+        except (OSError, ValueError):
+            pass
+
     def step_row(self) -> None:
         self.write(state_row(self.robot, time.time()))
 
@@ -262,12 +277,13 @@ def make_services(vp: VirtualPepper) -> tuple[Any, Any, Any]:
             vp._refused = False
             robot.send(np.array([x, y, theta], dtype=float))
 
-        def stopMove(self) -> None:
-            if vp.hang_stops > 0:  # a lost call: answered late, nothing done
+        def stopMove(self) -> Any:
+            if vp.hang_stops > 0:  # a lost call: answered late, nothing done (a future: no thread held)
                 vp.hang_stops -= 1
                 vp.write({"kind": "call", "wall": time.time(), "t": robot.t, "call": "stopMove_hung"})
-                time.sleep(HANG_S)
-                return
+                late = qi.Promise()
+                threading.Timer(HANG_S, late.setValue, (None,)).start()
+                return late.future()
             robot.stop()
             vp.write({"kind": "call", "wall": time.time(), "t": robot.t, "call": "stopMove"})
 
@@ -338,19 +354,29 @@ def make_services(vp: VirtualPepper) -> tuple[Any, Any, Any]:
 
 
 class Identity:
-    """``SSBLVirtualPepper``: what deploy needs to know of this robot (``describe``)."""
+    """``SSBLVirtualPepper``: what deploy needs to know of this robot (``describe``), and its fault switch for
+    harnesses (``hangStops``: ``--hang-stops`` armed at a chosen moment)."""
 
-    def __init__(self, facts: dict[str, str]) -> None:
-        self.facts = facts
+    def __init__(self, facts: dict[str, str], vp: VirtualPepper | None = None) -> None:
+        self.facts, self._vp = facts, vp
 
     def describe(self) -> dict[str, str]:
         return dict(self.facts)
 
+    def hangStops(self, n: int) -> None:  # noqa: N802 - a qi method, NAOqi's style
+        """Leave the next ``n`` stopMove calls unanswered for ``HANG_S``, doing nothing."""
+        if self._vp is not None:
+            self._vp.hang_stops = int(n)
+            self._vp.write({"kind": "call", "wall": time.time(), "t": self._vp.robot.t, "call": "hangStops", "n": n})
 
-def deploy_command(url: str, groups: str | None = None, on_map: tuple[Path, np.ndarray] | None = None) -> str:
-    """The deploy command line that fits a virtual Pepper listening on ``url``."""
-    host, _, port = url.removeprefix("tcp://").rpartition(":")
-    cmd = f"python -m ssbl_pb.deploy --robot-ip {host} --port {port} --no-watchdog"  # a simulated base
+
+def deploy_command(url: str, groups: str | None = None, on_map: tuple[Path, np.ndarray] | None = None,
+                   watchdog: bool = True) -> str:
+    """The deploy command line that fits a virtual Pepper listening on ``url`` (``watchdog``: it serves one)."""
+    address, _, port = url.removeprefix("tcp://").rpartition(":")
+    cmd = f"python -m ssbl_pb.deploy --robot-ip {address} --port {port}"
+    if not watchdog:
+        cmd += " --no-watchdog"
     if groups is not None:
         cmd += f" --groups {groups}"
     if on_map is not None:
@@ -379,6 +405,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--appearance", choices=APPEARANCES, default="body", help="how the people look: body (made "
                     "from a body model; deploy's --detector auto then picks movenet; default) or proxy (boxes for "
                     "the colour detector)")
+    ap.add_argument("--no-watchdog", action="store_true", help="serve no SSBLWatchdog (a robot on which the "
+                    "watchdog was not started: deploy refuses it unless given --no-watchdog)")
     ap.add_argument("--write-map", type=Path, metavar="DIR", help="write the room as a map (DIR/room.yaml for "
                     "deploy's --map) and print the robot's --start-pose on it")
     args = ap.parse_args(argv)
@@ -411,7 +439,8 @@ def main(argv: list[str] | None = None) -> int:
     for name, service in zip(("ALMotion", "ALVideoDevice", "ALMemory"), make_services(vp), strict=True):
         session.registerService(name, service)
     session.registerService(IDENTITY, Identity({"detector": DETECTOR[args.appearance], "scenario": args.scenario,
-                                                "seed": str(args.seed), "groups": groups}))
+                                                "seed": str(args.seed), "groups": groups}, vp))
+    watching = None if args.no_watchdog else host_watchdog(session, say=vp.watchdog_line)[1]
     signal.signal(signal.SIGUSR1, lambda *_: setattr(vp, "frozen", not vp.frozen))
     signal.signal(signal.SIGUSR2, lambda *_: vp.toggle_odometry_freeze())
     x, y, yaw = robot.start_pose
@@ -422,7 +451,7 @@ def main(argv: list[str] | None = None) -> int:
     if on_map is not None:
         (mx, my, myaw) = on_map[1]
         print(f"map: --map {on_map[0]} --start-pose {mx:.3f} {my:.3f} {math.degrees(myaw):.2f}", flush=True)
-    print(f"deploy: {deploy_command(endpoint, args.groups, on_map)}", flush=True)
+    print(f"deploy: {deploy_command(endpoint, args.groups, on_map, watching is not None)}", flush=True)
     stop = threading.Event()
     if args.duration > 0:
         threading.Timer(args.duration, stop.set).start()
@@ -430,6 +459,8 @@ def main(argv: list[str] | None = None) -> int:
         vp.run(stop)
     finally:
         stop.set()
+        if watching is not None:
+            watching.set()
         session.close()
         vp.close()
     return 0
