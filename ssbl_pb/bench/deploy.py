@@ -54,9 +54,11 @@ def _first_line(proc: subprocess.Popen, timeout: float) -> str:
 @contextlib.contextmanager
 def virtual_pepper(log: Path, seed: int = 0, scenario: str = "default", *extra: str
                    ) -> Iterator[tuple[subprocess.Popen, str]]:
-    """A virtual Pepper on a free loopback port: (process, url); terminated (and continued, if stopped) on exit."""
+    """A virtual Pepper on a free loopback port: (process, url); terminated (and continued, if stopped) on exit.
+    Its people are box proxies (the colour detector's chain) unless ``extra`` says ``--appearance body``."""
+    look = () if "--appearance" in extra else ("--appearance", "proxy")
     proc = subprocess.Popen(_module("ssbl_pb.virtual", "--listen", "tcp://127.0.0.1:0", "--seed",
-                                    str(seed), "--scenario", scenario, "--log", str(log), *extra),
+                                    str(seed), "--scenario", scenario, "--log", str(log), *look, *extra),
                             stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
     try:  # (stdin /dev/null: with a job-control shell's stdin it was seen not to step at all)
         url = _first_line(proc, 60.0).split()[-1]
