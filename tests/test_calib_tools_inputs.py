@@ -1,4 +1,4 @@
-"""Issue 39's probe of the calibration, Table I and sweep tools, run in this process: side outputs checked before
+"""The calibration, Table I and sweep tools' inputs, run in this process: side outputs checked before
 any work, tools that exit 2 say nothing else first, interrupted tools stop their workers, success intervals stay
 within 0-100 %."""
 

@@ -1,4 +1,4 @@
-"""Issue 39's review fixes: the configured task's intimate zone in spawning and in the SFFM baseline, the SFFM's
+"""The configured task's intimate zone in spawning and in the SFFM baseline, the SFFM's
 robot radius from the given robot, and ``WorldParams``' group fields refused however they are given."""
 
 import math
