@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 from scipy import stats
 
+from ..agents.metrics import METRICS
 from ..files import write_json, write_text
 
 __all__ = ["mean_ci", "proportion_ci", "wilson_interval", "summarize", "write_csv", "write_json", "plot_paths"]
@@ -64,8 +65,6 @@ def proportion_ci(values: Sequence[float], per_value: int = 1, level: float = 0.
 def summarize(rows: list[dict[str, float]], extra: dict[str, Any] | None = None) -> dict[str, Any]:
     """Mean and 95 % CI of every metric (Wilson for the 0/1 ones: success, collision, ...; Student t for the
     others); the headline keys (``success_rate``, ...) hold the means."""
-    from ..agents.metrics import METRICS
-
     keys = [k for k in rows[0] if k != "seed"]
     per = {k: (proportion_ci if METRICS.get(k, ("",))[0] == "0/1" else mean_ci)([r[k] for r in rows]) for k in keys}
     out: dict[str, Any] = dict(extra or {})
