@@ -34,10 +34,12 @@ import numpy as np
 
 from ..agents.rollout import run_episode
 from ..core.observation import MAX_MEMBERS, VEL_FORWARD, VEL_LEFT
+from ..env.gymenv.approach import make_env
 from ..errors import UserError
 from ..files import atomic_write
 from ..params import RobotParams
 from ..perception.camera import sim_camera
+from .evaluation import build_policy
 
 KEYS = {"frames": 4, "episode": 1, "speed": 2, "members_rel": 3, "members_px": 3, "policy": 1, "policies": 1}
 DEFAULT_POLICIES = ("random", "sffm", "straight", "vector")
@@ -73,8 +75,6 @@ def collect(episodes: int, size: int, seed: int = 0, policies: tuple[str, ...] =
             camera_hfov_deg: float | None = None) -> dict[str, np.ndarray]:
     """Run ``episodes`` episodes (seeds ``seed``, ``seed + 1``, ...; episode i driven by ``policies[i % P]``),
     seen through Pepper's camera or, with ``camera_hfov_deg``, one of that field of view."""
-    from ..env.gymenv.approach import make_env  # lazy: pybullet, for collecting only (train_ae reads frames)
-    from .evaluation import build_policy  # lazy: scipy.stats and pybullet, for collecting only
 
     if not isinstance(episodes, int) or episodes < 1:
         raise FramesError(f"--episodes {episodes!r}: expected an integer >= 1")

@@ -10,7 +10,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy import stats
 
 from ..agents.metrics import METRICS
 from ..files import write_json, write_text
@@ -30,6 +29,8 @@ def mean_ci(values: Sequence[float], level: float = 0.95) -> dict[str, float]:
     m = float(v.mean())
     if n == 1 or np.all(v == v[0]):
         return {"mean": m, "ci_low": m, "ci_high": m, "n": n}
+    from scipy import stats  # heavy: scipy.stats (~0.5 s), kept out of the evaluation's import
+
     half = float(stats.t.ppf(0.5 + level / 2, n - 1) * v.std(ddof=1) / math.sqrt(n))
     return {"mean": m, "ci_low": m - half, "ci_high": m + half, "n": n}
 
@@ -37,6 +38,8 @@ def mean_ci(values: Sequence[float], level: float = 0.95) -> dict[str, float]:
 def wilson_interval(p: float, n: float, level: float = 0.95) -> tuple[float, float]:
     """Wilson score interval of a proportion ``p`` seen over ``n`` trials (``n`` may be an effective, fractional
     count); unlike mean +- t * SE it stays inside [0, 1] and is not empty at 0 or 1 successes."""
+    from scipy import stats  # heavy: as above
+
     z = float(stats.norm.ppf(0.5 + level / 2))
     denom = 1.0 + z * z / n
     centre = (p + z * z / (2 * n)) / denom
@@ -56,6 +59,8 @@ def proportion_ci(values: Sequence[float], per_value: int = 1, level: float = 0.
     p = float(np.clip(v.mean(), 0.0, 1.0))
     count = float(n * max(1, per_value))
     if per_value > 1 and n > 1 and v.var(ddof=1) > 0 and 0 < p < 1:
+        from scipy import stats  # heavy: as above
+
         t, z = stats.t.ppf(0.5 + level / 2, n - 1), stats.norm.ppf(0.5 + level / 2)
         count = min(count, float(p * (1 - p) / (v.var(ddof=1) / n) * (z / t) ** 2))
     low, high = wilson_interval(p, count, level)
