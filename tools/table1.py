@@ -30,7 +30,7 @@ from ssbl_pb.sweep.cli import add_run_options
 
 
 def main(argv: list[str] | None = None) -> int:
-    from ssbl_pb.analysis.table1 import BUDGETS, ROWS, TABLE_CAMERA_HFOV, TABLE_FEATURE_SMOOTHING
+    from ssbl_pb.analysis.table1_rows import BUDGETS, ROWS, TABLE_CAMERA_HFOV, TABLE_FEATURE_SMOOTHING
 
     ap = ArgumentParser(description=__doc__)
     ap.add_argument("--budget", required=True, help=f"one of {', '.join(BUDGETS)}")

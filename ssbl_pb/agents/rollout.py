@@ -18,7 +18,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from ..cli import children_ignore_sigint
+from ..cli import children_ignore_sigint, die_with_parent
 from ..core.reward import TERMS
 from .metrics import episode_metrics
 from .policies import Policy
@@ -130,8 +130,6 @@ def _init_worker(make: Callable[[], tuple[gym.Env, Policy]], parent: int | None 
     parent's to handle: it shuts the pool down, the workers print no tracebacks) and dies with its parent, even
     a SIGKILLed one (``cli.die_with_parent``: no worker of ~600 MB left running)."""
     if parent is not None:
-        from ..cli import die_with_parent
-
         signal.signal(signal.SIGINT, signal.SIG_IGN)
         die_with_parent(parent)
     _WORKER["env"], _WORKER["policy"] = make()

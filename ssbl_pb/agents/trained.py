@@ -12,11 +12,16 @@ import gymnasium as gym
 import numpy as np
 import yaml
 
+from ..core.layouts import GroupModel as EnvGroups
 from ..core.observation import BASE_SIZE, OBS_SIZE
+from ..core.shield import ShieldParams
+from ..core.task import TaskParams
+from ..env.gymenv.wrappers import ActionStages
 from ..errors import UserError
-from ..params import parse_yaml
-from ..policies import SHIPPED
-from .policies import Policy
+from ..files import copy_file, write_text
+from ..params import RobotParams, SocialParams, parse_yaml
+from ..policies import SHIPPED, SHIPPED_ENCODERS
+from .policies import BASELINES, Policy
 
 MODEL_FILES = ("model.zip", "best/model.zip")  # a run directory: its final model, else its best one
 STEP_STAMP = "ssbl_step"  # the model's step, recorded in the normalisation saved with it (training.callbacks)
@@ -127,8 +132,6 @@ def policy_env_kwargs(spec: str) -> dict[str, Any]:
     ``OBSERVATION_KEYS``: the waypoints in furnished rooms); for a model on a frozen autoencoder (config
     ``encoder`` conv / saev), its camera mode, image size, features' low-pass and encoder checkpoint (looked up
     beside the model, then beside its run directory, then as written); ``{}`` for a baseline."""
-    from .policies import BASELINES
-
     if spec in BASELINES:
         return {}
     model, _, config = resolve_model(spec)
@@ -138,8 +141,6 @@ def policy_env_kwargs(spec: str) -> dict[str, Any]:
         return seen
     name = config.get("encoder_checkpoint") or ""
     if not name:
-        from ..policies import SHIPPED_ENCODERS
-
         name = str(SHIPPED_ENCODERS.get(config["encoder"], ""))
     found = [p for p in (model.parent / name, model.parent.parent / name, Path(name)) if name and p.is_file()]
     if not found:
@@ -156,8 +157,6 @@ def copy_policy(spec: str, dest: Path) -> list[str]:
     """Copy what a trained policy needs into the folder ``dest`` (``model.zip``, ``vecnormalize.pkl``,
     ``config.yaml`` and, for a policy on a frozen autoencoder, its checkpoint as ``encoder.pt`` with the config
     pointing there), so that ``dest`` works as a policy by itself; returns the file names written."""
-    from ..files import copy_file, write_text
-
     model, norm, config = resolve_model(spec)
     if norm is None:
         raise ModelError(f"{model.parent}: no vecnormalize.pkl beside the model")
@@ -179,9 +178,6 @@ class TrainedPolicy(Policy):
         """``smoothing`` and ``shield`` are the agent's action stages as in training (config ``action_smoothing``,
         ``safety_shield``); the shield needs Vector observations and uses ``shield_params`` (a ``ShieldParams``;
         default: Pepper's default limits)."""
-        from ..core.shield import ShieldParams
-        from ..env.gymenv.wrappers import ActionStages
-
         self.model = model
         self.normalizer = normalizer
         self.recurrent = recurrent
@@ -234,8 +230,6 @@ def _compatible(model_space: gym.Space, env_space: gym.Space) -> bool:
 def shield_at_place(spec: str) -> bool:
     """Whether a trained model's shield keeps its place's clearance and slows its arrival near the place (config
     ``shield_at_place``, ``ShieldParams.from_env``; off for models trained before it and for baselines)."""
-    from .policies import BASELINES
-
     return spec not in BASELINES and bool(resolve_model(spec)[2].get("shield_at_place", False))
 
 
@@ -273,10 +267,6 @@ def load_trained(spec: str, observation_space: gym.Space | None = None, shield: 
     if shield is None:
         shield = bool(config.get("safety_shield", False)) and config.get("obs_mode", "vector") == "vector"
     if shield and shield_params is None:
-        from ..core.shield import ShieldParams
-        from ..core.task import TaskParams
-        from ..params import RobotParams, SocialParams
-
         shield_params = ShieldParams.from_env(RobotParams(), SocialParams(), TaskParams(), shield_at_place(spec))
     return TrainedPolicy(model, normalizer, recurrent, float(config.get("action_smoothing", 1.0)), shield,
                          shield_params)
@@ -285,9 +275,6 @@ def load_trained(spec: str, observation_space: gym.Space | None = None, shield: 
 def policy_groups(spec: str) -> str:
     """The group model (``core.layouts.GROUP_MODELS``) the policy ``spec`` was trained on: its run config's
     ``env.groups``; a baseline, or a config without one, the env's default."""
-    from ..core.layouts import GroupModel as EnvGroups
-    from .policies import BASELINES
-
     if spec in BASELINES:
         return EnvGroups().name
     env = resolve_model(spec)[2].get("env") or {}

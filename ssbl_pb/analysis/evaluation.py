@@ -12,6 +12,8 @@ import gymnasium as gym
 
 from ..agents.policies import BASELINES, Policy, make_policy
 from ..agents.rollout import EpisodeResult, run_episodes
+from ..agents.trained import load_trained, policy_env_kwargs, shield_at_place
+from ..core.shield import ShieldParams
 from ..env.gymenv.approach import make_env
 from ..errors import UserError
 from ..files import check_output_path, make_stage_dir, output_dir
@@ -31,8 +33,6 @@ class Setup:
     shield: bool | None = None  # a trained policy's safety shield: None = as trained, else forced on/off
 
     def __call__(self) -> tuple[gym.Env, Policy]:
-        from ..agents.trained import policy_env_kwargs
-
         # a policy on a frozen autoencoder brings its camera mode and encoder (env.gymenv.encoded)
         kwargs = {"obs_mode": self.obs_mode, **dict(self.env_kwargs), **policy_env_kwargs(self.policy)}
         env = make_env(scenario=self.scenario, **kwargs)
@@ -47,9 +47,6 @@ def build_policy(spec: str, env: gym.Env, shield: bool | None = None) -> Policy:
         if spec != "random" and env.observation_space != core.observation_space:
             raise UserError(f"policy '{spec}' reads the vector observation; use --obs-mode vector")
         return make_policy(spec, core.robot_params, core.social, seed=0)
-    from ..agents.trained import load_trained, shield_at_place
-    from ..core.shield import ShieldParams
-
     # the shield brakes within this env's (possibly calibrated) robot limits, as the model was trained
     return load_trained(spec, env.observation_space, shield, ShieldParams.from_env(core.robot_params, core.social,
                                                                                    core.task, shield_at_place(spec)))

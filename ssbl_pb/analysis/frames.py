@@ -32,9 +32,14 @@ from pathlib import Path
 
 import numpy as np
 
+from ..agents.rollout import run_episode
 from ..core.observation import MAX_MEMBERS, VEL_FORWARD, VEL_LEFT
+from ..env.gymenv.approach import make_env
 from ..errors import UserError
 from ..files import atomic_write
+from ..params import RobotParams
+from ..perception.camera import sim_camera
+from .evaluation import build_policy
 
 KEYS = {"frames": 4, "episode": 1, "speed": 2, "members_rel": 3, "members_px": 3, "policy": 1, "policies": 1}
 DEFAULT_POLICIES = ("random", "sffm", "straight", "vector")
@@ -70,10 +75,6 @@ def collect(episodes: int, size: int, seed: int = 0, policies: tuple[str, ...] =
             camera_hfov_deg: float | None = None) -> dict[str, np.ndarray]:
     """Run ``episodes`` episodes (seeds ``seed``, ``seed + 1``, ...; episode i driven by ``policies[i % P]``),
     seen through Pepper's camera or, with ``camera_hfov_deg``, one of that field of view."""
-    from ..agents.rollout import run_episode
-    from ..env.gymenv.approach import make_env
-    from ..perception.camera import sim_camera
-    from .evaluation import build_policy
 
     if not isinstance(episodes, int) or episodes < 1:
         raise FramesError(f"--episodes {episodes!r}: expected an integer >= 1")
@@ -173,6 +174,4 @@ def check_hfov(deg: float | None, flag: str = "--camera-hfov") -> None:
 
 def frames_hfov(data: dict[str, np.ndarray]) -> float:
     """The field of view (degrees) the frames were seen through; Pepper's for files without the key."""
-    from ..params import RobotParams
-
     return float(data["camera_hfov"]) if "camera_hfov" in data else RobotParams().camera_hfov_deg

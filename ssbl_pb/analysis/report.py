@@ -10,8 +10,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy import stats
 
+from ..agents.metrics import METRICS
 from ..files import write_json, write_text
 
 __all__ = ["mean_ci", "proportion_ci", "wilson_interval", "summarize", "write_csv", "write_json", "plot_paths"]
@@ -29,6 +29,8 @@ def mean_ci(values: Sequence[float], level: float = 0.95) -> dict[str, float]:
     m = float(v.mean())
     if n == 1 or np.all(v == v[0]):
         return {"mean": m, "ci_low": m, "ci_high": m, "n": n}
+    from scipy import stats  # heavy: scipy.stats (~0.5 s), kept out of the evaluation's import
+
     half = float(stats.t.ppf(0.5 + level / 2, n - 1) * v.std(ddof=1) / math.sqrt(n))
     return {"mean": m, "ci_low": m - half, "ci_high": m + half, "n": n}
 
@@ -36,6 +38,8 @@ def mean_ci(values: Sequence[float], level: float = 0.95) -> dict[str, float]:
 def wilson_interval(p: float, n: float, level: float = 0.95) -> tuple[float, float]:
     """Wilson score interval of a proportion ``p`` seen over ``n`` trials (``n`` may be an effective, fractional
     count); unlike mean +- t * SE it stays inside [0, 1] and is not empty at 0 or 1 successes."""
+    from scipy import stats  # heavy: as above
+
     z = float(stats.norm.ppf(0.5 + level / 2))
     denom = 1.0 + z * z / n
     centre = (p + z * z / (2 * n)) / denom
@@ -55,6 +59,8 @@ def proportion_ci(values: Sequence[float], per_value: int = 1, level: float = 0.
     p = float(np.clip(v.mean(), 0.0, 1.0))
     count = float(n * max(1, per_value))
     if per_value > 1 and n > 1 and v.var(ddof=1) > 0 and 0 < p < 1:
+        from scipy import stats  # heavy: as above
+
         t, z = stats.t.ppf(0.5 + level / 2, n - 1), stats.norm.ppf(0.5 + level / 2)
         count = min(count, float(p * (1 - p) / (v.var(ddof=1) / n) * (z / t) ** 2))
     low, high = wilson_interval(p, count, level)
@@ -64,8 +70,6 @@ def proportion_ci(values: Sequence[float], per_value: int = 1, level: float = 0.
 def summarize(rows: list[dict[str, float]], extra: dict[str, Any] | None = None) -> dict[str, Any]:
     """Mean and 95 % CI of every metric (Wilson for the 0/1 ones: success, collision, ...; Student t for the
     others); the headline keys (``success_rate``, ...) hold the means."""
-    from ..agents.metrics import METRICS
-
     keys = [k for k in rows[0] if k != "seed"]
     per = {k: (proportion_ci if METRICS.get(k, ("",))[0] == "0/1" else mean_ci)([r[k] for r in rows]) for k in keys}
     out: dict[str, Any] = dict(extra or {})

@@ -25,78 +25,26 @@ import csv
 import dataclasses
 import hashlib
 import json
-import re
 import time
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from ..agents.rollout import run_episodes
+from ..env.gymenv.encoded import encoder_hfov
 from ..errors import UserError
+from ..params import load_yaml
+from ..perception.autoencoding.ae_train import AETrainParams, CheckpointError, checkpoint_info, train_autoencoder
+from ..perception.autoencoding.autoencoders import SIZES
+from ..training.config import TrainConfig, load_config
+from ..training.run import train
+from .ae_report import write_report
+from .evaluation import Setup
+from .frames import collect, load_frames, save_frames
+from .table1_rows import BASELINE, BUDGETS, ROWS, Budget, Row
 
-# The table's camera: the original's Unity camera (shared/reference/peppersocial.md "Camera": 96x96, 26.5 deg),
-# not Pepper's 56.3 deg one; through it the table comes closest to the paper's ordering (docs/decisions.md,
-# "The camera's field of view").
-TABLE_CAMERA_HFOV = 26.5
-# The camera rows' low-pass of the encoded features (env/gymenv/encoded.py; docs/decisions.md, "A low-pass on the
-# encoded features"): not in the paper; with it the table holds more of the paper's ordering (docs/benchmarks.md, "Table
-# I with the features low-passed").
-TABLE_FEATURE_SMOOTHING = 0.3
 BENCH_SEED = 500_000  # held-out evaluation seeds (docs/decisions.md, "Training")
-
-
-@dataclasses.dataclass(frozen=True)
-class Row:
-    label: str  # as the paper labels it
-    obs_mode: str  # vector | camera | camera_speed | random
-    encoder: str  # none | conv | saev
-    policy: str  # ff | lstm
-    paper_reward: float | None = None  # Table I (None: a row the paper did not report)
-    paper_percent: float | None = None
-
-    @property
-    def slug(self) -> str:
-        return re.sub(r"[^a-z0-9]+", "_", self.label.lower()).strip("_")
-
-
-ROWS = (
-    Row("Vector + LSTM", "vector", "none", "lstm", -0.256, 100.0),
-    Row("CameraOnly + SAEV + FF", "camera", "saev", "ff", -0.869, 57.06),
-    Row("CameraOnly + SAEV + LSTM", "camera", "saev", "lstm", -0.804, 61.63),
-    Row("CameraOnly + conv + FF", "camera", "conv", "ff", -0.810, 61.18),
-    Row("CameraOnly + conv + LSTM", "camera", "conv", "lstm", -1.091, 41.51),
-    Row("CameraSpeed + SAEV + LSTM", "camera_speed", "saev", "lstm", -0.544, 79.80),
-    Row("CameraSpeed + conv + LSTM", "camera_speed", "conv", "lstm", -0.709, 68.22),
-    Row("Random policy", "random", "none", "ff", -1.684, 0.0),
-    Row("Vector + FF", "vector", "none", "ff"),
-    Row("CameraSpeed + SAEV + FF", "camera_speed", "saev", "ff"),
-)
-BASELINE, RANDOM = ROWS[0], ROWS[7]
-
-
-@dataclasses.dataclass(frozen=True)
-class Budget:
-    """How much each stage gets. ``full`` targets 3 h for one seed on 2 cores (docs/benchmarks.md)."""
-
-    name: str
-    frames_episodes: int
-    ae_steps: int
-    vector_steps: int
-    camera_steps: int
-    n_envs: int
-    n_steps: int  # PPO rollout per env
-    eval_every: int
-    eval_episodes: int  # during training (choosing the best model)
-    test_episodes: int  # held-out evaluation of the best model
-    smoothing: float = 0.9  # EMA weight on the past for the smoothed training reward
-
-
-BUDGETS = {
-    "smoke": Budget("smoke", 2, 2, 1024, 1024, 2, 64, 10 ** 9, 1, 1),  # the final models, no evaluations
-    # what fitted in the session that built this, on 2 cores shared with other jobs (docs/benchmarks.md)
-    "medium": Budget("medium", 120, 2000, 150_000, 60_000, 8, 256, 10_000, 10, 50),
-    "full": Budget("full", 120, 2000, 300_000, 200_000, 8, 256, 20_000, 20, 100),
-}
 
 
 def get_budget(name: str) -> Budget:
@@ -133,9 +81,6 @@ def percent(value: float, random: float, baseline: float) -> float:
 def check_given_encoders(given: dict[str, str | None], camera_hfov_deg: float | None = None) -> None:
     """Refuse, naming the flag (``--saev`` / ``--conv``), a given checkpoint that is missing, unreadable, of
     another architecture or learned through another camera than ``camera_hfov_deg``: before any output exists."""
-    from ..env.gymenv.encoded import encoder_hfov
-    from ..perception.autoencoding.ae_train import CheckpointError, checkpoint_info
-
     for arch, path in given.items():
         if not path:
             continue
@@ -168,12 +113,6 @@ def prepare_encoders(budget: Budget, out: Path, archs: set[str], given: dict[str
     ``out/ae/ARCH`` (frames in ``out/frames.npz``, seen through a camera of ``camera_hfov_deg``, default
     Pepper's), reusing what an earlier run of the table left there. An encoder that learned through another
     camera than ``camera_hfov_deg`` (when given) is refused."""
-    from ..env.gymenv.encoded import encoder_hfov
-    from ..perception.autoencoding.ae_train import AETrainParams, train_autoencoder
-    from ..perception.autoencoding.autoencoders import SIZES
-    from .ae_report import write_report
-    from .frames import collect, load_frames, save_frames
-
     paths: dict[str, str] = {}
     frames_file = out / "frames.npz"
     for arch in sorted(archs):
@@ -200,8 +139,6 @@ def prepare_encoders(budget: Budget, out: Path, archs: set[str], given: dict[str
 # -- stage 2: one row ----------------------------------------------------------------------------------------
 def _default_reward() -> dict[str, Any]:
     """The default training config's reward keys (configs/vector_ff.yaml): weights and ramp."""
-    from ..params import load_yaml
-
     cfg = load_yaml(Path(__file__).resolve().parents[2] / "configs" / "vector_ff.yaml")
     return {k: cfg[k] for k in ("reward", "reward_ramp", "reward_ramp_fraction") if k in cfg}
 
@@ -209,8 +146,6 @@ def _default_reward() -> dict[str, Any]:
 def table_reward() -> dict[str, Any]:
     """The reward every row trains with, resolved as the training config holds it (``reward``, ``reward_ramp``,
     ``reward_ramp_fraction``, defaults filled in): what a trial's definition records and its run trains with."""
-    from ..training.config import load_config
-
     cfg = load_config(None, _default_reward())
     return json.loads(json.dumps({"reward": cfg.reward, "reward_ramp": cfg.reward_ramp,
                                   "reward_ramp_fraction": cfg.reward_ramp_fraction}))
@@ -235,8 +170,6 @@ def row_config(row: Row, seed: int, budget: Budget, encoders: dict[str, str], fe
         "checkpoint_every": budget.eval_every, "baseline_episodes": 2,
         "ppo": {"n_steps": budget.n_steps, "batch_size": min(256, budget.n_steps * budget.n_envs)}}
     if row.encoder in ("conv", "saev"):
-        from ..perception.autoencoding.ae_train import checkpoint_info
-
         cfg["encoder_checkpoint"] = encoders[row.encoder]
         cfg["camera_size"] = int(checkpoint_info(encoders[row.encoder])["resolution"])
         if feature_smoothing != 1.0:
@@ -246,9 +179,6 @@ def row_config(row: Row, seed: int, budget: Budget, encoders: dict[str, str], fe
 
 def _test_episodes(spec: str, episodes: int, seed: int = BENCH_SEED, reward: dict | None = None
                    ) -> dict[str, float]:
-    from ..agents.rollout import run_episodes
-    from .evaluation import Setup
-
     res = run_episodes(Setup(spec, env_kwargs=(("reward", reward or {}),)), range(seed, seed + episodes))
     return {"success_rate": float(np.mean([r.metrics["success"] for r in res])),
             "mean_return": float(np.mean([r.metrics["return"] for r in res])),
@@ -269,17 +199,12 @@ def run_row(row: Row, seed: int, budget: Budget, run_dir: Path, encoders: dict[s
     keys, default ``_default_reward()``)."""
     t0 = time.perf_counter()
     if row.obs_mode == "random":
-        from ..training.config import TrainConfig, load_config
-
         cfg = load_config(None, row_config(BASELINE, seed, budget, {}, reward=reward))
         final = {**cfg.reward, **{k: v[1] for k, v in cfg.reward_ramp.items()}}  # as the evaluations
         evals = _test_episodes("random", budget.eval_episodes, TrainConfig.eval_seed, final)
         test = _test_episodes("random", budget.test_episodes)
         result = {"reward": evals["mean_return"], "steps": 0, **test}
     else:
-        from ..training.config import load_config
-        from ..training.run import train
-
         cfg = load_config(None, row_config(row, seed, budget, encoders or {}, feature_smoothing, reward))
         summary = train(cfg, run_dir, overwrite=True)
         returns = _column(run_dir / "learning_curve.csv", "return")
@@ -333,8 +258,6 @@ class RowTrial:
         if self.row.obs_mode == "random":
             return out  # no run to read the reward from: it runs again (evaluations only, quick)
         try:
-            from ..params import load_yaml
-
             config = load_yaml(trial_dir / "config.yaml")
         except UserError:
             return out

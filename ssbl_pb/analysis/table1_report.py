@@ -9,7 +9,8 @@ from typing import Any
 import numpy as np
 
 from ..files import write_json, write_text
-from .table1 import BASELINE, RANDOM, ROWS, Budget, percent
+from .table1 import percent
+from .table1_rows import BASELINE, RANDOM, ROWS, Budget
 
 
 def _stats(values: list[float]) -> tuple[float, float]:

@@ -9,6 +9,7 @@ import cv2
 import numpy as np
 
 from ..agents.policies import Policy
+from ..agents.rollout import run_episode
 from ..errors import UserError
 
 
@@ -52,8 +53,6 @@ def contact_sheet(frames: list[np.ndarray], cols: int = 6, scale: int = 2, label
 def record_episode(env, policy: Policy, seed: int, first_person: int = 0, fp_size: int = 84
                    ) -> tuple[list[np.ndarray], list[np.ndarray], dict]:
     """Run one episode; top-down frames (``env.render()``) and every ``first_person``-th first-person frame."""
-    from ..agents.rollout import run_episode
-
     top, fp = [], []
     counter = [0]
 

@@ -9,8 +9,18 @@ from typing import Any
 import numpy as np
 import torch
 
+from ..analysis.frames import frames_hfov
+from ..env.gymenv.approach import make_env
+from ..env.gymenv.encoded import FrozenEncoder, encoder_camera, low_pass_episodes
+from ..params import RobotParams
 from ..perception.autoencoding.ae_train import load_autoencoder, read_checkpoint, split_centres
 from ..perception.autoencoding.autoencoders import build
+from ..perception.autoencoding.keypoints import KeypointDetector, calibrate, encode_keypoints, plane_projection
+from ..perception.autoencoding.probe import member_probe, pixel_probe, visible_members
+from ..perception.camera import sim_camera
+from ..training.config import load_config
+from ..training.run import build_model, make_vec_env
+from .sim_tracking import SimEvalParams, evaluate_sim
 
 
 def encoder_fps(arch: str, size: str, batch: int = 64, seconds: float = 3.0) -> float:
@@ -32,8 +42,6 @@ def encoder_fps(arch: str, size: str, batch: int = 64, seconds: float = 3.0) -> 
 
 def render_fps(size: int, frames: int = 600) -> float:
     """Raw TinyRenderer first-person frames per second at ``size`` x ``size`` (robot moving, one scene)."""
-    from ..env.gymenv.approach import make_env
-
     env = make_env(obs_mode="vector")
     env.reset(seed=0)
     world = env.unwrapped.world
@@ -52,9 +60,6 @@ def training_throughput(encoder: str, obs_mode: str = "camera_speed", policy: st
                         n_envs: int = 8) -> float:
     """Env steps per second of PPO training (render + encode + PPO updates) with a frozen encoder."""
     import tempfile
-
-    from ..training.config import load_config
-    from ..training.run import build_model, make_vec_env
 
     arch = read_checkpoint(encoder)["arch"]
     res = read_checkpoint(encoder)["resolution"]
@@ -76,8 +81,6 @@ def probe_encoders(frames: dict[str, np.ndarray], checkpoints: dict[str, str], m
     """Linear probe of each encoder's features -> visible members' positions; held-out = validation episodes.
     With ``mlp``, the same rows read by a small MLP too (``NAME_mlp``: whether the features carry the members
     at all; a few minutes on one core)."""
-    from ..perception.autoencoding.probe import member_probe, pixel_probe, visible_members
-
     train_c, val_c = split_centres(frames["episode"], 10)
     members = visible_members(frames)
     n_tr, n_val = len(train_c), len(val_c)
@@ -98,8 +101,6 @@ def probe_encoders(frames: dict[str, np.ndarray], checkpoints: dict[str, str], m
 
 
 def _encode_all(path: str, images: np.ndarray) -> np.ndarray:
-    from ..env.gymenv.encoded import FrozenEncoder
-
     enc = FrozenEncoder(load_autoencoder(path))
     return np.concatenate([enc.encode(images[i:i + 512]) for i in range(0, len(images), 512)])
 
@@ -110,9 +111,6 @@ def feature_jitter(frames: dict[str, np.ndarray], checkpoints: dict[str, str],
     vary over the whole file (each feature's standard deviation), as encoded and through the features' low-pass
     (``feature_smoothing`` alpha; 1 = none): the mean absolute first and second differences in those units, and
     the linear probe (held-out median member error, m) on the features the policy would see."""
-    from ..env.gymenv.encoded import low_pass_episodes
-    from ..perception.autoencoding.probe import member_probe, visible_members
-
     episode = np.asarray(frames["episode"])
     same = episode[1:] == episode[:-1]
     same2 = same[1:] & same[:-1]
@@ -138,13 +136,6 @@ def keypoint_tracking(frames: dict[str, np.ndarray], saev: str, episodes: int = 
                       ) -> dict[str, Any]:
     """SAEV keypoint detector calibrated on the training episodes' frames, then the tracker in simulation
     (``sim_tracking.evaluate_sim``, the same drive and scoring as the segmentation and colour detectors)."""
-    from ..env.gymenv.encoded import encoder_camera
-    from ..params import RobotParams
-    from ..perception.autoencoding.keypoints import KeypointDetector, calibrate, encode_keypoints, plane_projection
-    from ..perception.autoencoding.probe import visible_members
-    from ..perception.camera import sim_camera
-    from .sim_tracking import SimEvalParams, evaluate_sim
-
     model = load_autoencoder(saev, arch="saev")
     s = model.size.input_size
     robot = RobotParams(**encoder_camera(saev))  # the camera the encoder learned through
@@ -166,11 +157,6 @@ def keypoint_precision(frames: dict[str, np.ndarray], noise_px: tuple[float, ...
     Gaussian noise of ``noise_px`` pixels (seeded); rows ``{torso,feet}_{linear,mlp}_noise{σ}`` over the same
     sightings and split as ``probe_encoders``; ``feet_in_image``: the held-out sightings whose feet are in view
     (a close member's are below the image: this cue is an idealisation there)."""
-    from ..analysis.frames import frames_hfov
-    from ..params import RobotParams
-    from ..perception.autoencoding.probe import pixel_probe, visible_members
-    from ..perception.camera import sim_camera
-
     train_c, val_c = split_centres(frames["episode"], 10)
     members = visible_members(frames)
     side = frames["frames"].shape[1]

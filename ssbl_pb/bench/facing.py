@@ -18,7 +18,10 @@ from typing import Any
 
 import numpy as np
 
+from ..deploy.perceive import make_detector
+from ..env.view.world import World
 from ..perception.detection.facing import phi_of, wrap
+from ..urdf import HUMAN_COLOURS
 
 BANDS = ((1.0, 2.0), (2.0, 3.0), (3.0, 4.0), (4.0, 5.0), (5.0, 7.0))  # m, from the camera to the body axis
 CLASSES = (("front", 0.0, 80.0), ("side", 80.0, 100.0), ("back", 100.0, 180.01))  # |true phi|, deg
@@ -62,10 +65,6 @@ def run_bench(frames: int = 400, seed: int = 0, width: int = 320, height: int = 
     """``frames`` frames of each scene (single, occluded, group); ``progress(n)`` is told of each frame. Returns
     the samples and the seconds the detector's ``facing()`` took on each frame."""
     import time
-
-    from ..deploy.perceive import make_detector
-    from ..env.view.world import World
-    from ..urdf import HUMAN_COLOURS
 
     rng = np.random.default_rng(seed)
     world = World()

@@ -8,8 +8,14 @@ from typing import Any
 
 import numpy as np
 
+from ..agents.rollout import run_episodes
+from ..analysis.evaluation import Setup
+from ..env.gymenv.approach import ApproachGroupEnv
 from ..env.view.bullet import pybullet as p
+from ..env.view.cameras import first_person_view, perspective
+from ..env.view.world import World
 from ..params import HumansLook, WorldParams
+from ..training.vec_env import BatchedVecEnv
 
 # five people in view of a robot at the origin facing +x: 2.2-3.8 m away within +-20 deg of bearing (inside the
 # camera's +-28 deg), each facing the robot; rows x, y (m), yaw (rad)
@@ -33,10 +39,6 @@ def simulator_rates(n_steps: int = 20_000, n_frames: int = 500, seed: int = 0) -
     env_furnished_step_per_s (random furnished rooms), env_furnished_waypoints_step_per_s (the same with
     ``waypoints``), batched_env_step_per_s (env steps of the 8-copy training
     env, smoothing and shield included)."""
-    from ..env.gymenv.approach import ApproachGroupEnv
-    from ..env.view.cameras import first_person_view, perspective
-    from ..env.view.world import World
-
     world = World()
     world.reset(np.random.default_rng(seed))
     world.sync()
@@ -70,8 +72,6 @@ def simulator_rates(n_steps: int = 20_000, n_frames: int = 500, seed: int = 0) -
                           "env_furnished_step_per_s": ApproachGroupEnv(scenario="default@furnished"),
                           "env_furnished_waypoints_step_per_s": ApproachGroupEnv(scenario="default@furnished",
                                                                                  waypoints=True)}, actions, seed))
-
-    from ..training.vec_env import BatchedVecEnv
 
     venv = BatchedVecEnv(8, smoothing=0.4, shield=True)  # as training runs it (configs/vector_ff.yaml)
     venv.seed(seed)
@@ -158,9 +158,6 @@ def evaluation_seconds(episodes: int = 200, policy: str = "vector", seed: int = 
     """CPU and wall seconds to evaluate ``policy`` on ``episodes`` default-scenario episodes in one process (what
     ``tools/evaluate.py --workers 1`` spends after start-up), and its success rate (a check that it played)."""
     import torch
-
-    from ..agents.rollout import run_episodes
-    from ..analysis.evaluation import Setup
 
     torch.set_num_threads(1)
     run_episodes(Setup(policy), range(seed, seed + 2), 1)  # imports, model load, compiled kernels: not timed

@@ -15,6 +15,7 @@ import math
 import numpy as np
 from scipy.optimize import least_squares
 
+from ..cli import progress as bar
 from ..params import CalibrationError, RobotParams
 from .dynamics_log import AXES, DynamicsLog
 
@@ -171,8 +172,6 @@ def identify(log: DynamicsLog, axes: tuple[str, ...] = AXES, base: RobotParams |
         raise CalibrationError(f"{log.path}: no axis is ever commanded")
     it = axes
     if progress:
-        from ..cli import progress as bar
-
         it = bar(axes, "fitting axes", "axis")
     for ax in it:
         j = AXES.index(ax)

@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..cli import progress as bar
 from ..core.humans import Group
 from ..core.layouts import paper_layout
 from ..params import FORMATIONS, CalibrationError, SocialParams
@@ -116,8 +117,6 @@ def sim_stats(social: SocialParams, episodes: int = 40, seconds: float = 20.0, d
     group_d, speeds, closest = [], [], []
     eps = range(episodes)
     if progress:
-        from ..cli import progress as bar
-
         eps = bar(eps, "SFFM episodes", "ep")
     for ep in eps:
         n = 2 + ep % 4

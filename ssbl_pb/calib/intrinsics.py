@@ -14,6 +14,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from ..cli import progress as bar
 from ..params import CalibrationError
 from ..perception.camera import PinholeCamera
 
@@ -94,8 +95,6 @@ def detect(paths: Iterable[str | Path], board: tuple[int, int], progress: bool =
     paths = [Path(p) for p in paths]
     it: Iterable[Path] = paths
     if progress:
-        from ..cli import progress as bar
-
         it = bar(paths, "detecting corners", "img")
     out = Detections([], [], [], None)
     for path in it:
@@ -229,8 +228,6 @@ def leave_k_out(result: IntrinsicsResult, board: tuple[int, int], square: float,
         subsets = [subsets[i] for i in sorted(rng.choice(len(subsets), max_subsets, replace=False))]
     it: Iterable[tuple[int, ...]] = subsets
     if progress:
-        from ..cli import progress as bar
-
         it = bar(subsets, f"leave-{k}-out", "fit")
     obj = board_points(board, square)
     ref = np.array([result.camera.fx, result.camera.fy, result.camera.cx, result.camera.cy])

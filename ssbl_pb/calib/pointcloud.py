@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from ..params import CalibrationError
+from .io import save_figure
 
 AXES = {"x": 0, "y": 1, "z": 2}
 
@@ -271,8 +272,6 @@ def scan_figure(pts: np.ndarray, scan: RoomScan, up: np.ndarray, path: str | Pat
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
-    from .io import save_figure
 
     rng = np.random.default_rng(seed)
     sub = pts[rng.choice(len(pts), min(max_points, len(pts)), replace=False)]

@@ -11,6 +11,7 @@ from ..files import write_text
 from ..params import RobotParams
 from .dynamics import NAMES, DynamicsResult, simulate_axis
 from .dynamics_log import AXES, DynamicsLog, body_velocity_from_pose, simulate_log
+from .humans import summary
 from .intrinsics import IntrinsicsResult
 from .io import save_figure, write_image
 
@@ -157,8 +158,6 @@ def humans_figure(real: dict[str, np.ndarray], sims: dict[str, dict[str, np.ndar
 def humans_markdown(real: dict[str, dict[str, np.ndarray]], sims: dict[str, dict[str, np.ndarray]],
                     fields: dict[str, float], notes: list[str], command: str) -> str:
     """Table of median [quartiles] (count) per scene and for the simulations; fitted fields and reasons."""
-    from .humans import summary
-
     head = "| source | " + " | ".join(label for _, label, _ in HUMAN_STATS) + " |"
     lines = ["# Human motion: ETH/UCY against the social force model", "", f"Command: `{command}`", "",
              "Median [25 %, 75 %] (count). ETH/UCY groups walk together; the SFFM groups stand in conversation, "

@@ -24,6 +24,7 @@ import cv2
 import numpy as np
 
 from ..params import CalibrationError, WorldParams, from_dict, load_yaml
+from .io import write_image
 
 
 @dataclasses.dataclass
@@ -285,8 +286,6 @@ def room_yaml(m: OccupancyMap, room: Room, seed: tuple[float, float] | None,
 def room_figure(m: OccupancyMap, room: Room, path: str | Path, margin: float = 2.0, scale: int = 6) -> Path:
     """PNG of the map around the room: free white, occupied black, unknown grey, the room's free cells green,
     wall-to-wall bounds blue, the furniture-free rectangle green, the room frame's x (red) and y (blue) axes."""
-    from .io import write_image
-
     img = np.full((*m.shape, 3), 160, np.uint8)
     img[m.grid == 0] = (255, 255, 255)
     img[m.grid == 1] = (0, 0, 0)

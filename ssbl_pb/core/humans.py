@@ -32,7 +32,7 @@ from numba import njit
 from ..params import SocialParams
 from .base import clip, wrap_angle
 from .forces import EPS, cohesion_on, equality_on, repulsion_on
-from .layouts import Layout, formation_angles  # noqa: F401 (formation_angles: re-exported)
+from .layouts import Layout, formation_angles, free_layout, paper_layout  # noqa: F401 (formation_angles: re-exported)
 
 MAX_HUMANS = 5
 TWO_PI = 2.0 * math.pi
@@ -253,8 +253,6 @@ def measured_group(social: SocialParams, members: np.ndarray, centre: np.ndarray
     """A group at rest where ``members`` (n, 2) stand around ``centre``, by the env's model (``paper``: the
     original's circle, else the calibrated model with the robot's place ``keep`` from every member): what a
     robot that measures the people (deploy) feeds the policy, with the simulator's own definitions."""
-    from .layouts import free_layout, paper_layout
-
     offsets = np.asarray(members, dtype=float).reshape(-1, 2) - centre
     n = len(offsets)
     if paper:

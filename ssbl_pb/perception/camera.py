@@ -22,7 +22,6 @@ import math
 from pathlib import Path
 from typing import Any
 
-import cv2
 import numpy as np
 
 from ..core.camera import projection_from_intrinsics
@@ -133,12 +132,16 @@ class PinholeCamera:
         out = np.full((len(pts), 2), np.nan)
         ok = pts[:, 2] > 1e-9
         if ok.any():
+            import cv2  # heavy: OpenCV (~0.2 s), kept out of the env's import
+
             uv, _ = cv2.projectPoints(pts[ok], np.zeros(3), np.zeros(3), self.K, self.dist)
             out[ok] = uv.reshape(-1, 2)
         return out
 
     def unproject(self, uv: np.ndarray, depth: np.ndarray | float | None = None) -> np.ndarray:
         """Pixels (N, 2) -> optical-frame rays (N, 3) with z = 1, or points at ``depth`` (z, metres)."""
+        import cv2  # heavy: OpenCV (~0.2 s), kept out of the env's import
+
         uv = np.asarray(uv, dtype=float).reshape(-1, 1, 2)
         xy = cv2.undistortPointsIter(uv, self.K, self.dist, None, None,
                                      (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 40, 1e-10))

@@ -10,7 +10,9 @@ from typing import Any
 
 from ..cli import int_at_least, make_bar
 from ..errors import UserError
+from ..files import check_output_path
 from .dispatch import run_trials
+from .ray_runner import Probe, connect
 from .runner import Outcome, Trial, finished
 
 
@@ -31,8 +33,6 @@ class TrialsRoot:
     ``connect()`` once those are checked."""
 
     def __init__(self, args: argparse.Namespace) -> None:
-        from ..files import check_output_path
-
         if args.storage is not None and args.address is None:
             raise UserError(f"--storage {args.storage}: only with --address (a local run writes into --out)")
         check_output_path(args.out, "--out")
@@ -43,15 +43,11 @@ class TrialsRoot:
             if args.storage is not None:
                 check_output_path(args.storage, "--storage")
                 root = args.storage / args.out.resolve().name
-            from .ray_runner import Probe
-
             self.probe = Probe(args.address)
         self.path = root.resolve()
 
     def connect(self) -> None:
         if self.probe is not None:
-            from .ray_runner import connect
-
             connect(self.address, self.probe)
 
     def run(self, trials: Sequence[Trial], label: str) -> Outcome:

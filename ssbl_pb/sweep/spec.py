@@ -23,6 +23,7 @@ from typing import Any
 
 from ..errors import UserError
 from ..params import ConfigError, from_dict, load_yaml
+from ..training.config import PPOConfig, TrainConfig, config_to_dict, env_kwargs, load_config, nest_overrides
 from .trial import EvalSpec, TrainEvalTrial, trial_name
 
 SPEC_KEYS = ("base", "grid", "seeds", "set", "eval")
@@ -77,8 +78,6 @@ def load_spec(path: str | Path) -> SweepSpec:
             raise SpecError(f"{path}: grid.{key} = {values!r}: a value is listed twice")
     _check_keys(path, [("set", k) for k in fixed] + [("grid", k) for k in grid])
     evaluation = _evaluation(path, data.get("eval"))
-
-    from ..training.config import config_to_dict, load_config, nest_overrides
 
     def config(pairs: dict[str, Any], where: str) -> Any:
         try:
@@ -137,8 +136,7 @@ def _mapping(path: Path, key: str, value: Any) -> dict[str, Any]:
 def _check_keys(path: Path, keys: list[tuple[str, str]]) -> None:
     """Keys the config has (top level and the ppo / reward fields; env keys are checked by the config itself),
     no seed (the spec's seeds give it), none twice and none inside another."""
-    from ..core.reward import RewardWeights
-    from ..training.config import PPOConfig, TrainConfig
+    from ..core.reward import RewardWeights  # lazy: numba (this module stays light: the sweep CLI imports it)
 
     top = {f.name for f in dataclasses.fields(TrainConfig)}
     nested = {"ppo": {f.name for f in dataclasses.fields(PPOConfig)},
@@ -170,13 +168,12 @@ def _evaluation(path: Path, data: Any) -> EvalSpec:
 def _check_env(path: Path, name: str, cfg: Any, evaluation: EvalSpec) -> None:
     """The env of a configuration and its evaluation can be built (scenario, room, robot, social values), and a
     ``model: best`` evaluation has an in-training evaluation to pick from."""
-    from ..env.gymenv.approach import make_env
-    from ..training.run import _env_kwargs
+    from ..env.gymenv.approach import make_env  # lazy: the env (numba, pybullet), as above
 
     try:
-        make_env(**_env_kwargs(cfg)).close()
+        make_env(**env_kwargs(cfg)).close()
         if evaluation.scenario:
-            make_env(**{**_env_kwargs(cfg), "scenario": evaluation.scenario}).close()
+            make_env(**{**env_kwargs(cfg), "scenario": evaluation.scenario}).close()
     except UserError as exc:  # scenario names, room/robot/social values, calibration files
         raise SpecError(f"{path}: configuration {name}: {exc}") from exc
     if evaluation.model == "best" and cfg.eval_every > cfg.total_steps:

@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from ..params import ConfigError, _check
+from ..training.config import config_to_dict, load_config
 
 # evaluation summary keys a trial returns (means over its episodes); the sweep's summary gives their mean and
 # 95 % CI over seeds
@@ -54,9 +55,8 @@ class TrainEvalTrial:
         return {"kind": "train_eval", "config": self.config, "eval": dataclasses.asdict(self.evaluation)}
 
     def __call__(self, trial_dir: Path) -> dict[str, Any]:
-        from ..analysis.evaluation import Setup, evaluate
-        from ..training.config import load_config
-        from ..training.run import train
+        from ..analysis.evaluation import Setup, evaluate  # lazy: the env, for the worker (keeps the sweep CLI light)
+        from ..training.run import train  # lazy: torch and SB3, for the worker (keeps the sweep CLI light)
 
         cfg = load_config(None, self.config)
         if not _trained(trial_dir, cfg):  # an unfinished run starts again from scratch: results stay exact
@@ -77,8 +77,6 @@ class TrainEvalTrial:
 
 def _trained(run_dir: Path, cfg: Any) -> bool:
     """The run directory holds a finished run of exactly this config."""
-    from ..training.config import load_config
-
     if not ((run_dir / "summary.json").is_file() and (run_dir / "model.zip").is_file()):
         return False
     try:
@@ -104,8 +102,6 @@ def trials_for(configs: dict[str, Any], seeds: Sequence[int], evaluation: EvalSp
                ) -> list[TrainEvalTrial]:
     """One trial per named training config (``TrainConfig``) and seed, named as a sweep names them: a list for
     ``dispatch.run_trials`` (e.g. Table I's rows x seeds)."""
-    from ..training.config import config_to_dict
-
     return [TrainEvalTrial(trial_name(name, seed), name, {**config_to_dict(cfg), "seed": seed},
                            evaluation or EvalSpec())
             for name, cfg in configs.items() for seed in seeds]

@@ -16,7 +16,10 @@ from stable_baselines3.common.callbacks import BaseCallback
 
 from ..agents.rollout import run_episode
 from ..agents.trained import STEP_STAMP, TrainedPolicy
+from ..cli import make_bar
+from ..core.shield import ShieldParams
 from ..files import atomic_write_all, make_stage_dir, replace_dir, write_text
+from .vec_env import evaluate_first_episodes
 
 
 class ProgressCallback(BaseCallback):
@@ -28,8 +31,6 @@ class ProgressCallback(BaseCallback):
         self.success: deque[float] = deque(maxlen=100)
 
     def _on_training_start(self) -> None:
-        from ..cli import make_bar
-
         self.bar = make_bar(self.total, "train", "step", initial=self.num_timesteps)
         self.t0, self.n0 = time.perf_counter(), self.num_timesteps
 
@@ -103,11 +104,7 @@ class EvalCheckpointCallback(BaseCallback):
         self.last_ckpt = self.num_timesteps // self.checkpoint_every
 
     def evaluate(self) -> dict[str, float]:
-        from ..core.shield import ShieldParams
-
         if self.make_eval_venv is not None:
-            from .vec_env import evaluate_first_episodes
-
             venv = self.make_eval_venv(self.eval_episodes)
             venv.seed(self.eval_seed)
             success, returns = evaluate_first_episodes(self.model, self.training_env, self.recurrent, venv)

@@ -27,8 +27,9 @@ from typing import Any
 import yaml
 
 from ..errors import UserError
+from ..files import write_text
 from ..params import ConfigError, _check, from_dict, load_yaml, parse_yaml
-from ..perception.groups.observation_model import PerceptionParams
+from ..policies import SHIPPED_ENCODERS
 
 OBS_MODES = ("vector", "camera", "camera_speed")
 ENCODERS = ("none", "cnn", "conv", "saev")  # cnn: end-to-end NatureCNN; conv / saev: a frozen autoencoder
@@ -129,8 +130,6 @@ class TrainConfig:
             return None
         if self.encoder_checkpoint:
             return self.encoder_checkpoint
-        from ..policies import SHIPPED_ENCODERS
-
         return str(SHIPPED_ENCODERS.get(self.encoder, ""))
 
     @property
@@ -186,7 +185,7 @@ class TrainConfig:
         unknown = sorted(set(self.env) - set(env_keys()))
         _check(not unknown, "config", "env", unknown, f"keys among {env_keys()} (the config sets obs_mode, "
                "scenario, reward and camera size itself)")
-        from ..core.reward import RewardWeights
+        from ..core.reward import RewardWeights  # lazy: numba (this module stays light: the sweep CLI imports it)
 
         from_dict(RewardWeights, self.reward, "config.reward")  # validates names and values early
         for key, value in self.reward_ramp.items():
@@ -209,14 +208,14 @@ class TrainConfig:
             return
         _check(bool(path) and Path(path).is_file(), "config", "encoder_checkpoint", self.encoder_checkpoint,
                f"an existing {self.encoder} checkpoint from tools/train_ae.py (none is shipped for {self.encoder})")
-        from ..perception.autoencoding.ae_train import checkpoint_info
+        from ..perception.autoencoding.ae_train import checkpoint_info  # lazy: loads torch
 
         info = checkpoint_info(path)
         _check(info["arch"] == self.encoder, "config", "encoder_checkpoint", path,
                f"a {self.encoder} checkpoint (encoder: {self.encoder}), it holds a {info['arch']} autoencoder")
         _check(info["resolution"] == self.camera_size, "config", "camera_size", self.camera_size,
                f"{info['resolution']}, the input resolution of encoder checkpoint {path}")
-        from ..env.gymenv.encoded import with_encoder_camera
+        from ..env.gymenv.encoded import with_encoder_camera  # lazy: loads torch and SB3
 
         try:  # env.robot's camera may not contradict the one the encoder learned through
             with_encoder_camera(dict(self.env), path)
@@ -232,7 +231,7 @@ def env_keys() -> list[str]:
     """The env arguments a config's ``env:`` may set (``make_env``'s and the core env's, minus the config's own)."""
     import inspect
 
-    from ..env.gymenv.approach import ApproachGroupEnv, make_env
+    from ..env.gymenv.approach import ApproachGroupEnv, make_env  # lazy: the env (numba, pybullet), as above
 
     own = {"obs_mode", "scenario", "reward", "camera_width", "camera_height", "render_mode", "render_width",
            "record", "self", "kwargs", "feature_smoothing"}
@@ -308,7 +307,8 @@ def _from_dict(data: dict[str, Any], where: str) -> TrainConfig:
 def check_env(cfg: TrainConfig) -> None:
     """The config's env parameters as the env will check them (room size for its groups, group data, room
     YAMLs, the observation model), before anything is built."""
-    from ..env.engine.env_params import parse_env_params
+    from ..env.engine.env_params import parse_env_params  # lazy: numba, as above
+    from ..perception.groups.observation_model import PerceptionParams  # lazy: the tracker's filterpy and scipy
 
     env = cfg.env
     try:
@@ -335,7 +335,16 @@ def config_to_dict(cfg: TrainConfig) -> dict[str, Any]:
     return d
 
 
-def save_config(cfg: TrainConfig, path: Path) -> None:
-    from ..files import write_text
+def env_kwargs(cfg: TrainConfig) -> dict[str, Any]:
+    """``make_env``'s keyword arguments for the config's env (with the camera its frozen encoder learned through)."""
+    kwargs = {"obs_mode": cfg.obs_mode, "scenario": cfg.scenario, "reward": dict(cfg.reward),
+              "camera_width": cfg.camera_size, "camera_height": cfg.camera_size, **cfg.env}
+    if cfg.encoder_file:  # the camera the encoder learned through
+        from ..env.gymenv.encoded import with_encoder_camera  # lazy: loads torch and SB3
 
+        kwargs = with_encoder_camera(kwargs, cfg.encoder_file)
+    return kwargs
+
+
+def save_config(cfg: TrainConfig, path: Path) -> None:
     write_text(path, yaml.safe_dump(config_to_dict(cfg), sort_keys=False))

@@ -18,11 +18,19 @@ from typing import Any
 
 import numpy as np
 
-from ..env.gymenv.approach import make_env
+from ..agents.policies import make_policy
+from ..agents.rollout import run_episode
+from ..agents.trained import STEP_STAMP, resolve_model
+from ..cli import DeferredSignals
+from ..core.shield import ShieldParams
+from ..env.gymenv.approach import core_kwargs, make_env
+from ..env.gymenv.wrappers import ActionStages, ActionStagesWrapper
 from ..errors import UserError
 from ..files import check_output_path, output_dir, remove_temporaries, write_text
 from ..params import ConfigError, parse_yaml
 from .config import TrainConfig, load_config, save_config
+from .config import env_kwargs as _env_kwargs
+from .curves import plot_learning_curve
 
 # what a run directory holds: all that tools/train_pb.py writes there, and all --overwrite may remove
 RUN_ENTRIES = ("config.yaml", "baselines.json", "model.zip", "vecnormalize.pkl", "best", "checkpoints",
@@ -74,16 +82,6 @@ def clean_temporaries(run_dir: Path) -> None:
     remove_temporaries(run_dir / "checkpoints", lambda name: name == "latest.json" or name.startswith("ckpt_"))
 
 
-def _env_kwargs(cfg: TrainConfig) -> dict[str, Any]:
-    kwargs = {"obs_mode": cfg.obs_mode, "scenario": cfg.scenario, "reward": dict(cfg.reward),
-              "camera_width": cfg.camera_size, "camera_height": cfg.camera_size, **cfg.env}
-    if cfg.encoder_file:  # the camera the encoder learned through
-        from ..env.gymenv.encoded import with_encoder_camera
-
-        kwargs = with_encoder_camera(kwargs, cfg.encoder_file)
-    return kwargs
-
-
 class EnvFactory:
     """Picklable env constructor for SubprocVecEnv workers (the agent's action smoothing included)."""
 
@@ -95,9 +93,6 @@ class EnvFactory:
     def __call__(self) -> Any:
         env = make_env(**self.kwargs)
         if self.shield or self.smoothing < 1.0:
-            from ..core.shield import ShieldParams
-            from ..env.gymenv.wrappers import ActionStages, ActionStagesWrapper
-
             core = env.unwrapped
             shield = ShieldParams.from_env(core.robot_params, core.social, core.task, self.shield_at_place)
             env = ActionStagesWrapper(env, ActionStages(self.smoothing, shield if self.shield else None))
@@ -112,13 +107,11 @@ class BatchedFactory:
     """``BatchedVecEnv(n)`` for env keyword arguments (``_env_kwargs``) with the config's action stages."""
 
     def __init__(self, kwargs: dict[str, Any], cfg: TrainConfig) -> None:
-        from ..env.gymenv.approach import core_kwargs
-
         self.env_kwargs, _ = core_kwargs(**{k: v for k, v in kwargs.items() if k != "obs_mode"})
         self.smoothing, self.shield, self.at_place = cfg.action_smoothing, cfg.shield_active, cfg.shield_at_place
 
     def __call__(self, n: int) -> Any:
-        from .vec_env import BatchedVecEnv
+        from .vec_env import BatchedVecEnv  # lazy: torch and SB3, once a run starts (the checks before stay quick)
 
         return BatchedVecEnv(n, self.smoothing, self.shield, self.at_place, **self.env_kwargs)
 
@@ -137,7 +130,7 @@ def make_vec_env(cfg: TrainConfig, seed: int) -> Any:
         venv = SubprocVecEnv(fns, start_method="forkserver") if kind == "subproc" else DummyVecEnv(fns)
     venv.seed(seed)
     if cfg.encoder_file:  # frozen autoencoder: all envs' images encoded in one batch per step (env.gymenv.encoded)
-        from ..env.gymenv.encoded import EncodedVecEnv, load_encoder
+        from ..env.gymenv.encoded import EncodedVecEnv, load_encoder  # lazy: torch, as above
 
         venv = EncodedVecEnv(venv, load_encoder(cfg.encoder_file, cfg.camera_size), cfg.feature_smoothing)
     if cfg.policy_obs_mode == "vector":
@@ -168,7 +161,7 @@ def build_model(cfg: TrainConfig, venv: Any, tb_dir: Path) -> Any:
         names = {"vector": "MlpPolicy", "camera": "CnnPolicy", "camera_speed": "MultiInputPolicy"}
     policy: Any = names[cfg.policy_obs_mode]
     if p.bounded_mean:
-        from .policies import bounded_policy
+        from .policies import bounded_policy  # lazy: torch, as above
 
         policy = bounded_policy(cfg.policy_obs_mode, cfg.policy == "lstm")
     lr: Any = p.learning_rate
@@ -185,9 +178,6 @@ def build_model(cfg: TrainConfig, venv: Any, tb_dir: Path) -> Any:
 
 def baseline_returns(cfg: TrainConfig) -> dict[str, float]:
     """Mean episode return of the random and SFFM policies on the training task (same reward weights)."""
-    from ..agents.policies import make_policy
-    from ..agents.rollout import run_episode
-
     kwargs = {**_env_kwargs(cfg), "obs_mode": "vector"}
     kwargs["reward"] = {**kwargs["reward"], **{k: v[1] for k, v in cfg.reward_ramp.items()}}  # as evaluations
     out = {}
@@ -203,6 +193,7 @@ def baseline_returns(cfg: TrainConfig) -> dict[str, float]:
 
 
 def _callbacks(cfg: TrainConfig, run_dir: Path) -> list[Any]:
+    # lazy: torch and SB3, as above
     from .callbacks import EpisodeLogCallback, EvalCheckpointCallback, ProgressCallback, RewardRampCallback
 
     eval_kwargs = _env_kwargs(cfg)  # evaluated with the ramps' final weights, comparable across the run
@@ -222,9 +213,7 @@ def _callbacks(cfg: TrainConfig, run_dir: Path) -> list[Any]:
 def _learn(cfg: TrainConfig, run_dir: Path, model: Any, venv: Any, resumed_from: int | None) -> dict[str, Any]:
     """Train to ``cfg.total_steps``. Ctrl-C / SIGTERM stop at the next env step: a checkpoint is saved, the
     ``--resume`` command printed, and the signal re-raised (exit 130 / 143 through ``cli.run``)."""
-    from ..cli import DeferredSignals
-    from .callbacks import StopOnSignal, save_checkpoint, save_model
-    from .curves import plot_learning_curve
+    from .callbacks import StopOnSignal, save_checkpoint, save_model  # lazy: torch and SB3, as above
 
     start_steps, t0 = model.num_timesteps, time.perf_counter()
     remaining = max(0, cfg.total_steps - model.num_timesteps)
@@ -273,8 +262,6 @@ def check_init_source(cfg: TrainConfig, source: Path) -> None:
     """``--init-from``: a run with a model, its normalisation and a config of the same kind."""
     if not (source / "config.yaml").is_file():
         raise RunError(f"--init-from {source}: not a run directory (no config.yaml)")
-    from ..agents.trained import resolve_model
-
     _, norm, _ = resolve_model(str(source))
     if norm is None:
         raise RunError(f"--init-from {source}: no vecnormalize.pkl to start from")
@@ -301,7 +288,7 @@ def train(cfg: TrainConfig, run_dir: Path, overwrite: bool = False, init_from: P
     fails while setting up, the run directory is removed again."""
     import torch
 
-    from .callbacks import save_checkpoint
+    from .callbacks import save_checkpoint  # lazy: torch and SB3, as above
 
     check_new_run(cfg, run_dir, overwrite, init_from)
     torch.set_num_threads(cfg.torch_threads)
@@ -329,8 +316,6 @@ def write_baselines(cfg: TrainConfig, run_dir: Path) -> None:
 
 def _init_from(model: Any, venv: Any, source: Path) -> Any:
     """Copy a run's final policy weights and observation statistics into a fresh model and VecEnv."""
-    from ..agents.trained import resolve_model
-
     src_model, src_norm, _ = resolve_model(str(source))
     if src_norm is None:
         raise RunError(f"{source}: no vecnormalize.pkl to start from")
@@ -435,8 +420,6 @@ def resume(run_dir: Path, total_steps: int | None = None) -> dict[str, Any]:
     """Continue a run from its last checkpoint: step counter, optimiser state and normalisation intact."""
     import torch
     from stable_baselines3.common.vec_env import VecNormalize
-
-    from ..agents.trained import STEP_STAMP
 
     if not (run_dir / "config.yaml").is_file():
         hint = "; it was killed as it was created: start it again with the same command" if (

@@ -16,6 +16,7 @@ import gymnasium as gym
 import numpy as np
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices
 
+from ..agents.trained import TrainedPolicy
 from ..core import observation as ob
 from ..core.shield import ShieldParams
 from ..env.engine.batched import BatchedApproach
@@ -109,8 +110,6 @@ def evaluate_first_episodes(model: Any, normalizer: Any, recurrent: bool, venv: 
     observations normalised by ``normalizer`` (a ``VecNormalize``; None: raw). Seed ``venv`` first: copy i then
     plays the episode a single env reset with seed ``s + i`` plays, as ``rollout.run_episode`` would run it with
     the same model (the agent's smoothing and shield act inside ``venv``)."""
-    from ..agents.trained import TrainedPolicy
-
     policy = TrainedPolicy(model, normalizer, recurrent)
     n = venv.num_envs
     obs = venv.reset()

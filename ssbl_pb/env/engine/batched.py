@@ -95,6 +95,7 @@ class BatchedApproach:
     def _perception(self, value: Any) -> Any:
         """The copies' perceived groups (``perception.groups.observation_model.PerceivedGroups``), or None for the true
         state."""
+        # lazy: perception's tracker loads filterpy and scipy (~1 s), which only a perceiving env needs
         from ...perception.groups.observation_model import PerceivedGroups, PerceptionParams
 
         params = PerceptionParams.of(value)

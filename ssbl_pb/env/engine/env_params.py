@@ -10,7 +10,7 @@ from typing import Any, NamedTuple
 from ...core.layouts import GROUP_MODELS, GroupModel
 from ...core.reward import RewardWeights
 from ...core.task import TaskParams
-from ...params import ConfigError, RobotParams, SocialParams, WorldParams, from_dict
+from ...params import ConfigError, RobotParams, SocialParams, WorldParams, from_dict, load_yaml
 from ..rooms.obstacles import box_rows
 from ..rooms.rooms import FurnitureParams, Room, read_obstacles
 from ..rooms.scenarios import ScenarioMix
@@ -69,8 +69,6 @@ def parse_env_params(scenario: str, world: Any, robot: Any, social: Any, reward:
     ``world`` section overlays ``world`` (explicit values win) and its ``obstacles`` make the map room, the
     scenario's room by default. Several (a list, for training in several rooms of a building): each is a map
     room of its own size, one drawn per episode, and the empty room keeps ``world``'s size."""
-    from ...params import load_yaml
-
     check_group_fields(world)
     paths = [] if room_yaml is None else [room_yaml] if isinstance(room_yaml, str | Path) else list(room_yaml)
     if not paths and room_yaml is not None:

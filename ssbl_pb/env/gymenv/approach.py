@@ -19,11 +19,15 @@ from ...core.layouts import GroupModel
 from ...core.reward import RewardWeights
 from ...core.task import TaskParams
 from ...errors import UserError
-from ...params import RobotParams, SocialParams, WorldParams
+from ...params import RobotParams, SocialParams, WorldParams, load_yaml
+from ...perception.camera import PinholeCamera, sim_projection_from_yaml
 from ..engine import kernels
+from ..engine.batched import BatchedApproach
 from ..engine.env_params import merged
 from ..rooms.rooms import FurnitureParams
+from ..view.drawing import draw_overlay
 from ..view.world import World
+from .wrappers import OBS_MODES, wrap_obs_mode
 
 
 class ApproachGroupEnv(gym.Env):
@@ -78,8 +82,6 @@ class ApproachGroupEnv(gym.Env):
         ``perception``: the observation model (``perception.groups.observation_model``; off by default: the true
         state), true or a mapping of ``PerceptionParams``' fields: the policy sees the group as deploy's perception
         would."""
-        from ..engine.batched import BatchedApproach
-
         if render_mode not in (None, "rgb_array"):
             raise UserError(f"render_mode {render_mode!r}: expected None or 'rgb_array'")
         if not isinstance(render_width, int) or not 64 <= render_width <= 4096:
@@ -169,8 +171,6 @@ class ApproachGroupEnv(gym.Env):
     def render(self) -> np.ndarray | None:
         if self.render_mode != "rgb_array":
             return None
-        from ..view.drawing import draw_overlay
-
         if self._top_cam is None:  # framed on the group and the robot's start, fixed for the episode
             g, start = self.world.group, self.trajectory[0]["robot"][:2]
             mid = 0.5 * (g.centre0 + start)
@@ -186,8 +186,6 @@ class ApproachGroupEnv(gym.Env):
 def _merge_yaml(kwargs: dict[str, Any], key: str, path: str | None) -> None:
     """Overlay the fields of a calibration YAML onto the ``key`` parameters (explicit values still win)."""
     if path is not None:
-        from ...params import load_yaml
-
         kwargs[key] = merged(kwargs.get(key), key, path, load_yaml(path))
 
 
@@ -209,12 +207,10 @@ def make_env(obs_mode: str = "vector", camera_width: int = 84, camera_height: in
     section) overlay calibrated values on the defaults. ``groups_yaml`` (``tools/calibrate_groups.py``) replaces
     the real-group data the groups are drawn from (``groups="calibrated"``, the default, and scenario ``real``).
     """
-    from .wrappers import OBS_MODES, wrap_obs_mode
-
     if obs_mode not in OBS_MODES:
         raise UserError(f"obs_mode {obs_mode!r}: expected one of {OBS_MODES}")
     if encoder is not None:  # the camera the encoder learned through
-        from .encoded import with_encoder_camera
+        from .encoded import EncodedObservation, load_encoder, with_encoder_camera  # lazy: loads torch and SB3
 
         kwargs = with_encoder_camera({**kwargs, "camera_yaml": camera_yaml}, encoder)
         kwargs.pop("camera_yaml")
@@ -222,8 +218,6 @@ def make_env(obs_mode: str = "vector", camera_width: int = 84, camera_height: in
                                      **kwargs)
     env = wrap_obs_mode(ApproachGroupEnv(**kwargs), obs_mode, camera_width, camera_height, projection)
     if encoder is not None:
-        from .encoded import EncodedObservation, load_encoder
-
         env = EncodedObservation(env, load_encoder(encoder, camera_width), feature_smoothing)
     elif feature_smoothing != 1.0:
         raise UserError(f"feature_smoothing {feature_smoothing!r}: filters a frozen encoder's features; give an "
@@ -243,8 +237,6 @@ def core_kwargs(camera_width: int = 84, camera_height: int = 84, camera_yaml: st
                                else [str(r) if isinstance(r, Path) else r for r in room_yaml])
     projection = None
     if camera_yaml is not None:
-        from ...perception.camera import PinholeCamera, sim_projection_from_yaml
-
         cam = PinholeCamera.from_yaml(camera_yaml)
         robot = kwargs.get("robot") or {}
         robot = dataclasses.asdict(robot) if isinstance(robot, RobotParams) else dict(robot)

@@ -36,6 +36,7 @@ from ...errors import UserError
 from ...params import RobotParams
 from ...perception.autoencoding.ae_train import checkpoint_info, load_autoencoder
 from ...perception.autoencoding.autoencoders import Autoencoder, to_input
+from ...perception.camera import PinholeCamera
 from .wrappers import ExponentialFilter
 
 ENCODED_ARCHS = ("conv", "saev")
@@ -107,8 +108,6 @@ CALIBRATED_MAGNIFICATION_TOL = 0.05
 
 def check_calibrated_camera(camera_yaml: str | Path, path: str | Path) -> None:
     """Refuse a calibrated camera whose field of view is not the one the encoder learned through."""
-    from ...perception.camera import PinholeCamera
-
     learned = encoder_hfov(path)
     have = PinholeCamera.from_yaml(camera_yaml).fov_deg()[0]
     ratio = math.tan(math.radians(learned) / 2) / math.tan(math.radians(have) / 2)

@@ -15,7 +15,7 @@ import numpy as np
 from numba import njit
 
 from ...core.humans import MAX_HUMANS, free_slot
-from ...core.layouts import GroupModel, Layout, member_keep_out
+from ...core.layouts import GroupModel, Layout, member_keep_out, slot_keep
 from ...core.shield import ShieldParams
 from ...core.task import TaskParams
 from ...params import ConfigError, RobotParams, SocialParams, WorldParams
@@ -202,8 +202,6 @@ def fitting_sizes(room: Room, world: WorldParams | None = None, robot: RobotPara
     """Group sizes (2-5, calibrated vis-a-vis groups) for which ``spawn_layout`` finds a place in ``room`` (with the
     given parameters, default ones where None; ``tries`` seeded attempts each), for telling a user what a room
     holds."""
-    from ...core.layouts import slot_keep
-
     world, robot, social = world or WorldParams(), robot or RobotParams(), social or SocialParams()
     task = task or TaskParams()
     keep = slot_keep(social, robot.reach, task.intimate_zone, task.route_margin)

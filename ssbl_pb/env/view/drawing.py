@@ -4,7 +4,6 @@ from __future__ import annotations
 
 from typing import Any
 
-import cv2
 import numpy as np
 
 from ...core.task import TaskParams
@@ -24,6 +23,8 @@ def _pt(cam: TopDown, xy: np.ndarray) -> tuple[int, int]:
 def draw_overlay(img: np.ndarray, cam: TopDown, trajectory: list[dict[str, Any]], social: SocialParams,
                  task: TaskParams) -> np.ndarray:
     """Draw intimate/personal zones, the o-space circle, the free slot and the robot's path so far."""
+    import cv2  # heavy: OpenCV (~0.2 s), only for rendering
+
     out = np.ascontiguousarray(img.copy())
     ppm = cam.pixels_per_metre
     now = trajectory[-1]

@@ -44,7 +44,9 @@ from collections.abc import Sequence
 import cv2
 import numpy as np
 
-from ..camera import PinholeCamera
+from ...params import RobotParams
+from ...urdf import HUMAN_COLOURS
+from ..camera import PinholeCamera, sim_camera
 from .detectors import ColourParams
 from .ground import ProxyGeometry, boxes_to_ground
 
@@ -503,14 +505,9 @@ def estimate_facing(frame: np.ndarray | None, boxes: np.ndarray, camera: Pinhole
             raise ValueError("estimate_facing: give the frame or its hsv")
         hsv = cv2.cvtColor(np.ascontiguousarray(frame), cv2.COLOR_RGB2HSV)
     if palette is None:
-        from ...urdf import HUMAN_COLOURS
-
         palette = HUMAN_COLOURS
     height, width = hsv.shape[:2]
     if camera is None:
-        from ...params import RobotParams
-        from ..camera import sim_camera
-
         camera = sim_camera(RobotParams(), width, height)
     elif camera.width != width:
         camera = camera.scaled(width, height)

@@ -26,6 +26,7 @@ from typing import Protocol
 import numpy as np
 
 from ...errors import UserError
+from ..camera import pixel_to_plane
 
 FEET, HEAD = 0, 1  # cue codes returned by ``range_boxes``
 
@@ -69,8 +70,6 @@ class PinholeGeometry:
         self.camera = camera
 
     def image_to_plane(self, uv: np.ndarray, z: float) -> np.ndarray:
-        from ..camera import pixel_to_plane
-
         return pixel_to_plane(self.camera, uv, z)  # type: ignore[arg-type]
 
     def world_to_image(self, xyz: np.ndarray) -> np.ndarray:

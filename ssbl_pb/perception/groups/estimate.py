@@ -24,7 +24,9 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from ...core.humans import MAX_HUMANS, measured_group
-from ...params import SocialParams
+from ...core.layouts import slot_keep
+from ...core.task import TaskParams
+from ...params import RobotParams, SocialParams
 from ..camera import PinholeCamera
 from ..tracking.tracker import Tracker, TrackerParams
 
@@ -224,10 +226,6 @@ class GroupModel:
 
 def default_model(social: SocialParams) -> GroupModel:
     """``GroupModel`` with the robot's place as the default robot and task keep it (``layouts.slot_keep``)."""
-    from ...core.layouts import slot_keep
-    from ...core.task import TaskParams
-    from ...params import RobotParams
-
     task = TaskParams()
     return GroupModel(social, slot_keep(social, RobotParams().reach, task.intimate_zone, task.route_margin))
 

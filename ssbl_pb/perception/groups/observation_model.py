@@ -35,7 +35,10 @@ from typing import Any
 
 import numpy as np
 
-from ...params import RobotParams, SocialParams, _check
+from ...core.humans import MAX_HUMANS, N_SCALARS, RADIUS
+from ...params import ConfigError, RobotParams, SocialParams, _check, from_dict
+from ..camera import sim_camera
+from .estimate import BODY_HEIGHT, MIN_VISIBLE, TORSO_HALF, TRACKER, GroupModel, GroupTracker, member_arrays
 from .looks import CONFIRM_S, Looks, claim_rule
 
 # QVGA, the resolution deploy subscribes (``deploy.naoqi.NaoqiParams.resolution``)
@@ -99,8 +102,6 @@ class PerceptionParams:
     def of(cls, value: Any) -> PerceptionParams | None:
         """The env's ``perception`` argument: None/False (off: the true state), True (these defaults), a dict of
         fields or an instance."""
-        from ...params import ConfigError, from_dict
-
         if value is None or value is False:
             return None
         if value is True:
@@ -193,9 +194,6 @@ class CopyPerception:
 
     def __init__(self, robot: RobotParams, social: SocialParams, keep: float, paper: bool,
                  params: PerceptionParams) -> None:
-        from ..camera import sim_camera
-        from .estimate import BODY_HEIGHT, MIN_VISIBLE, TORSO_HALF, TRACKER, GroupModel, GroupTracker
-
         self.torso_halfwidth = TORSO_HALF[1]
         self.apparent_halfwidth = 2.0 * sum(TORSO_HALF) / math.pi  # the mean over facings
         self.body_height, self.min_visible = BODY_HEIGHT, MIN_VISIBLE  # deploy's: the torso's middle, cut boxes
@@ -248,8 +246,6 @@ class CopyPerception:
             self.model.reset()
             self.looks.new_approach()
             self.approaching, self.search_side = True, 0.0  # the next search starts afresh
-        from .estimate import member_arrays
-
         pos, rest, facing, facing_std = member_arrays(self.members)
         self.group = self.model.update(pos, np.asarray(pose[:2], dtype=float), rest, facing, facing_std)
 
@@ -323,8 +319,6 @@ class PerceivedGroups:
 
     def __init__(self, num: int, robot: RobotParams, social: SocialParams, keep: float, paper: bool,
                  params: PerceptionParams) -> None:
-        from ...core.humans import MAX_HUMANS, N_SCALARS
-
         self.params = params
         self.copies = [CopyPerception(robot, social, keep, paper, params) for _ in range(num)]
         self.count = np.zeros(num, dtype=np.int64)
@@ -345,8 +339,6 @@ class PerceivedGroups:
 
     def frame(self, i: int, pose: np.ndarray, members: np.ndarray, yaw: np.ndarray, dt: float) -> None:
         """Copy ``i``'s frame after a step (the true members (n, 2) facing ``yaw`` (n,)), into the arrays."""
-        from ...core.humans import MAX_HUMANS, RADIUS
-
         cp = self.copies[i]
         cp.frame(pose, members, dt, yaw)
         people = cp.members

@@ -12,9 +12,14 @@ from typing import Any
 import cv2
 import numpy as np
 
+from ...cli import make_bar
 from ...errors import UserError
+from ..datasets.occlusion import FeetHidden, median_background
 from ..datasets.pets import GroundTruthError, load_ground_truth, load_mot
+from ..datasets.scoring import evaluate
 from ..datasets.tsai import CalibrationError, TsaiCamera
+from ..detection.learned import SsdDetector
+from ..detection.movenet import selected
 from ..detection.ranging import HEAD
 from .pipeline import GroundTracker, HogFgDetector, VideoError, open_video, read_frames
 from .tuning import PipelineParams, default_params
@@ -93,12 +98,8 @@ def colour(tid: int) -> tuple[int, int, int]:
 def make_detector(pp: PipelineParams, scale: float = 1.0) -> Callable[[np.ndarray], np.ndarray]:
     """The detector ``pp.detector`` names, for BGR frames resized by ``scale`` (same person sizes searched)."""
     if pp.detector == "ssd":
-        from ..detection.learned import SsdDetector
-
         return SsdDetector(dataclasses.replace(pp.ssd, min_height=pp.ssd.min_height * scale))
     if pp.detector == "movenet":
-        from ..detection.movenet import selected
-
         return selected(dataclasses.replace(pp.ssd, min_height=pp.ssd.min_height * scale))
     hog = pp.hog
     if scale != 1.0:  # search the same person sizes on the resized frame
@@ -120,8 +121,6 @@ def track_video(video: str | Path, calib: str | Path, out_dir: str | Path, start
     pp = _params(params, detector)
     painter = None
     if hide_feet is not None:
-        from ..datasets.occlusion import FeetHidden, median_background
-
         try:
             painter = FeetHidden(load_ground_truth(hide_feet), median_background(video))
         except GroundTruthError as exc:
@@ -140,8 +139,6 @@ def track_video(video: str | Path, calib: str | Path, out_dir: str | Path, start
     total = (min(n, stop) if stop is not None else n) - start
     bar = None
     if progress:
-        from ...cli import make_bar
-
         bar = make_bar(max(total, 0), Path(video).name, "frame")
     t_proc, count, n_boxes, n_head = 0.0, 0, 0, 0
     try:
@@ -220,8 +217,6 @@ def load_tracks(track_dir: str | Path) -> np.ndarray:
 def evaluate_dir(track_dir: str | Path, gt_path: str | Path, calib: str | Path | None,
                  ranges: list[tuple[int, int | None]]) -> dict[str, dict[str, Any]]:
     """Metrics for each frame range ``[start, stop)`` (stop None = end of the GT)."""
-    from ..datasets.scoring import evaluate
-
     try:
         gt = load_ground_truth(gt_path)
         cam = TsaiCamera.from_xml(calib) if calib is not None else None

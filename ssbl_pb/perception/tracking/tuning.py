@@ -18,7 +18,8 @@ from ...errors import UserError
 from ..datasets.scoring import evaluate
 from ..datasets.tsai import TsaiCamera
 from ..detection.detectors import HogParams
-from ..detection.learned import SsdParams, select_ssd
+from ..detection.learned import SsdDetector, SsdParams, select_ssd
+from ..detection.movenet import network
 from ..detection.ranging import RangingParams
 from .pipeline import BoxParams, select, track_detections
 from .tracker import TrackerParams
@@ -236,9 +237,5 @@ def cache_raw(frames: Iterable[tuple[int, np.ndarray]], params: PipelineParams) 
 def learned_raw(params: PipelineParams) -> Any:
     """``frame -> (n, 5)`` raw boxes of the learned network ``params.detector`` at ``ssd.input_size``."""
     if params.detector == "movenet":
-        from ..detection.movenet import network
-
         return network(params.ssd)
-    from ..detection.learned import SsdDetector
-
     return SsdDetector(params.ssd).raw
