@@ -141,7 +141,8 @@ def test_the_virtual_pepper_shows_bodies_and_names_movenet_for_them(tmp_path):
     from ssbl_pb.deploy.__main__ import detector_for
     from ssbl_pb.deploy.naoqi import NaoqiRobot
 
-    with virtual_pepper(tmp_path / "vp.jsonl", seed=35) as (_, url):  # seed 35: the group in view from the start
+    # seed 35: the group in view from the start
+    with virtual_pepper(tmp_path / "vp.jsonl", 35, "default", "--appearance", "body") as (_, url):
         robot = NaoqiRobot(url, RobotParams())
         try:
             assert robot.identity["detector"] == "movenet" and detector_for("auto", robot) == "movenet"

@@ -144,7 +144,7 @@ def test_collision_protection_events_are_logged(tmp_path):
     events = [e for r in rows for e in r["events"]]
     assert events and all(e["value"][0] == "Safety" and len(e["value"][2]) == 2 for e in events)
     _, _, calls = load_log(tmp_path / "vp.jsonl")
-    assert sum(c["call"] == "MoveFailed" for c in calls) >= len(events)
+    assert sum(c.get("call") == "MoveFailed" for c in calls) >= len(events)
 
 
 def _deploy(*argv: str, timeout: float = 30) -> subprocess.CompletedProcess:
