@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
+import math
 import zipfile
 from collections.abc import Callable
 from typing import Any
@@ -79,7 +80,7 @@ class MoveNetParams:
     score_threshold: float = 0.05  # the box's person score for it to count
     threads: int = 1
     second_pass: float = 0.15  # a frame whose ``MAX_PEOPLE`` rows all score at least this is run again with
-    #   those people painted over (more people than rows); > 1: never. PETS: 39 % of the frames (up to 8 people)
+    #   those people painted over (more people than rows; PETS, up to 8 people: 39 % of the frames); > 1: never
     mask_grow: float = 0.1  # each found person's box grown by this fraction per side before it is painted over
     duplicate_iou: float = 0.3  # a second-pass person overlapping a first-pass box this much is the same one
     look_size: tuple[int, int] = (64, 96)  # px (w, h): the input of a close look at one person (``look``)
@@ -236,21 +237,29 @@ def _interpreter(model: bytes, size: tuple[int, int], threads: int) -> Any:
     return it
 
 
-def network(select: SsdParams, rgb: bool = False) -> Callable[[np.ndarray], np.ndarray]:
-    """MoveNet at the pipeline's ``select.input_size``: ``frame -> people rows`` from ``select.raw_threshold`` on."""
-    return MoveNetDetector(MoveNetParams(input_size=select.input_size, score_threshold=select.raw_threshold),
-                           rgb=rgb).people
+def network(select: SsdParams, rgb: bool = False, second_pass: bool = False) -> Callable[[np.ndarray], np.ndarray]:
+    """MoveNet at the pipeline's ``select.input_size``: ``frame -> people rows`` from ``select.raw_threshold`` on
+    (``pipeline_detector``)."""
+    return pipeline_detector(select, rgb, second_pass).people
+
+
+def pipeline_detector(select: SsdParams, rgb: bool = False, second_pass: bool = False) -> MoveNetDetector:
+    """MoveNet as the pipeline's ``select`` (an ``SsdParams``) sets it up. ``second_pass`` off: tools/track.py's
+    time (PETS: 39 % of the frames have six people scoring 0.15, and a second pass costs a first one; 60 ms a
+    frame on one core does not allow it); on: ``MoveNetParams.second_pass`` (deploy's robot seldom sees six)."""
+    p = MoveNetParams(input_size=select.input_size, score_threshold=select.raw_threshold)
+    return MoveNetDetector(p if second_pass else dataclasses.replace(p, second_pass=math.inf), rgb=rgb)
 
 
 class Selected:
     """The pipeline's MoveNet detector (``PipelineParams.detector == "movenet"``): ``detector(frame)`` gives the
     network's people rows at ``select.input_size`` from ``select.raw_threshold`` on, chosen by
-    ``learned.select_ssd`` (boxes shrunk, keypoints as found); ``look`` and ``look_height`` as the network's."""
+    ``learned.select_ssd`` (boxes shrunk, keypoints as found); ``look`` and ``look_height`` as the network's;
+    ``second_pass``: ``pipeline_detector``'s."""
 
-    def __init__(self, select: SsdParams, rgb: bool = False) -> None:
+    def __init__(self, select: SsdParams, rgb: bool = False, second_pass: bool = False) -> None:
         self.select = select
-        self.net = MoveNetDetector(MoveNetParams(input_size=select.input_size, score_threshold=select.raw_threshold),
-                                   rgb=rgb)
+        self.net = pipeline_detector(select, rgb, second_pass)
 
     def __call__(self, frame: np.ndarray) -> np.ndarray:
         return select_ssd(self.net.people(frame), self.select)
@@ -263,9 +272,9 @@ class Selected:
         return self.net.p.look_below * frame_height / self.net.p.input_size[1]
 
 
-def selected(select: SsdParams, rgb: bool = False) -> Selected:
-    """``Selected(select, rgb)``."""
-    return Selected(select, rgb)
+def selected(select: SsdParams, rgb: bool = False, second_pass: bool = False) -> Selected:
+    """``Selected(select, rgb, second_pass)``."""
+    return Selected(select, rgb, second_pass)
 
 
 class MoveNetFacing:
@@ -277,8 +286,8 @@ class MoveNetFacing:
 
     def __init__(self, select: SsdParams, ranging: RangingParams | None = None, body: BodyParams | None = None,
                  detector: Callable[[np.ndarray], np.ndarray] | None = None) -> None:
-        """``detector``: ``frame -> people rows`` (default ``Selected(select, rgb=True)``)."""
-        self.detector = detector or Selected(select, rgb=True)
+        """``detector``: ``frame -> people rows`` (default ``Selected(select, rgb=True, second_pass=True)``)."""
+        self.detector = detector or Selected(select, rgb=True, second_pass=True)
         self.ranging, self.body = ranging or RangingParams(), body or BodyParams()
         self.last: tuple[tuple[int, int], np.ndarray, np.ndarray | None] | None = None  # (h, w), boxes, keypoints
         self.frames = 0  # frames detected so far

@@ -5,7 +5,8 @@ window above a low margin with its foreground fraction, and ``select`` applies t
 NMS. ``GroundTracker`` projects foot points with the camera, runs the Kalman tracker and returns each track's
 image box drawn from its ground position and a per-track body height (so coasting tracks keep a box).
 Detections with keypoints (MoveNet's people rows, ``movenet.people``) are ranged from them when cut above the
-feet, and give each track its facing (``keypoints.facing_from_keypoints``, filtered per track: ``facing_of``).
+feet, and give each track its facing (``keypoints.facing_posterior`` per detection and per close look, ``look``;
+filtered per track by ``keypoints.FacingTrack``: ``facing_of``).
 """
 
 from __future__ import annotations
