@@ -169,17 +169,13 @@ class GroundTracker:
         ft = self.facing.get(tid)
         return ft.estimate() if ft is not None else (math.nan, math.inf)
 
-    def choose_look(self, boxes: np.ndarray, max_height: float = math.inf) -> tuple[int, int] | None:
-        """The track to look at closely this step (``look``): of those detected in it whose box (``boxes``, the
-        step's) is shorter than ``max_height`` px, the one looked at longest ago (never: first; ties: the lowest
-        id). Returns (track id, detection index) or None."""
-        best = None
-        for tid, i in self.detected.items():
-            if boxes[i, 3] < max_height:
-                key = (self.looked.get(tid, -1), tid)
-                if best is None or key < best[0]:
-                    best = (key, tid, i)
-        return None if best is None else (best[1], best[2])
+    def choose_looks(self, boxes: np.ndarray, max_height: float = math.inf, count: int = 1) -> list[tuple[int, int]]:
+        """The tracks to look at closely this step (``look``): of those detected in it whose box (``boxes``, the
+        step's) is shorter than ``max_height`` px, the ``count`` looked at longest ago (never: first; ties: the
+        lowest id). Returns (track id, detection index) pairs."""
+        cand = sorted((self.looked.get(tid, -1), tid, i) for tid, i in self.detected.items()
+                      if boxes[i, 3] < max_height)
+        return [(tid, i) for _, tid, i in cand[:count]]
 
     def look(self, tid: int, kp: np.ndarray) -> None:
         """A close look's keypoints (17, 3) (frame pixels) of track ``tid``'s person: its facing filter takes

@@ -159,13 +159,12 @@ def track_video(video: str | Path, calib: str | Path, out_dir: str | Path, start
             if boxes.shape[1] >= PEOPLE_COLUMNS:  # keypoints' x and y too
                 boxes[:, 5:PEOPLE_COLUMNS] /= np.tile([scale, scale, 1.0], len(KEYPOINTS))
             tracks = gt.step(boxes, dt)
-            if hasattr(det, "look"):  # a close look at one person a frame, for the facing (MoveNet)
-                choice = gt.choose_look(boxes, det.look_height(small.shape[0]) / scale)
-                if choice is not None:
-                    kp = det.look(small, boxes[choice[1], :4] * scale)
+            if hasattr(det, "look"):  # close looks at a few people a frame, for their facing (MoveNet)
+                for tid, k in gt.choose_looks(boxes, det.look_height(small.shape[0]) / scale, det.looks):
+                    kp = det.look(small, boxes[k, :4] * scale)
                     if kp is not None:
                         kp[:, :2] /= scale
-                        gt.look(choice[0], kp)
+                        gt.look(tid, kp)
                         n_looks += 1
             t_proc += time.perf_counter() - t0
             n_boxes += len(boxes)
