@@ -72,7 +72,7 @@ def test_a_track_faces_where_the_body_faces_not_where_it_moves():
     # a close look (``GroundTracker.look``) of the backward walker turned about: the track follows over some looks
     tid, xy = next((t, xy) for t, _, xy, _ in tracks if xy[1] < -2)
     for _ in range(4):
-        gt.look(tid, person_row(geom, xy, math.pi)[5:].reshape(17, 3))
+        gt.look([(tid, person_row(geom, xy, math.pi)[5:].reshape(17, 3))])
     assert abs(abs(math.degrees(gt.facing_of(tid)[0])) - 180) < 30
 
 

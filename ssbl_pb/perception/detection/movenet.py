@@ -167,9 +167,8 @@ class MoveNetDetector:
 
     def _run(self, rgb: np.ndarray, interpreter: Any = None) -> np.ndarray:
         it = interpreter or self.interpreter
-        inp, out = it.get_input_details()[0], it.get_output_details()[0]
-        h, w = inp["shape"][1:3]
-        it.set_tensor(inp["index"], cv2.resize(rgb, (int(w), int(h)))[None].astype(inp["dtype"]))
+        inp, out, size = it.ssbl_io
+        it.set_tensor(inp["index"], cv2.resize(rgb, size)[None].astype(inp["dtype"]))
         it.invoke()
         self.passes += 1
         return it.get_tensor(out["index"])[0]
@@ -238,6 +237,7 @@ def _interpreter(model: bytes, size: tuple[int, int], threads: int) -> Any:
     w, h = size
     it.resize_tensor_input(it.get_input_details()[0]["index"], [1, h, w, 3])
     it.allocate_tensors()
+    it.ssbl_io = (it.get_input_details()[0], it.get_output_details()[0], (w, h))  # read once: each call costs
     return it
 
 

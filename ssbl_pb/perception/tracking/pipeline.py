@@ -177,17 +177,20 @@ class GroundTracker:
                       if boxes[i, 3] < max_height)
         return [(tid, i) for _, tid, i in cand[:count]]
 
-    def look(self, tid: int, kp: np.ndarray) -> None:
-        """A close look's keypoints (17, 3) (frame pixels) of track ``tid``'s person: its facing filter takes
-        their posterior (at the track's position) with weight ``box.look_weight``."""
-        self.looked[tid] = self.steps
-        st = next((s for s in self.tracker.states() if s.id == tid), None)
-        ft = self.facing.get(tid)
-        if st is None or ft is None:
+    def look(self, looks: list[tuple[int, np.ndarray]]) -> None:
+        """Close looks' keypoints (17, 3 each; frame pixels) of tracks' people, as (track id, keypoints) pairs: each
+        track's facing filter takes their posterior (at the track's position) with weight ``box.look_weight``."""
+        at = {st.id: st.position for st in self.tracker.states()}
+        looks = [(tid, kp) for tid, kp in looks if tid in at and tid in self.facing]
+        for tid, _ in looks:
+            self.looked[tid] = self.steps
+        if not looks:
             return
-        q, ok = facing_posterior(self.geometry, np.asarray(kp, dtype=float)[None], st.position[None], self.body)
-        if ok[0]:
-            ft.update(q[0], self.box.look_weight)
+        kp = np.stack([np.asarray(k, dtype=float) for _, k in looks])
+        q, ok = facing_posterior(self.geometry, kp, np.array([at[tid] for tid, _ in looks]), self.body)
+        for (tid, _), qi, oi in zip(looks, q, ok, strict=True):
+            if oi:
+                self.facing[tid].update(qi, self.box.look_weight)
 
     def _filter_facing(self, states: list, dt: float) -> None:
         """Each track's facing filter: predicted by ``dt``, updated with its detection's posterior where it has

@@ -160,12 +160,14 @@ def track_video(video: str | Path, calib: str | Path, out_dir: str | Path, start
                 boxes[:, 5:PEOPLE_COLUMNS] /= np.tile([scale, scale, 1.0], len(KEYPOINTS))
             tracks = gt.step(boxes, dt)
             if hasattr(det, "look"):  # close looks at a few people a frame, for their facing (MoveNet)
+                seen = []
                 for tid, k in gt.choose_looks(boxes, det.look_height(small.shape[0]) / scale, det.looks):
                     kp = det.look(small, boxes[k, :4] * scale)
                     if kp is not None:
                         kp[:, :2] /= scale
-                        gt.look(tid, kp)
-                        n_looks += 1
+                        seen.append((tid, kp))
+                gt.look(seen)
+                n_looks += len(seen)
             t_proc += time.perf_counter() - t0
             n_boxes += len(boxes)
             n_head += int((gt.cues == HEAD).sum())
