@@ -40,6 +40,7 @@ L_HIP, R_HIP = 11, 12
 RIGID = (NOSE, L_EYE, R_EYE, L_EAR, R_EAR, L_SHOULDER, R_SHOULDER, L_HIP, R_HIP)  # the template's keypoints
 FACE = (NOSE, L_EYE, R_EYE)  # seen only from the front
 GROUPS = ((NOSE, L_EYE, R_EYE, L_EAR, R_EAR), (L_SHOULDER, R_SHOULDER), (L_HIP, R_HIP))  # head, shoulders, hips
+RIGID_GROUP = np.array([next(g for g, members in enumerate(GROUPS) if k in members) for k in RIGID])
 PERSON_HEIGHT = 1.76  # m, head top: PETS S2L1 ground-truth boxes of frames 0-399, median (1.67-1.89 m 10th-90th)
 
 
@@ -148,6 +149,7 @@ def predict(geom: object, xy: np.ndarray, yaw: np.ndarray, p: BodyParams) -> tup
     of ``yaw`` (k,) (``local_projection`` at each point's height; the shoulders and hips at their ``silhouette``),
     and the image's rows per metre of height along the body (n,)."""
     xy = np.asarray(xy, dtype=float).reshape(-1, 2)
+    n, k = len(xy), len(yaw)
     body = template(p)[list(RIGID)]
     heights, inv = np.unique(body[:, 2], return_inverse=True)
     base, jac = local_projection(geom, xy, heights)
@@ -156,16 +158,22 @@ def predict(geom: object, xy: np.ndarray, yaw: np.ndarray, p: BodyParams) -> tup
     u = xy - cam
     u = u / np.maximum(np.hypot(u[:, 0], u[:, 1]), 1e-9)[:, None]  # (n, 2) line of sight
     view = np.stack([c[None] * u[:, :1] + s[None] * u[:, 1:], -s[None] * u[:, :1] + c[None] * u[:, 1:]], axis=-1)
-    pts = np.broadcast_to(body[:, :2], (len(xy), len(yaw)) + body[:, :2].shape).copy()  # (n, k, 9, 2) body frame
+    bx = np.empty((n, k, len(RIGID)))
+    by = np.empty((n, k, len(RIGID)))
+    bx[:, :, :5], by[:, :, :5] = body[:5, 0], body[:5, 1]  # the head's points: rigid
     for (left, right), width, depth, fwd in (((5, 6), p.shoulder[1], p.torso_depth[0], p.shoulder[0]),
                                              ((7, 8), p.hip[1], p.torso_depth[1], p.hip[0])):
         edges = silhouette(view, width, depth)  # (n, k, 2, 2)
-        pts[:, :, left], pts[:, :, right] = edges[:, :, 0], edges[:, :, 1]
-        pts[:, :, [left, right], 0] += fwd
-    d = np.stack([c[None, :, None] * pts[..., 0] - s[None, :, None] * pts[..., 1],
-                  s[None, :, None] * pts[..., 0] + c[None, :, None] * pts[..., 1]], axis=-1)  # world frame
+        bx[:, :, left], by[:, :, left] = edges[:, :, 0, 0] + fwd, edges[:, :, 0, 1]
+        bx[:, :, right], by[:, :, right] = edges[:, :, 1, 0] + fwd, edges[:, :, 1, 1]
+    cc, ss = c[None, :, None], s[None, :, None]
+    dx, dy = cc * bx - ss * by, ss * bx + cc * by  # world frame (n, k, 9)
+    j = jac[:, None, inv]  # (n, 1, 9, 2, 2)
+    b0 = base[:, None, inv]
+    out = np.stack([b0[..., 0] + j[..., 0, 0] * dx + j[..., 0, 1] * dy,
+                    b0[..., 1] + j[..., 1, 0] * dx + j[..., 1, 1] * dy], axis=-1)
     ppm = np.abs(base[:, -1, 1] - base[:, 0, 1]) / max(heights[-1] - heights[0], 1e-9)
-    return base[:, None, inv] + np.einsum("nmij,nkmj->nkmi", jac[:, inv], d), ppm
+    return out, ppm
 
 
 def mode_mean(post: np.ndarray, grid: np.ndarray, halfwidth: float) -> tuple[np.ndarray, np.ndarray]:
@@ -189,17 +197,19 @@ SWAP = np.array([NOSE, R_EYE, L_EYE, R_EAR, L_EAR, R_SHOULDER, L_SHOULDER, R_HIP
 def _fit_cost(pred: np.ndarray, obs: np.ndarray, omega: np.ndarray, scale_std: float) -> np.ndarray:
     """-2 log likelihood (n, k) of observed points ``obs`` (n, m, 2) with weights ``omega`` (n, m; 1 / variance,
     0 unseen) against predicted ones ``pred`` (n, k, m, 2) after the best image shift and a scale near 1."""
-    wsum = np.maximum(omega.sum(axis=1), 1e-12)
-    cp = np.einsum("nm,nkmi->nki", omega, pred) / wsum[:, None, None]
-    co = np.einsum("nm,nmi->ni", omega, obs) / wsum[:, None]
-    dp = pred - cp[:, :, None]
-    do = obs - co[:, None]
-    spp = np.einsum("nm,nkmi,nkmi->nk", omega, dp, dp)
-    spo = np.einsum("nm,nkmi,nmi->nk", omega, dp, do)
-    soo = np.einsum("nm,nmi,nmi->n", omega, do, do)
+    w = omega[:, None, :]  # (n, 1, m)
+    wsum = np.maximum(omega.sum(axis=1), 1e-12)[:, None]
+    px, py, ox, oy = pred[..., 0], pred[..., 1], obs[:, None, :, 0], obs[:, None, :, 1]
+    dpx = px - (w * px).sum(-1, keepdims=True) / wsum[..., None]
+    dpy = py - (w * py).sum(-1, keepdims=True) / wsum[..., None]
+    dox = ox - (w * ox).sum(-1, keepdims=True) / wsum[..., None]
+    doy = oy - (w * oy).sum(-1, keepdims=True) / wsum[..., None]
+    spp = (w * (dpx * dpx + dpy * dpy)).sum(-1)
+    spo = (w * (dpx * dox + dpy * doy)).sum(-1)
+    soo = (w * (dox * dox + doy * doy)).sum(-1)
     prior = 1.0 / scale_std ** 2
     sc = (spo + prior) / (spp + prior)  # the scale minimising the sum plus (s - 1)^2 / scale_std^2
-    return sc ** 2 * spp - 2 * sc * spo + soo[:, None] + prior * (sc - 1) ** 2
+    return sc ** 2 * spp - 2 * sc * spo + soo + prior * (sc - 1) ** 2
 
 
 def facing_costs(geom: object, kp: np.ndarray, xy: np.ndarray, grid: np.ndarray,
@@ -211,8 +221,7 @@ def facing_costs(geom: object, kp: np.ndarray, xy: np.ndarray, grid: np.ndarray,
     xy = np.asarray(xy, dtype=float).reshape(-1, 2)
     idx = np.array(RIGID)
     pred, ppm = predict(geom, xy, grid, p)  # (n, k, m, 2), (n,)
-    group = np.array([g for g, members in enumerate(GROUPS) for _ in members])  # per RIGID point
-    var = p.pixel_std ** 2 + (np.array(p.noise)[group][None] * ppm[:, None]) ** 2  # (n, m)
+    var = p.pixel_std ** 2 + (np.array(p.noise)[RIGID_GROUP][None] * ppm[:, None]) ** 2  # (n, m)
     w = seen(kp, p)
     obs = np.nan_to_num(kp[..., :2])
     costs = [_fit_cost(pred, obs[:, order], w[:, order] / var, p.scale_std) for order in (idx, SWAP)]

@@ -87,8 +87,8 @@ class MoveNetParams:
     look_grow: float = 1.4  # a look's crop: this times the person's box height, at ``look_size``'s aspect
     look_below: float = 96.0  # px: people shorter than this in the first pass's input are worth a look (on PETS,
     #   a look's keypoints give the facing within 20 deg at the median against 38 deg; docs/tracking.md)
-    looks: int = 2  # close looks a frame in the pipeline (each ~5 % of the first pass's time); on PETS frames
-    #   0-399 two gave tracks a facing on 94 % of the walker-frames against 90 % with one, as accurate
+    looks: int = 2  # close looks a frame at most in the pipeline (each ~7 % of the first pass's time; which
+    #   tracks: ``pipeline.GroundTracker.choose_looks``)
 
     def __post_init__(self) -> None:
         w, h = self.input_size
@@ -165,10 +165,14 @@ class MoveNetDetector:
         self._look: Any = None  # the close look's interpreter, made at the first look
         self.passes = 0  # network runs so far (a second pass and a look count)
 
-    def _run(self, rgb: np.ndarray, interpreter: Any = None) -> np.ndarray:
+    def _run(self, frame: np.ndarray, interpreter: Any = None) -> np.ndarray:
+        """The network's rows for ``frame`` (BGR, or RGB with ``rgb``), resized to the interpreter's input."""
         it = interpreter or self.interpreter
         inp, out, size = it.ssbl_io
-        it.set_tensor(inp["index"], cv2.resize(rgb, size)[None].astype(inp["dtype"]))
+        x = cv2.resize(frame, size)
+        if not self.rgb:
+            x = cv2.cvtColor(x, cv2.COLOR_BGR2RGB)  # after the resize: fewer pixels
+        it.set_tensor(inp["index"], x[None].astype(inp["dtype"]))
         it.invoke()
         self.passes += 1
         return it.get_tensor(out["index"])[0]
@@ -189,10 +193,10 @@ class MoveNetDetector:
         crop = frame[max(y0, 0):max(min(y1, fh), 0), max(x0, 0):max(min(x1, fw), 0)]
         if crop.size == 0:
             return None
-        crop = cv2.copyMakeBorder(crop, max(-y0, 0), max(y1 - fh, 0), max(-x0, 0), max(x1 - fw, 0),
-                                  cv2.BORDER_CONSTANT, value=(0, 0, 0))
-        rgb = crop if self.rgb else cv2.cvtColor(crop, cv2.COLOR_BGR2RGB)
-        boxes, kp = decode(self._run(rgb, self._look), (x1 - x0, y1 - y0), self.p.score_threshold)
+        if x0 < 0 or y0 < 0 or x1 > fw or y1 > fh:
+            crop = cv2.copyMakeBorder(crop, max(-y0, 0), max(y1 - fh, 0), max(-x0, 0), max(x1 - fw, 0),
+                                      cv2.BORDER_CONSTANT, value=(0, 0, 0))
+        boxes, kp = decode(self._run(crop, self._look), (x1 - x0, y1 - y0), self.p.score_threshold)
         if not len(boxes):
             return None
         mid = np.hypot(boxes[:, 0] + boxes[:, 2] / 2 - (x1 - x0) / 2, boxes[:, 1] + boxes[:, 3] / 2 - (y1 - y0) / 2)
@@ -205,11 +209,10 @@ class MoveNetDetector:
         scoring at least ``score_threshold``, and where every row scored at least ``second_pass``, those of a
         second run on the frame with the people found painted over that overlap none of them."""
         fh, fw = frame.shape[:2]
-        rgb = frame if self.rgb else cv2.cvtColor(frame, cv2.COLOR_BGR2RGB)
-        out = self._run(rgb)
+        out = self._run(frame)
         boxes, kp = decode(out, (fw, fh), self.p.score_threshold)
         if (np.asarray(out)[:, 55] >= self.p.second_pass).all():
-            b2, k2 = decode(self._run(paint_over(rgb, boxes, self.p.mask_grow)), (fw, fh), self.p.score_threshold)
+            b2, k2 = decode(self._run(paint_over(frame, boxes, self.p.mask_grow)), (fw, fh), self.p.score_threshold)
             if len(b2):
                 first = np.column_stack([boxes[:, :4], np.full(len(boxes), 2.0)])  # ranked above any network score
                 merged = nms(np.column_stack([np.vstack([first, b2[:, :5]]),
