@@ -69,6 +69,13 @@ def test_a_track_faces_where_the_body_faces_not_where_it_moves():
         yaw, std = gt.facing_of(tid)
         assert abs(math.degrees(yaw)) < 15 and std < math.radians(40), (xy, yaw)
         assert abs(abs(math.degrees(math.atan2(v[1], v[0]))) - (0 if xy[1] > -2 else 180)) < 20  # its motion
+    # close looks go first to the tracks never looked at (the lowest id first), then to the other one
+    rows = np.stack([person_row(geom, xy, 0.0) for _, _, xy, _ in tracks])
+    first = gt.choose_looks(rows, count=1)
+    assert len(first) == 1 and first[0][0] == min(t for t, *_ in tracks)
+    gt.look([(first[0][0], rows[first[0][1], 5:].reshape(17, 3))])
+    assert gt.choose_looks(rows, count=2)[0][0] == max(t for t, *_ in tracks)
+    assert gt.choose_looks(rows, max_height=1.0) == []  # everyone too tall for a look to help
     # a close look (``GroundTracker.look``) of the backward walker turned about: the track follows over some looks
     tid, xy = next((t, xy) for t, _, xy, _ in tracks if xy[1] < -2)
     for _ in range(4):
