@@ -122,6 +122,8 @@ def test_too_few_points_say_nothing():
     assert math.isnan(facing_from_keypoints(geom, kp[None], np.array([xy]), P).yaw[0])
     with pytest.raises(UserError, match="keypoints.swap_rate"):
         BodyParams(swap_rate=1.0)
+    with pytest.raises(UserError, match=r"keypoints.torso_depth = \(0.1,\): expected two numbers"):
+        BodyParams(torso_depth=(0.1,))
 
 
 def test_a_track_keeps_its_facing_through_frames_that_cannot_tell_front_from_back():

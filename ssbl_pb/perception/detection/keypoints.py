@@ -89,6 +89,9 @@ class BodyParams:
             v = getattr(self, name)
             if len(v) != len(GROUPS) or not all(math.isfinite(x) and x > 0 for x in v):
                 raise UserError(f"keypoints.{name} = {v!r}: expected three numbers > 0 (head, shoulders, hips)")
+        if len(self.torso_depth) != 2 or not all(math.isfinite(x) and x > 0 for x in self.torso_depth):
+            raise UserError(f"keypoints.torso_depth = {self.torso_depth!r}: expected two numbers > 0 (shoulders, "
+                            f"hips)")
         if not 0 <= self.swap_rate < 1:
             raise UserError(f"keypoints.swap_rate = {self.swap_rate!r}: expected in [0, 1)")
         if not 0 <= self.min_score <= 1 or not 0 <= self.face_score <= 1:
