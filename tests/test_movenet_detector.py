@@ -4,6 +4,7 @@ painted over too."""
 
 from __future__ import annotations
 
+import hashlib
 from pathlib import Path
 
 import cv2
@@ -23,6 +24,26 @@ GT = PETS / "PETS2009-S2L1.xml"
 def test_weights_ship_in_the_installed_package():
     model = movenet.weights()
     assert len(model) > 9_000_000 and model[4:8] == b"TFL3"  # the whole float16 graph, a TFLite flatbuffer
+    assert hashlib.sha256(model).hexdigest() == movenet.SHA256
+
+
+def test_a_corrupted_graph_is_refused_naming_the_file_both_hashes_and_the_fix(tmp_path, monkeypatch):
+    import zipfile
+
+    good = movenet.weights()
+    bad = bytearray(good)
+    bad[len(bad) // 2] ^= 0xFF  # one byte flipped
+    bundle = tmp_path / "nfd.zip"
+    with zipfile.ZipFile(bundle, "w") as z:
+        z.writestr(movenet.MEMBER, bytes(bad))
+    monkeypatch.setattr(movenet, "package_file", lambda *a: bundle)
+    with pytest.raises(DetectorWeightsError) as e:
+        movenet.weights()
+    msg = str(e.value)
+    assert f"{bundle}:{movenet.MEMBER}" in msg and movenet.SHA256 in msg
+    assert hashlib.sha256(bytes(bad)).hexdigest() in msg and "--require-hashes -r scripts/weights.txt" in msg
+    with pytest.raises(DetectorWeightsError, match="SHA-256"):
+        MoveNetDetector()  # the detector reads its graph through the check
 
 
 def test_missing_package_names_the_fix(monkeypatch):
@@ -140,3 +161,59 @@ def test_deploy_runs_movenet_on_rgb_frames_and_picks_it_on_a_real_robot():
     rgb = np.ascontiguousarray(cv2.imread(str(FRAME))[200:480, 150:550, ::-1])
     boxes = detect(rgb)
     assert boxes.shape[1] == 5 and len(boxes) >= 1
+
+
+def eight_people() -> tuple[np.ndarray, np.ndarray]:
+    """A 768 x 576 frame of eight PETS people (their GT boxes in frames 0, 9 and 19, each scaled to 230 px tall) on
+    grey, in two rows of four, and where each was put (x, y, w, h)."""
+    from ssbl_pb.perception.datasets.pets import load_ground_truth
+
+    gt = load_ground_truth(GT)
+    pick = ((0, 9), (0, 15), (0, 19), (9, 15), (9, 19), (19, 11), (19, 15), (19, 19))  # (frame, id): none hidden
+    canvas = np.full((576, 768, 3), 128, np.uint8)
+    boxes = []
+    for k, (f, pid) in enumerate(pick):
+        img = cv2.imread(str(PETS / "img1" / f"{f + 1:06d}.jpg"))
+        x, y, w, h = gt[(gt[:, 0] == f) & (gt[:, 1] == pid), 2:6][0]
+        crop = img[int(max(y - 0.08 * h, 0)):int(min(y + 1.08 * h, 576)),
+                   int(max(x - 0.15 * w, 0)):int(min(x + 1.15 * w, 768))]
+        crop = cv2.resize(crop, None, fx=230 / crop.shape[0], fy=230 / crop.shape[0])
+        row, col = divmod(k, 4)
+        ch, cw = crop.shape[:2]
+        x0, y0 = col * 192 + (192 - cw) // 2, row * 288 + (288 - ch) // 2
+        canvas[y0:y0 + ch, x0:x0 + cw] = crop
+        boxes.append([x0, y0, cw, ch])
+    return canvas, np.array(boxes, dtype=float)
+
+
+@pytest.mark.skipif(not FRAME.is_file(), reason=f"PETS frame not found: {FRAME}")
+def test_eight_people_in_one_frame_are_all_found():
+    # the network returns six rows; a frame whose six all score as people is run again with them painted over
+    cv2.setNumThreads(1)
+    frame, truth = eight_people()
+    det = MoveNetDetector()
+    boxes, kp = det.detect(frame)
+    assert det.passes == 2 and len(boxes) == 8 and kp.shape == (8, 17, 3)
+    assert (box_iou(truth, boxes[:, :4]).max(axis=1) >= 0.5).all()  # each person once
+    one = MoveNetDetector(MoveNetParams(second_pass=2.0))  # one pass only: six of them
+    assert len(one(frame)) == 6 and one.passes == 1
+
+
+@pytest.mark.skipif(not FRAME.is_file(), reason=f"PETS frame not found: {FRAME}")
+def test_a_close_look_finds_the_person_in_the_box():
+    # PETS frame 0's walkers through a 96 x 128 look: the keypoints of the person whose GT box it was, inside it
+    from ssbl_pb.perception.datasets.pets import load_ground_truth
+
+    cv2.setNumThreads(1)
+    frame = cv2.imread(str(FRAME))
+    gt = load_ground_truth(GT)
+    det = MoveNetDetector()
+    for x, y, w, h in gt[gt[:, 0] == 0, 2:6]:
+        if h < 60 or x < 0 or x + w > 768:
+            continue
+        kp = det.look(frame, np.array([x, y, w, h]))
+        assert kp is not None and kp.shape == (17, 3)
+        body = kp[[5, 6, 11, 12]]  # shoulders and hips
+        assert (body[:, 2] > 0.2).all()
+        assert ((body[:, 0] > x - 0.2 * w) & (body[:, 0] < x + 1.2 * w)).all()
+        assert ((body[:, 1] > y) & (body[:, 1] < y + h)).all()

@@ -82,8 +82,10 @@ def test_track_and_eval_cli(pets, tmp_path):
     assert sorted(p.name for p in out.iterdir()) == ["overlay.mp4", "tracks_mot.txt", "tracks_world.csv"]
     mot = np.loadtxt(out / "tracks_mot.txt", delimiter=",", ndmin=2)
     assert mot.shape[1] == 10 and mot[:, 0].min() >= 1 and mot[:, 0].max() <= 8
-    world = np.loadtxt(out / "tracks_world.csv", delimiter=",", skiprows=1, ndmin=2)
-    assert len(world) == len(mot) and np.all(np.isfinite(world))
+    from ssbl_pb.perception.tracking.tracking_io import read_world
+
+    world = read_world(out / "tracks_world.csv")  # facing_deg is empty where a track's facing is unknown
+    assert len(world) == len(mot) and np.all(np.isfinite(world[:, :6]))
     cap = cv2.VideoCapture(str(out / "overlay.mp4"))
     assert int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) == 8
     r = subprocess.run([sys.executable, "tools/eval_tracking.py", "--tracks", str(out), "--gt",

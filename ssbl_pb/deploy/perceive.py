@@ -126,8 +126,9 @@ def make_detector(name: str) -> tuple[Callable[[np.ndarray], np.ndarray], bool]:
     saturated torsos, for the virtual Pepper) or whole people (``hog``: OpenCV's people detector; ``ssd``: the
     learned SSDLite pedestrian detector, ``perception.detection.learned``; ``movenet``: MoveNet MultiPose,
     ``perception.detection.movenet``, the default on a real robot; the learned ones' boxes may end above the feet:
-    those are ranged from the head by ``boxes_to_ground``). The colour detector also tells each box's facing: after a
-    call, ``detector.facing()`` (``one_per_colour``)."""
+    those are ranged from the head by ``boxes_to_ground``, MoveNet's from its keypoints by ``detector.ground()``).
+    The colour detector and MoveNet also tell each box's facing: after a call, ``detector.facing()``
+    (``one_per_colour``, ``movenet.MoveNetFacing``)."""
     from ..perception.detection.detectors import HogDetector, HogParams
 
     if name == "colour":
@@ -145,10 +146,11 @@ def make_detector(name: str) -> tuple[Callable[[np.ndarray], np.ndarray], bool]:
         # thresholds as chosen on PETS, without its minimum height (people near the robot are large)
         return SsdDetector(dataclasses.replace(SSD_DEFAULT.ssd, min_height=0.0), rgb=True), False
     if name == "movenet":
-        from ..perception.detection.movenet import selected
+        from ..perception.detection.movenet import MoveNetFacing
         from ..perception.tracking.tuning import MOVENET_DEFAULT
 
-        return selected(dataclasses.replace(MOVENET_DEFAULT.ssd, min_height=0.0), rgb=True), False
+        # positions and facing from the keypoints too (``ground``, ``facing``)
+        return MoveNetFacing(dataclasses.replace(MOVENET_DEFAULT.ssd, min_height=0.0), MOVENET_DEFAULT.rng), False
     raise UserError(f"--detector {name!r}: expected one of {list(DETECTORS)}")
 
 
@@ -233,7 +235,8 @@ class Perception:
             params = self.tracker_params or TRACKER
             self._group = GroupTracker(cam, params, social=self.social, model=self.group_model)
         boxes = self.detect(frame.image)
-        # each person's facing, where the detector tells it (the virtual Pepper's colour detector), from every box:
+        # each person's facing, where the detector tells it (the virtual Pepper's colour detector, MoveNet's
+        # keypoints), from every box:
         # a person cut by the image's side still hides part of whoever stands behind them
         seen = self.detect.facing(self._group.camera) if hasattr(self.detect, "facing") else None
         # a box cut by the image's side: a torso completed beyond the side (``complete_cut_torsos``), a whole person
@@ -245,7 +248,10 @@ class Perception:
             boxes = boxes.copy()  # (half a pixel: 0.1 m of range 5 m away; boxes_to_ground takes pixel centres)
             boxes[:, 1] -= 0.5
             boxes[:, 3] += 1.0
-        xy = boxes_to_ground(self._group.camera, boxes, ProxyGeometry(), torso=self.torso)
+        if hasattr(self.detect, "ground"):  # MoveNet: the feet, else the keypoints (``MoveNetFacing.ground``)
+            xy = self.detect.ground(self._group.camera)[whole]
+        else:
+            xy = boxes_to_ground(self._group.camera, boxes, ProxyGeometry(), torso=self.torso)
         found = np.isfinite(xy[:, 0])
         xy = xy[found]
         if self.torso and len(xy):

@@ -207,12 +207,14 @@ class SsdParams:
 
 
 def select_ssd(raw: np.ndarray, params: SsdParams) -> np.ndarray:
-    """Threshold, NMS, shrink (and shift) and minimum height on ``SsdDetector.raw`` rows ``x, y, w, h, score``."""
+    """Threshold, NMS, shrink (and shift) and minimum height on ``SsdDetector.raw`` rows ``x, y, w, h, score``;
+    further columns (MoveNet's keypoints) go along with their rows unchanged."""
     p = params
-    raw = np.asarray(raw, dtype=float).reshape(-1, 5)
+    raw = np.asarray(raw, dtype=float)
+    raw = raw.reshape(-1, raw.shape[-1] if raw.ndim == 2 else 5)
     b = nms(raw[raw[:, 4] >= p.score_threshold], p.nms_iou)
     b = np.column_stack([b[:, 0] + (p.shrink_x + p.shift_x) * b[:, 2], b[:, 1] + p.shrink_top * b[:, 3],
-                         b[:, 2] * (1 - 2 * p.shrink_x), b[:, 3] * (1 - p.shrink_top - p.shrink_bottom), b[:, 4]])
+                         b[:, 2] * (1 - 2 * p.shrink_x), b[:, 3] * (1 - p.shrink_top - p.shrink_bottom), b[:, 4:]])
     return b[b[:, 3] >= p.min_height] if p.min_height > 0 else b
 
 

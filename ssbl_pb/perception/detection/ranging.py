@@ -5,11 +5,14 @@ Two cues, chosen per box:
 - **feet**: the box's bottom centre on the ground plane (z = 0), used when the bottom edge is inside the image,
   the body height the box then implies (head row against the foot point) is plausible (1.3-2.1 m) and the box is
   not too wide for a whole person (``max_aspect``, width / height; off by default);
-- **head**: otherwise (the feet below the image, hidden behind something, or cut off by the detector). The
-  box's top centre is the head top: its ray meets the plane at the prior person height (``person_height``);
-  the box's width (``box_width`` m across the line of sight at half that height, the same detector's boxes
-  around a whole person) gives the range along the same ray a second time; the two are averaged by their
-  variances (height prior ``height_std``, width prior ``width_rel_std``).
+- **head**: otherwise (the feet below the image, hidden behind something, or cut off by the detector). Where
+  the detector gives keypoints (MoveNet, whose boxes start at the eyes, not the head top) and ``keypoints`` is
+  on, the head's, shoulders' and hips' rows (and the shoulders' width) range the person
+  (``keypoints.range_keypoints``). Else the box's top centre is taken as the head top: its ray meets the plane
+  at the prior person height (``person_height``); the box's width (``box_width`` m across the line of sight at
+  half that height, the same detector's boxes around a whole person) gives the range along the same ray a
+  second time; the two are averaged by their variances (height prior ``height_std``, width prior
+  ``width_rel_std``).
 
 Each position carries a covariance (m^2): the pixel noise pushed through the projection's Jacobian (as
 ``pipeline.ground_covariance``) plus, for the head cue, the fused prior's variance along the line of sight, so
@@ -27,6 +30,8 @@ import numpy as np
 
 from ...errors import UserError
 from ..camera import pixel_to_plane
+from .keypoint_range import range_keypoints
+from .keypoints import PERSON_HEIGHT, BodyParams
 
 FEET, HEAD = 0, 1  # cue codes returned by ``range_boxes``
 
@@ -85,7 +90,7 @@ class RangingParams:
     """Priors of head-and-shoulders ranging. Defaults: PETS S2L1 ground-truth boxes of frames 0-399 (head top
     1.76 m median, 1.67-1.89 m 10th-90th percentile; box width at the feet 0.61 m median)."""
 
-    person_height: float = 1.76  # m, head top above the floor
+    person_height: float = PERSON_HEIGHT  # m, head top above the floor
     height_std: float = 0.08  # m
     box_width: float = 0.61  # m, the width of the detector's box around a whole person
     width_rel_std: float = 0.25  # relative spread of that width (arms, pose, facing)
@@ -94,6 +99,7 @@ class RangingParams:
     edge_margin: float = 2.0  # px; a bottom edge this close to the image's is taken as cut by it
     max_aspect: float = float("inf")  # a box wider than this times its height is taken as cut above the feet
     pixel_noise: float = 0.05  # px noise as a fraction of the box height (feet) or width (head)
+    keypoints: bool = True  # a cut person with keypoints (MoveNet) ranged from them, not from the box's top
 
     def __post_init__(self) -> None:
         for name in ("person_height", "height_std", "box_width", "width_rel_std", "pixel_noise"):
@@ -159,13 +165,20 @@ def foot_ground(geom: Geometry, boxes: np.ndarray, p: RangingParams) -> tuple[np
     return geom.image_to_plane(feet, 0.0), _jacobian_cov(geom, feet, 0.0, p.pixel_noise * boxes[:, 3])
 
 
-def range_boxes(geom: Geometry, boxes: np.ndarray, image_height: float,
-                p: RangingParams | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _rows(a: np.ndarray | None, n: int, keep: np.ndarray) -> np.ndarray | None:
+    return None if a is None else np.asarray(a, dtype=float).reshape(n)[keep]
+
+
+def range_boxes(geom: Geometry, boxes: np.ndarray, image_height: float, p: RangingParams | None = None,
+                keypoints: np.ndarray | None = None, body: BodyParams | None = None, yaw: np.ndarray | None = None,
+                yaw_std: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per box: ground position (n, 2), covariance (n, 2, 2) and cue (``FEET`` or ``HEAD``).
 
     Feet where the bottom edge is inside the image (``edge_margin``), the foot point implies a body between
-    ``min_body_height`` and ``max_body_height`` and the box's width / height is at most ``max_aspect``; the head and
-    the box's width elsewhere."""
+    ``min_body_height`` and ``max_body_height`` and the box's width / height is at most ``max_aspect``; elsewhere
+    the keypoints (n, 17, 3) where given and enough of them seen (``keypoint_range.range_keypoints``, template
+    ``body``; each person's facing ``yaw`` (n,; rad, NaN unknown) and its ``yaw_std``, where known, place the
+    face ahead of the shoulders and give their width), else the head row and the box's width."""
     p = p or RangingParams()
     boxes = np.asarray(boxes, dtype=float)
     boxes = boxes.reshape(-1, boxes.shape[-1] if boxes.ndim == 2 else 4)
@@ -176,10 +189,14 @@ def range_boxes(geom: Geometry, boxes: np.ndarray, image_height: float,
         return xy, cov, cue
     cut = boxes[:, 1] + boxes[:, 3] >= image_height - p.edge_margin
     cut |= boxes[:, 2] > p.max_aspect * boxes[:, 3]
-    body = implied_height(geom, xy, boxes[:, 1])
-    odd = ~((body >= p.min_body_height) & (body <= p.max_body_height))
+    tall = implied_height(geom, xy, boxes[:, 1])
+    odd = ~((tall >= p.min_body_height) & (tall <= p.max_body_height))
     head = cut | odd | ~np.isfinite(xy).all(axis=1)
     if head.any():
         hxy, hcov = head_ground(geom, boxes[head], p)
+        if keypoints is not None and p.keypoints:
+            kxy, kcov, ok = range_keypoints(geom, np.asarray(keypoints, dtype=float)[head], body or BodyParams(),
+                                            _rows(yaw, n, head), _rows(yaw_std, n, head))
+            hxy[ok], hcov[ok] = kxy[ok], kcov[ok]
         xy[head], cov[head], cue[head] = hxy, hcov, HEAD
     return xy, cov, cue

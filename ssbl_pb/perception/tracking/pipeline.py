@@ -4,11 +4,15 @@ Detection is split in two so thresholds can be tuned without re-running HOG: ``d
 window above a low margin with its foreground fraction, and ``select`` applies the thresholds, shrinking and
 NMS. ``GroundTracker`` projects foot points with the camera, runs the Kalman tracker and returns each track's
 image box drawn from its ground position and a per-track body height (so coasting tracks keep a box).
+Detections with keypoints (MoveNet's people rows, ``movenet.people``) are ranged from them when cut above the
+feet, and give each track its facing (``keypoints.facing_posterior`` per detection and per close look, ``look``;
+filtered per track by ``keypoints.FacingTrack``: ``facing_of``).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -18,6 +22,8 @@ import numpy as np
 from ...errors import UserError
 from ..datasets.tsai import TsaiCamera
 from ..detection.detectors import HogDetector, HogParams, box_fractions, nms, shrink_windows
+from ..detection.keypoints import BodyParams, FacingTrack, facing_posterior
+from ..detection.movenet import split
 from ..detection.ranging import FEET, HEAD, RangingParams, TsaiGeometry, range_boxes
 from .tracker import Tracker, TrackerParams
 
@@ -127,20 +133,84 @@ class BoxParams:
     #                           the head cue's noise is ``RangingParams.pixel_noise`` (of the box's width)
     head_ranging: bool = False  # boxes cut above the feet (or by the image's bottom) ranged from the head row and
     #                             the box's width (``ranging.range_boxes``), with that cue's covariance
+    # a track's facing (``keypoints.FacingTrack``), chosen on PETS frames 0-399 (docs/tracking.md): it may turn
+    # by 0.75 rad/s (a walker's U-turn takes ~4 s); each detection's posterior counts a tenth of a close look's
+    # (``GroundTracker.look``: the keypoints of a person 40 px tall are twice as far off as a look's), each mixed
+    # with 5 % of a uniform (no frame rules a facing out)
+    facing_turn_std: float = 0.75  # rad/s
+    facing_weight: float = 0.1  # power each detection's facing posterior is raised to before it multiplies in
+    look_weight: float = 1.0  # the same for a close look's
+    facing_floor: float = 0.05  # share of a uniform mixed into each facing posterior
+    # close looks go to tracks whose facing is unsure, or not looked at for a second: on frames 0-399 as accurate
+    # as looking at two people every frame, with a third fewer looks
+    look_std: float = 0.61  # rad (35 deg)
+    look_every: int = 7  # steps
 
 
 class GroundTracker:
     """Tracker on the ground plane of a calibrated static camera; ``step`` takes one frame's image boxes."""
 
     def __init__(self, camera: TsaiCamera, params: TrackerParams | None = None,
-                 box: BoxParams | None = None, ranging: RangingParams | None = None) -> None:
+                 box: BoxParams | None = None, ranging: RangingParams | None = None,
+                 body: BodyParams | None = None) -> None:
         self.camera = camera
+        self.geometry = TsaiGeometry(camera)
         self.tracker = Tracker(params)
         self.box = box or BoxParams()
         self.ranging = ranging or RangingParams()
+        self.body = body or BodyParams()
         self.cues = np.zeros(0, dtype=int)  # the last step's cue per box (``ranging.FEET`` / ``HEAD``)
         self.heights: dict[int, float] = {}
         self.aspects: dict[int, float] = {}
+        self.facing: dict[int, FacingTrack] = {}  # track id -> its facing filter
+        self.detected: dict[int, int] = {}  # track id -> the index of its detection in the last step
+        self.looked: dict[int, int] = {}  # track id -> the step of its last close look (``look``)
+        self.steps = 0
+
+    def facing_of(self, tid: int) -> tuple[float, float]:
+        """Track ``tid``'s facing: yaw (rad, atan2 in the camera's ground frame) and std (rad); NaN and inf while
+        unknown (no keypoint facing yet, or spread wider than ``BodyParams.max_std_deg``)."""
+        ft = self.facing.get(tid)
+        return ft.estimate() if ft is not None else (math.nan, math.inf)
+
+    def choose_looks(self, boxes: np.ndarray, max_height: float = math.inf, count: int = 1) -> list[tuple[int, int]]:
+        """The tracks to look at closely this step (``look``): of those detected in it whose box (``boxes``, the
+        step's) is shorter than ``max_height`` px and whose facing is unsure (std above ``box.look_std``) or was
+        last looked at ``box.look_every`` steps ago or more, the ``count`` looked at longest ago (never: first;
+        ties: the lowest id). Returns (track id, detection index) pairs."""
+        b = self.box
+        cand = sorted((self.looked.get(tid, -1), tid, i) for tid, i in self.detected.items()
+                      if boxes[i, 3] < max_height and (self.facing_of(tid)[1] > b.look_std
+                                                       or self.steps - self.looked.get(tid, -b.look_every)
+                                                       >= b.look_every))
+        return [(tid, i) for _, tid, i in cand[:count]]
+
+    def look(self, looks: list[tuple[int, np.ndarray]]) -> None:
+        """Close looks' keypoints (17, 3 each; frame pixels) of tracks' people, as (track id, keypoints) pairs: each
+        track's facing filter takes their posterior (at the track's position) with weight ``box.look_weight``."""
+        at = {st.id: st.position for st in self.tracker.states()}
+        looks = [(tid, kp) for tid, kp in looks if tid in at and tid in self.facing]
+        for tid, _ in looks:
+            self.looked[tid] = self.steps
+        if not looks:
+            return
+        kp = np.stack([np.asarray(k, dtype=float) for _, k in looks])
+        q, ok = facing_posterior(self.geometry, kp, np.array([at[tid] for tid, _ in looks]), self.body)
+        for (tid, _), qi, oi in zip(looks, q, ok, strict=True):
+            if oi:
+                self.facing[tid].update(qi, self.box.look_weight)
+
+    def _filter_facing(self, states: list, dt: float) -> None:
+        """Each track's facing filter: predicted by ``dt``, updated with its detection's posterior where it has
+        one (payload)."""
+        b = self.box
+        for st in states:
+            ft = self.facing.get(st.id)
+            if ft is None:
+                ft = self.facing[st.id] = FacingTrack(self.body, b.facing_turn_std, b.facing_floor)
+            ft.predict(dt)
+            if st.payload is not None and st.misses == 0 and st.payload[2] is not None:
+                ft.update(st.payload[2], b.facing_weight)
 
     def body_height(self, foot_xy: np.ndarray, top_v: np.ndarray) -> np.ndarray:
         """Height (m) of a person standing at ``foot_xy`` (n, 2) whose box top is at image row ``top_v``."""
@@ -149,9 +219,13 @@ class GroundTracker:
         return (lo - top_v) / np.maximum(lo - hi, 1e-6)
 
     def step(self, boxes: np.ndarray, dt: float) -> list[tuple[int, np.ndarray, np.ndarray, np.ndarray]]:
-        """Boxes (n, >=4) ``x, y, w, h`` -> list of (id, image box (4,), ground xy (2,), velocity (2,))."""
+        """Boxes (n, >=4) ``x, y, w, h[, score]`` or people rows (``movenet.PEOPLE_COLUMNS``: with keypoints) ->
+        list of (id, image box (4,), ground xy (2,), velocity (2,)); each track's facing: ``facing_of``."""
         boxes = np.asarray(boxes, dtype=float)
         boxes = boxes.reshape(-1, boxes.shape[-1] if boxes.ndim == 2 else 5)
+        kp = split(boxes)[1] if len(boxes) else None
+        if kp is not None:
+            boxes = boxes[:, :5]
         feet = np.column_stack([boxes[:, 0] + boxes[:, 2] / 2, boxes[:, 1] + boxes[:, 3]])
         ground = self.camera.image_to_ground(feet) if len(boxes) else np.zeros((0, 2))
         heights = self.body_height(ground, boxes[:, 1]) if len(boxes) else np.zeros(0)
@@ -163,17 +237,24 @@ class GroundTracker:
         self.cues = np.full(len(boxes), FEET, dtype=int)
         if b.head_ranging and len(boxes):
             h_img = self.camera.height * self.camera.scale
-            xy, rcov, self.cues = range_boxes(TsaiGeometry(self.camera), boxes, h_img, self.ranging)
+            xy, rcov, self.cues = range_boxes(self.geometry, boxes, h_img, self.ranging, kp, self.body)
             head = self.cues == HEAD
             ground = np.where(head[:, None], xy, ground)
             heights = np.where(head, np.nan, heights)  # the prior, not a measurement: no height update
             rcov += np.eye(2) * self.tracker.params.meas_std ** 2
             cov = np.where(head[:, None, None], rcov, rcov if cov is None else cov)
+        post: list[np.ndarray | None] = [None] * len(boxes)
+        if kp is not None and len(boxes):
+            q, ok = facing_posterior(self.geometry, kp, ground, self.body)
+            post = [q[i] if ok[i] else None for i in range(len(boxes))]
         # a head-ranged box is cut above the feet: it never stands in for the drawn box
-        payloads = [(float(heights[i]), boxes[i, :4].copy() if self.cues[i] == FEET else None)
+        payloads = [(float(heights[i]), boxes[i, :4].copy() if self.cues[i] == FEET else None, post[i], i)
                     for i in range(len(boxes))]
         scores = boxes[:, 4] if boxes.shape[1] > 4 else None
         states = self.tracker.update(ground, dt=dt, payloads=payloads, meas_cov=cov, scores=scores)
+        self.steps += 1
+        self.detected = {st.id: st.payload[3] for st in states if st.payload is not None and st.misses == 0}
+        self._filter_facing(states, dt)
         out = []
         alive = set()
         for st in states:
@@ -199,9 +280,14 @@ class GroundTracker:
             if st.payload is not None and st.payload[1] is not None and b.det_weight > 0:
                 box = (1 - b.det_weight) * box + b.det_weight * st.payload[1]
             out.append((st.id, box, st.position.copy(), st.velocity.copy()))
+        live = {tr.id for tr in self.tracker.tracks}
         for k in list(self.heights):
-            if k not in alive and all(k != tr.id for tr in self.tracker.tracks):
+            if k not in alive and k not in live:
                 del self.heights[k]
+        for d in (self.facing, self.looked):
+            for k in list(d):
+                if k not in live:
+                    del d[k]
         return out
 
 
@@ -216,15 +302,17 @@ def ground_covariance(camera: TsaiCamera, feet: np.ndarray, sigma_px: np.ndarray
 
 def track_detections(dets: dict[int, np.ndarray], camera: TsaiCamera, dt: float,
                      params: TrackerParams | None = None, box: BoxParams | None = None,
-                     ranging: RangingParams | None = None) -> np.ndarray:
-    """Run ``GroundTracker`` over per-frame boxes (frames in increasing order; missing frames = no boxes).
+                     ranging: RangingParams | None = None, body: BodyParams | None = None) -> np.ndarray:
+    """Run ``GroundTracker`` over per-frame boxes or people rows (frames in increasing order; missing frames = no
+    boxes).
 
-    Returns (m, 10) rows ``frame, id, left, top, w, h, x_m, y_m, vx, vy``."""
-    gt = GroundTracker(camera, params, box, ranging)
+    Returns (m, 11) rows ``frame, id, left, top, w, h, x_m, y_m, vx, vy, facing`` (facing: yaw in rad, NaN
+    unknown; ``GroundTracker.facing_of``)."""
+    gt = GroundTracker(camera, params, box, ranging, body)
     rows = []
     if not dets:
-        return np.zeros((0, 10))
+        return np.zeros((0, 11))
     for f in range(min(dets), max(dets) + 1):
         for tid, bb, xy, v in gt.step(dets.get(f, np.zeros((0, 5))), dt):
-            rows.append((f, tid, *bb, *xy, *v))
-    return np.array(rows, dtype=float).reshape(-1, 10)
+            rows.append((f, tid, *bb, *xy, *v, gt.facing_of(tid)[0]))
+    return np.array(rows, dtype=float).reshape(-1, 11)

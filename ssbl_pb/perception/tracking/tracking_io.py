@@ -4,6 +4,7 @@ outputs (MOT text, world CSV, overlay video, metrics JSON/Markdown) written into
 from __future__ import annotations
 
 import dataclasses
+import math
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -18,8 +19,9 @@ from ..datasets.occlusion import FeetHidden, median_background
 from ..datasets.pets import GroundTruthError, load_ground_truth, load_mot
 from ..datasets.scoring import evaluate
 from ..datasets.tsai import CalibrationError, TsaiCamera
+from ..detection.keypoints import KEYPOINTS
 from ..detection.learned import SsdDetector
-from ..detection.movenet import selected
+from ..detection.movenet import PEOPLE_COLUMNS, selected
 from ..detection.ranging import HEAD
 from .pipeline import GroundTracker, HogFgDetector, VideoError, open_video, read_frames
 from .tuning import PipelineParams, default_params
@@ -140,7 +142,7 @@ def track_video(video: str | Path, calib: str | Path, out_dir: str | Path, start
     bar = None
     if progress:
         bar = make_bar(max(total, 0), Path(video).name, "frame")
-    t_proc, count, n_boxes, n_head = 0.0, 0, 0, 0
+    t_proc, count, n_boxes, n_head, n_looks = 0.0, 0, 0, 0, 0
     try:
         for i, frame in read_frames(video, start, stop):
             if painter is not None:
@@ -150,14 +152,25 @@ def track_video(video: str | Path, calib: str | Path, out_dir: str | Path, start
                                                           interpolation=cv2.INTER_AREA)
             boxes = det(small)
             boxes[:, :4] /= scale
+            if boxes.shape[1] >= PEOPLE_COLUMNS:  # keypoints' x and y too
+                boxes[:, 5:PEOPLE_COLUMNS] /= np.tile([scale, scale, 1.0], len(KEYPOINTS))
             tracks = gt.step(boxes, dt)
+            if hasattr(det, "look"):  # close looks at a few people a frame, for their facing (MoveNet)
+                seen = []
+                for tid, k in gt.choose_looks(boxes, det.look_height(small.shape[0]) / scale, det.looks):
+                    kp = det.look(small, boxes[k, :4] * scale)
+                    if kp is not None:
+                        kp[:, :2] /= scale
+                        seen.append((tid, kp))
+                gt.look(seen)
+                n_looks += len(seen)
             t_proc += time.perf_counter() - t0
             n_boxes += len(boxes)
             n_head += int((gt.cues == HEAD).sum())
             count += 1
             for tid, bb, xy, v in tracks:
                 mot.append((i + 1, tid, *bb, 1, -1, -1, -1))
-                world.append((i, tid, *xy, *v))
+                world.append((i, tid, *xy, *v, math.degrees(gt.facing_of(tid)[0])))
             if overlay:
                 if writer is None:
                     writer = cv2.VideoWriter(str(out / "overlay.mp4"), cv2.VideoWriter_fourcc(*"mp4v"),
@@ -175,11 +188,42 @@ def track_video(video: str | Path, calib: str | Path, out_dir: str | Path, start
         raise InputError(f"{video}: no frames in [{start}, {stop})")
     np.savetxt(out / "tracks_mot.txt", np.array(mot).reshape(-1, 10),
                fmt=["%d", "%d", "%.2f", "%.2f", "%.2f", "%.2f", "%d", "%d", "%d", "%d"], delimiter=",")
-    np.savetxt(out / "tracks_world.csv", np.array(world).reshape(-1, 6), fmt=["%d", "%d"] + ["%.4f"] * 4,
-               delimiter=",", header="frame,id,x_m,y_m,vx,vy", comments="")
+    write_world(out / "tracks_world.csv", np.array(world).reshape(-1, 7))
     return {"frames": count, "tracks": len({r[1] for r in mot}), "ms_per_frame": 1000 * t_proc / count,
             "start": start, "stop": start + count, "scale": scale, "dt": dt, "detector": pp.detector,
-            "feet_hidden": hide_feet is not None, "head_ranged": int(n_head), "boxes": int(n_boxes)}
+            "feet_hidden": hide_feet is not None, "head_ranged": int(n_head), "boxes": int(n_boxes),
+            "looks": int(n_looks)}
+
+
+WORLD_HEADER = "frame,id,x_m,y_m,vx,vy,facing_deg"
+
+
+def write_world(path: Path, rows: np.ndarray) -> None:
+    """``tracks_world.csv``: rows ``frame, id, x_m, y_m, vx, vy, facing_deg`` (frame 0-based; metres and m/s in
+    the calibration's ground frame; facing_deg the direction the chest faces, atan2 in that frame, empty where
+    unknown)."""
+    lines = [WORLD_HEADER]
+    for f, tid, x, y, vx, vy, fd in np.asarray(rows, dtype=float).reshape(-1, 7):
+        lines.append(f"{int(f)},{int(tid)},{x:.4f},{y:.4f},{vx:.4f},{vy:.4f}," + (f"{fd:.1f}" if np.isfinite(fd)
+                                                                                    else ""))
+    path.write_text("\n".join(lines) + "\n")
+
+
+def read_world(path: Path) -> np.ndarray:
+    """``tracks_world.csv`` -> rows (n, 7) ``frame, id, x_m, y_m, vx, vy, facing_deg`` (NaN where empty or where
+    the file has no facing column); ``InputError`` naming the file otherwise."""
+    try:
+        lines = path.read_text().splitlines()
+        head = lines[0].split(",") if lines else []
+        if head[:6] != WORLD_HEADER.split(",")[:6]:
+            raise ValueError(f"header {lines[0] if lines else ''!r}")
+        rows = [[float(v) if v.strip() else np.nan for v in ln.split(",")] for ln in lines[1:] if ln.strip()]
+        rows = [r + [np.nan] * (7 - len(r)) for r in rows]
+        if any(len(r) != 7 for r in rows):
+            raise ValueError("a row with more than 7 fields")
+    except (OSError, ValueError, IndexError) as exc:
+        raise InputError(f"{path}: cannot parse ({exc}); expected {WORLD_HEADER}") from exc
+    return np.array(rows, dtype=float).reshape(-1, 7)
 
 
 def draw(frame: np.ndarray, tracks: list[tuple[int, np.ndarray, np.ndarray, np.ndarray]], inset: Inset) -> None:
@@ -202,10 +246,7 @@ def load_tracks(track_dir: str | Path) -> np.ndarray:
     rows = np.column_stack([mot[:, :6], np.full((len(mot), 2), np.nan)])
     wpath = d / "tracks_world.csv"
     if wpath.is_file() and len(mot):
-        try:
-            w = np.loadtxt(wpath, delimiter=",", skiprows=1, ndmin=2)
-        except ValueError as exc:
-            raise InputError(f"{wpath}: cannot parse ({exc}); expected frame,id,x_m,y_m,vx,vy") from exc
+        w = read_world(wpath)
         lookup = {(int(r[0]), int(r[1])): r[2:4] for r in w}
         for k, r in enumerate(rows):
             xy = lookup.get((int(r[0]), int(r[1])))
