@@ -12,7 +12,8 @@ from ssbl_pb.deploy.perceive import make_detector
 from ssbl_pb.env.view.world import World
 from ssbl_pb.params import RobotParams
 from ssbl_pb.perception.camera import sim_camera
-from ssbl_pb.perception.detection.facing import ProxyBody, estimate_facing, facing_yaw, phi_of, wrap
+from ssbl_pb.perception.detection.facing import facing_yaw, phi_of, wrap
+from ssbl_pb.perception.detection.proxy_facing import ProxyBody, estimate_facing
 from ssbl_pb.urdf import HUMAN_COLOURS
 
 CAM = sim_camera(RobotParams(), 320, 240)

@@ -36,7 +36,7 @@ def main(argv: list[str] | None = None) -> int:
     import numpy as np
 
     from ssbl_pb.bench.facing import markdown, run_bench, summarise
-    from ssbl_pb.perception.detection.facing import FacingParams
+    from ssbl_pb.perception.detection.proxy_facing import FacingParams
 
     with progress_bar(3 * args.frames, "frames", "frame") as bar:
         samples, seconds = run_bench(args.frames, args.seed, progress=bar)

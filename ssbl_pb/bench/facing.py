@@ -1,4 +1,4 @@
-"""Accuracy of ``facing.estimate_facing`` on rendered QVGA frames of the virtual Pepper (tools/bench_facing.py).
+"""Accuracy of ``proxy_facing.estimate_facing`` on rendered QVGA frames of the virtual Pepper (tools/bench_facing.py).
 
 Scenes: the robot at a random heading (the renderer's light is fixed in the world, so the faces' shading varies
 with it) and either one person (``single``) 1-5 m away at a bearing inside the view, or two (``occluded``): a

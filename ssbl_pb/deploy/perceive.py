@@ -21,8 +21,9 @@ import numpy as np
 from ..errors import UserError
 from ..params import RobotParams, SocialParams
 from ..perception.camera import PinholeCamera, sim_camera
-from ..perception.detection.facing import Facing, estimate_facing
+from ..perception.detection.facing import Facing
 from ..perception.detection.ground import ProxyGeometry, boxes_to_ground
+from ..perception.detection.proxy_facing import estimate_facing
 from ..perception.groups.estimate import MIN_VISIBLE, TORSO_HALF, TORSO_HEIGHT, TRACKER, GroupTracker, Member
 from ..perception.tracking.tracker import TrackerParams
 from .robot import Frame, Robot
@@ -90,7 +91,7 @@ def one_per_colour(palette: list[Any]) -> Callable[[np.ndarray], np.ndarray]:
 
         def facing(self, camera: PinholeCamera | None = None) -> Facing:
             """Facing of each box of the last frame (rows as that call returned them: index them as its boxes;
-            ``perception.detection.facing.estimate_facing``). ``camera``: the frame's, default the simulated
+            ``perception.detection.proxy_facing.estimate_facing``). ``camera``: the frame's, default the simulated
             CameraTop."""
             if self.last is None:
                 raise RuntimeError("facing: no frame detected yet")
