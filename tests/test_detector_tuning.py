@@ -114,8 +114,10 @@ def test_params_carry_the_ranging_priors():
 
 
 def test_tune_option_errors():
+    from ssbl_pb.bench.tracking import parse_size
+
     tool = bench_tool()
-    assert tool.parse_size("400x300") == (400, 300)
+    assert parse_size("400x300") == (400, 300)
     with pytest.raises(UserError, match="--input-size '10x10': expected both sides >= 32"):
         tool.main(["--tune", "--input-size", "10x10"])
     with pytest.raises(UserError, match="--input-size 'big': expected WxH"):
