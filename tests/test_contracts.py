@@ -121,7 +121,7 @@ CASES = [
     C("import_map.py", "{file}", "--seed", "0", "0", "--out", "{out}.yaml", expect="a_file.txt"),
     C("import_map.py", "{file}", "--out", "{out}.yaml", expect="give --region and/or --seed"),
     C("import_map.py", "{file}", "--seed", "0", "0", "--out", "{file}/room.yaml", expect="is a file"),
-    # camera state representations (issue 13): frames, autoencoders
+    # camera state representations: frames, autoencoders
     C("collect_frames.py", "--episodes", "1", "--out", "{out}", expect="expected a .npz file name"),
     C("collect_frames.py", "--episodes", "1", "--size", "5", "--out", "{out}.npz", expect="--size 5"),
     C("collect_frames.py", "--episodes", "0", "--out", "{out}.npz", expect="--episodes 0"),
@@ -141,14 +141,14 @@ CASES = [
       expect="nosuch.pt: file not found"),
     C("train_ae.py", "--frames", "{file}", "--arch", "saev", "--snapshot-every", "300", "--out", "{out}",
       expect="--snapshot-every 300: expected 0 or a multiple of the evaluation interval 250"),
-    # groups calibration (issue 14)
+    # groups calibration
     C("calibrate_groups.py", "{tmp}/nosuch", "--out", "{out}.yaml", expect="nosuch: not found"),
     C("calibrate_groups.py", "{tmp}", "--out", "{out}.yaml", expect="no features.mat at or below"),
     C("calibrate_groups.py", "{file}", "--out", "{out}.yaml",
       expect="a_file.txt: a file; expected a dataset folder holding features.mat and groundtruth.mat"),
     C("calibrate_groups.py", "--out", "{out}", expect="expected a .yaml file name"),
     C("calibrate_groups.py", "--per-size", "0", "--out", "{out}.yaml", expect="--per-size 0"),
-    # deploy (issue 12): nothing connects or moves before the inputs are checked
+    # deploy: nothing connects or moves before the inputs are checked
     C("-m ssbl_pb.deploy", "--robot-ip", "127.0.0.1", "--port", "1", "--policy", "sffm", "--log-dir", "{out}",
       expect="cannot connect to tcp://127.0.0.1:1"),
     C("-m ssbl_pb.deploy", "--robot-ip", "10.255.255.1", "--policy", "sffm", "--log-dir", "{out}",
@@ -180,7 +180,7 @@ CASES = [
     C("bench_deploy.py", "--runs", "-1", "--out", "{out}", expect="argument --runs"),
     C("bench_deploy.py", "--policy", "nosuch", "--out", "{out}", expect="--policy 'nosuch'"),
     C("bench_deploy.py", "--groups", "round", "--out", "{out}", expect="argument --groups"),
-    # issue 37: the observation model
+    # the observation model
     C("bench_policies.py", "--perception", "maybe", "--out", "{out}", expect="--perception maybe"),
     C("bench_facing.py", "--frames", "0", "--out", "{out}", expect="argument --frames"),
     C("bench_facing.py", "--out", "{file}/facing", expect="is a file"),
@@ -194,7 +194,7 @@ CASES = [
     C("-m ssbl_pb.virtual.pepper", "--appearance", "mesh", "--log", "{out}", expect="argument --appearance"),
     C("evaluate.py", "--policy", "sffm", "--perception", "maybe", "--out", "{out}", expect="argument --perception"),
     C("train_pb.py", "--set", "env.perception.miss_prob=2", "--out", "{out}", expect="perception.miss_prob"),
-    # issue 39: a calibration file's own checks name the file
+    # a calibration file's own checks name the file
     C("train_pb.py", "--config", "tests/config_specs/small_room.yaml", "--out", "{out}",
       expect="small_room.yaml: world.room_size = (1, 1)"),
     C("train_pb.py", "--config", "tests/config_specs/bad_lr.yaml", "--out", "{out}",
@@ -205,7 +205,7 @@ CASES = [
       expect="negative_height.yaml: camera pepper_camera_top: camera_height=-1.15 must be > 0"),
     C("evaluate.py", "--policy", "sffm", "--room-yaml", "tests/room_specs/tiny.yaml", "--out", "{out}",
       expect="tiny.yaml: world.room_size = (3.0, 3.0): expected each side >= 6.26 m"),
-    # issue 39: deploy, the virtual Pepper, the watchdog, the deploy benchmark
+    # deploy, the virtual Pepper, the watchdog, the deploy benchmark
     C("-m ssbl_pb.deploy", "--robot-ip", "127.0.0.1", "--map", "{file}", "--start-pose", "nan", "20", "0",
       "--log-dir", "{out}", expect="--start-pose nan 20 0: expected three finite numbers"),
     C("-m ssbl_pb.deploy", "--robot-ip", "127.0.0.1", "--rate", "20", "--log-dir", "{out}",
@@ -238,7 +238,7 @@ CASES = [
     C("bench_camera.py", "--only", "jitter", "--out", "{out}.json", expect="--only jitter needs --frames"),
     C("train_pb.py", "--obs-mode", "camera", "--encoder", "conv", "--set", "encoder_checkpoint={file}",
       "--out", "{out}", expect="encoder checkpoint"),
-    # sweeps (issue 16): bad specs, no cluster at the address, storage that cannot be written
+    # sweeps: bad specs, no cluster at the address, storage that cannot be written
     C("sweep.py", "{tmp}/none.yaml", "--out", "{out}", expect="none.yaml: file not found"),
     C("sweep.py", "tests/sweep_specs/unknown_key.yaml", "--out", "{out}", expect="unknown key(s) ['grids']"),
     C("sweep.py", "tests/sweep_specs/bad_override.yaml", "--out", "{out}", expect="grid key 'reward.w_bogus'"),
@@ -256,7 +256,7 @@ CASES = [
     C("bench_sweep.py", "--out", "{out}.txt", expect="expected a .json"),
     C("bench_sweep.py", "--spec", "tests/sweep_specs/no_seeds.yaml", "--out", "{out}.json", expect="seeds: missing"),
     C("bench_sweep.py", "--out", "{file}/bench.json", expect="is a file"),
-    # rooms with obstacles (issue 18): bad room YAMLs, maps and room names
+    # rooms with obstacles: bad room YAMLs, maps and room names
     C("evaluate.py", "--policy", "sffm", "--room-yaml", "tests/room_specs/no_place.yaml", "--episodes", "2",
       "--out", "{out}", expect="no_place.yaml: no place for a group of 2"),
     C("evaluate.py", "--policy", "sffm", "--room-yaml", "tests/room_specs/bad_box.yaml", "--out", "{out}",
@@ -271,13 +271,13 @@ CASES = [
       expect="all its 136 cells are occupied"),
     C("import_map.py", "tests/room_specs/solid.yaml", "--region", "0.1", "0.1", "1.9", "0.9", "--out", "{out}.yaml",
       expect="holds no free cell (0 occupied, 136 unknown)"),
-    # issue 39: training, evaluation, autoencoder
+    # training, evaluation, autoencoder
     C("train_pb.py", "--out", "/proc/x", expect="--out /proc/x: "),
     C("train_pb.py", "--out", "{tmp}", "--overwrite", expect="holds files but no training run"),
     C("evaluate.py", "--policy", "sffm", "--episodes", "2", "--out", "/proc/x", expect="--out /proc/x: "),
     C("train_ae.py", "--frames", "{file}", "--arch", "saev", "--resume", "{file}", "--out", "{out}",
       expect="a_file.txt: unreadable"),
-    # issue 39: calibration, Table I, sweeps
+    # calibration, Table I, sweeps
     C("import_map.py", "{file}", "--seed", "0", "0", "--door-width", "-1", "--out", "{out}.yaml",
       expect="--door-width -1.0: expected a width in metres > 0"),
     C("table1.py", "--budget", "smoke", "--threads", "-3", "--out", "{out}", expect="argument --threads"),

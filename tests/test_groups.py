@@ -1,5 +1,5 @@
 """Groups as real people stand: the F-formation loader, the groups YAML, calibrated and real layouts, and the
-social forces holding them (issue 14)."""
+social forces holding them."""
 
 import math
 
@@ -73,7 +73,7 @@ def test_group_geometry_against_a_hand_computation():
     ("unknown_id", "member id(s) [9]"),
     ("columns", "expected finite rows [id, x, y, orientation]"),
     ("stamp", "has no frame in features.mat"),
-    ("text", "features.mat: not a readable .mat file (IndexError"),  # a text file named .mat (issue 39)
+    ("text", "features.mat: not a readable .mat file (IndexError"),  # a text file named .mat
     ("strings", "'features' frame 0 is not numeric"),
 ])
 def test_loader_rejects_malformed_files_naming_file_and_field(tmp_path, case, expect):
@@ -134,7 +134,7 @@ def test_shipped_groups_yaml_is_the_calibration_of_the_shared_data(shared_data):
 
 
 def test_calibrated_groups_match_the_real_ones():
-    """Issue 14's target: per size 2-5, the simulated median member-to-centroid distance within 15 % of the real
+    """Per size 2-5, the simulated median member-to-centroid distance within 15 % of the real
     one and the nearest-neighbour spacing within 20 %."""
     data = load_group_data()
     sim = sim_stats(GroupModel("calibrated"), SOCIAL, per_size=300, seed=1)

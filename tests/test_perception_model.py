@@ -1,4 +1,4 @@
-"""The observation model (issue 37): the group as deploy's perception would see it, in the engine."""
+"""The observation model: the group as deploy's perception would see it, in the engine."""
 
 from __future__ import annotations
 

@@ -446,7 +446,7 @@ def test_kept_out_of_the_ospace_the_shipped_policy_joins_the_pairs_it_lost_insid
                 assert inner >= -0.35
 
 
-# -- issue 39: what the shield changed, and by which rule ----------------------------------------------------
+# -- what the shield changed, and by which rule --------------------------------------------------------------
 def test_the_shield_names_the_rule_that_changed_each_action():
     from ssbl_pb.core.observation import BASE_SIZE, SCAN_RANGE
     from ssbl_pb.core.shield import (

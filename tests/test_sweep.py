@@ -222,7 +222,7 @@ def test_workers_exit_when_the_sweep_is_killed(tmp_path):
 
 def test_ctrl_c_while_a_worker_starts_is_one_line_from_the_parent(tmp_path):
     """Ctrl-C to the process group (as a terminal sends it) while a worker is still starting (importing): the
-    worker ignores it from its first instruction and is stopped; only the parent reports, in one line (issue 39)."""
+    worker ignores it from its first instruction and is stopped; only the parent reports, in one line."""
     marker = tmp_path / "importing"
     script = tmp_path / "slow_start.py"
     script.write_text(

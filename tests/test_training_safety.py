@@ -1,4 +1,4 @@
-"""Training runs a hostile tester cannot break (issue 39): --overwrite removes only a run, best/ and the final
+"""Training runs a hostile tester cannot break: --overwrite removes only a run, best/ and the final
 model are one unit each, a run is resumable from its first file, corrupt run files are one-line errors, and
 evaluation workers die with their tool."""
 

@@ -21,7 +21,7 @@ from pathlib import Path
 from ssbl_pb.cli import ArgumentParser, UserError, command_line, int_at_least, progress_bar, run
 
 ROOT = Path(__file__).resolve().parents[1]
-SCENARIOS = ("default", "mixed", "mixed@furnished")  # mixed@furnished: issue 18
+SCENARIOS = ("default", "mixed", "mixed@furnished")  # mixed@furnished: the rooms with furniture
 
 
 def pick_model(run_dir: Path, which: str) -> Path:

@@ -53,8 +53,8 @@ def compare_rows(learned: list[dict[str, float]], baseline: list[dict[str, float
     A side is better when the test finds it lower (or higher, by the metric's direction) at ``alpha`` and its
     mean says the same: for McNemar's, the rarer of the discordant pairs (the means agree); for Wilcoxon's
     signed-rank test, the sign of its rank-biserial effect, which can disagree with the means when a few pairs
-    differ by much (members displaced, issue 14: the learned robot displaced members less in most pairs, more in
-    a tail of starts beside a member, and its mean was the higher one). Then neither is (issue 37: "by the mean
+    differ by much (members displaced: the learned robot displaced members less in most pairs, more in
+    a tail of starts beside a member, and its mean was the higher one). Then neither is ("by the mean
     and a paired test"); ``mean_diff`` keeps the means' side in view."""
     out: dict[str, Any] = {}
     for key in learned[0]:

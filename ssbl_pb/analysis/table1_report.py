@@ -61,7 +61,7 @@ def aggregate(results: list[dict[str, Any]]) -> list[dict[str, Any]]:
 
 
 def ordering_pairs() -> list[tuple[str, str, str]]:
-    """The paper's ordering (issue 13's targets) as (row a, relation, row b); relation ``>`` or ``>=``."""
+    """The paper's ordering (Table I's statements) as (row a, relation, row b); relation ``>`` or ``>=``."""
     only = [r.label for r in ROWS if r.obs_mode == "camera"]
     pairs = [("Vector + LSTM", ">", "CameraSpeed + SAEV + LSTM")]
     for lab in only:

@@ -65,7 +65,7 @@ def simulator_rates(n_steps: int = 20_000, n_frames: int = 500, seed: int = 0) -
     world.close()
 
     actions = np.random.default_rng(seed).uniform(-1, 1, (n_steps, 2)).astype(np.float32)
-    # the empty room, a new randomly furnished room every episode (issue 18: its drawing and spawning timed with the
+    # the empty room, a new randomly furnished room every episode (its drawing and spawning timed with the
     # steps), and the same with the way round the furniture planned each episode and looked up each step (the
     # shipped policy's); measured in turn, so that a pause of the machine does not fall on one of them only
     out.update(env_rates({"env_step_per_s": ApproachGroupEnv(),

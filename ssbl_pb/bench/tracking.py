@@ -366,7 +366,7 @@ def whole_video(video: Path, calib: Path, gt_path: Path, params: PipelineParams,
 
 def markdown(r: dict) -> str:
     """The benchmark report (figures + the command that made them)."""
-    L = ["# Tracking benchmark (issue 6)", "",
+    L = ["# Tracking benchmark", "",
          f"Produced by `{r['command'].strip()}` on {r['date']} ({r['machine']}, 2 shared cores); "
          "raw figures in `results/tracking/*.json`.", "",
          "## PETS 2009 S2L1 View_001 (real frames)", ""]

@@ -29,7 +29,7 @@ idx   value                                                      scale
 ====  =========================================================  =========
 
 The original divides by half its 20 m arena (ref "Vector observation"); our default room is 10 m, so 5 m.
-The scan (ours, issue 18): each sector reports the nearest obstacle anywhere in it (a single ray per 15 deg
+The scan (ours): each sector reports the nearest obstacle anywhere in it (a single ray per 15 deg
 slipped past a map's 5 cm speckle); 3 m is the range naoqi_driver gives Pepper's lasers and 9 s of driving at the
 default speed. Members are not in it (they have their own fields).
 """

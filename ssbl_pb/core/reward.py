@@ -7,7 +7,7 @@ the start of the step and member j moving by ``du_j`` under its own total force 
 * R2 (eq. 12, non-increasing energy): ``dt`` if the robot moves along the field (``v . F > 0``, the original
   code's test) else 0.
 * R3 (eq. 13, time): ``-dt``; a step that ends the episode by a violation also pays the time it cut short
-  (``remaining``), so that crashing early never costs less than waiting for the time-out (ours, issue 14).
+  (``remaining``), so that crashing early never costs less than waiting for the time-out (ours).
 * R4 (success bonus): 1 on the step that completes the approach.
 * R5 (eq. 14, altruism): ``-sum_j F_j . du_j`` plus the original's repulsion term ``-sum_j |F_rep,j| dt``
   weighted by ``w_rep`` (how much the robot pushes the members).
@@ -17,7 +17,7 @@ the start of the step and member j moving by ``du_j`` under its own total force 
 * displacement (ours): ``-sum_j |du_j|``, the members' path length this step (m), whatever moved them: the
   ``human_displacement_m`` metric (SocNavBench) as a cost. R5 prices the members' work against their own forces
   and its repulsion part ``|F_rep|`` (quadratic in the intrusion), which a robot standing a few cm inside a
-  member's personal zone barely pays while the member keeps stepping away (issue 14).
+  member's personal zone barely pays while the member keeps stepping away (measured).
 * arrival (ours): ``-|v|`` (m/s) on the step that completes the approach, the ``arrival_speed`` metric as a cost:
   the success rule only asks for less than ``stop_speed``, so a robot braking at its limit arrives at 0.07-0.1
   m/s whatever the shaping's braking term did before (the paper's hypothesis: slow down into the group).
@@ -79,8 +79,8 @@ class RewardWeights:
     w_slot: float = 1.0  # change of slot_potential (per metre of progress toward the free slot)
     w_prox: float = 3.0  # closing in on a member near its intimate zone (per metre closed at the zone's edge)
     violation_penalty: float = 1.0  # collision or intimate-zone intrusion (ends the episode)
-    w_disp: float = 0.0  # members' displacement (per metre they moved; 0: off, as trained before issue 14's fix)
-    w_arrive: float = 0.0  # speed on arrival (per m/s on the success step; 0: off, as trained before issue 14)
+    w_disp: float = 0.0  # members' displacement (per metre they moved; 0: off, as the shipped policy trained)
+    w_arrive: float = 0.0  # speed on arrival (per m/s on the success step; 0: off, as the shipped policy trained)
 
     def __post_init__(self) -> None:
         for f in dataclasses.fields(self):

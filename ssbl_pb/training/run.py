@@ -342,7 +342,7 @@ def _init_from(model: Any, venv: Any, source: Path) -> Any:
 
 def widened(source: tuple[int, ...], target: tuple[int, ...]) -> tuple[int, int]:
     """(old, new) input sizes when a Vector policy of ``source`` observation shape is fine-tuned on a longer
-    Vector observation ``target`` (the range scan appended, issue 18); (0, 0) otherwise."""
+    Vector observation ``target`` (the range scan appended); (0, 0) otherwise."""
     if len(source) == 1 and len(target) == 1 and source[0] < target[0]:
         return source[0], target[0]
     return 0, 0

@@ -113,7 +113,7 @@ def route_to_slot(tp: np.ndarray, pose: np.ndarray, slot: np.ndarray, centre: np
     (the plan's way to the way in, then in); never shorter than the way round the group. inf where the plan
     does not reach the robot (inside an obstacle's margin, or cut off): the potential then stays as it was.
 
-    Ours (issue 18): round the group only, the shaping paid for driving at a desk between the robot and its
+    Ours: round the group only, the shaping paid for driving at a desk between the robot and its
     group, and the policy pushed against the shield there until the time-out."""
     keep = radius + tp[KEEP_OUT_EXTRA]
     d = _round_group(tp, pose, slot, centre, radius)

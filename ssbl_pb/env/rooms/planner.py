@@ -2,7 +2,7 @@
 
 The Vector observation tells the policy where its place is (entries 0-1, the free slot), and the 3 m range scan
 what is around it; a reactive policy steering for the slot drives into pockets of furniture that open toward the
-group and waits there (most of issue 18's time-outs in the Willow Garage rooms). So, in a room with obstacles,
+group and waits there (most of the time-outs in the Willow Garage rooms, measured). So, in a room with obstacles,
 entries 0-1 hold a **waypoint** whenever the straight way to the slot is not free (the footprint's circle would
 touch an obstacle) and the robot is not yet near the way in: the point ``AHEAD`` metres along the shortest free
 way, found by descending a geodesic distance map. Once the slot is in sight, or the robot is within

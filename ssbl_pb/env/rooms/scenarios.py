@@ -1,4 +1,4 @@
-"""Named scenarios: which groups are spawned and where the robot starts (issue: approaching task).
+"""Named scenarios: which groups are spawned and where the robot starts.
 
 ``default`` is the paper's 2-member vis-a-vis group with the robot starting anywhere around it. Each other
 name fixes a formation (sizes 2-5 where the formation allows), ``real`` places groups of 2-5 exactly as in

@@ -1,4 +1,4 @@
-"""Linear probe: do an encoder's features carry the humans? (issue 13's "keypoints carry the humans" target)
+"""Linear probe: do an encoder's features carry the humans? (the "keypoints carry the humans" target)
 
 A linear map (ridge regression on standardised features, one per member slot: members keep their colour, so a
 slot is one person's appearance) is fitted on training frames from the features to each visible member's

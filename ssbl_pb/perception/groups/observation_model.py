@@ -1,4 +1,4 @@
-"""The group as the robot would perceive it, in simulation (issue 37): an observation model for the engine.
+"""The group as the robot would perceive it, in simulation: an observation model for the engine.
 
 On the robot the policy does not read the true state: deploy's perception detects the people in Pepper's 56 deg
 camera, projects them to the ground, tracks them (``perception.tracking.tracker``, ego-motion compensated), remembers
