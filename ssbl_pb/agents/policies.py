@@ -14,6 +14,7 @@ import numpy as np
 
 from ..core import forces
 from ..core import observation as ob
+from ..core.layouts import body_radii
 from ..core.task import TaskParams
 from ..errors import UserError
 from ..params import RobotParams, SocialParams
@@ -89,7 +90,7 @@ class SFFMPolicy(Policy):
         ``zone_margin`` beyond the place's clearance (at least beyond the intimate zone) where that is smaller,
         plus both body radii. ``members`` (k, 2) and ``slot`` (2,) in metres."""
         s, q = self.social, self.params
-        bodies = s.human_radius + self.robot.radius
+        bodies = body_radii(s, self.robot.radius)
         place = float(np.hypot(*(members - slot).T).min()) - bodies  # the place's clearance
         return min(s.personal_radius, max(place, self.task.intimate_zone) + q.zone_margin) + bodies
 

@@ -19,6 +19,7 @@ import gymnasium as gym
 import numpy as np
 
 from ..cli import children_ignore_sigint, die_with_parent
+from ..core.layouts import body_radii
 from ..core.reward import TERMS
 from .metrics import episode_metrics
 from .policies import Policy
@@ -69,7 +70,7 @@ def shield_changed(policy: Policy, n: int) -> np.ndarray:
 def _result(core: Any, seed: int, trajectory: list[dict[str, Any]], info: dict[str, Any],
             keep_trajectory: bool, shield_rate: float) -> EpisodeResult:
     m = episode_metrics(trajectory, info["success"], info["collision"], info["violation"], core.task, core.dt,
-                        core.social.fov_half_angle_deg, core.social.human_radius + core.robot_params.radius,
+                        core.social.fov_half_angle_deg, body_radii(core.social, core.robot_params.radius),
                         info.get("obstacle_collision", False))
     sums = info["episode_terms"]
     m["shield_intervention_rate"] = float(shield_rate)  # share of steps the shield changed the action in

@@ -182,6 +182,11 @@ class Layout:
     #                      toward a joining robot as toward a member (``humans.Group``)
 
 
+def body_radii(social: SocialParams, robot_radius: float) -> float:
+    """Centre distance (m) at which a member's body and the robot's (its footprint's mean radius) touch."""
+    return social.human_radius + robot_radius
+
+
 def member_keep_out(social: SocialParams, reach: float, intimate_zone: float) -> float:
     """Centre distance from a member at which the footprint's farthest corner (``reach``), whatever the robot's
     heading, touches the member's intimate zone: their body radius + ``reach`` + the zone (0.95 m)."""
