@@ -25,7 +25,7 @@ import numpy as np
 from ..cli import progress as bar
 from ..core.humans import Group
 from ..core.layouts import paper_layout
-from ..params import FORMATIONS, CalibrationError, SocialParams
+from ..params import FORMATIONS, CalibrationError, RobotParams, SocialParams
 
 SCENES = ("ewap_seq_eth", "ewap_seq_hotel", "ucy_zara01", "ucy_zara02", "ucy_students03")
 
@@ -111,7 +111,8 @@ def real_stats(root: str | Path, scenes: tuple[str, ...] = SCENES) -> dict[str, 
 
 
 def sim_stats(social: SocialParams, episodes: int = 40, seconds: float = 20.0, dt: float = 0.1,
-              robot_speed: float = 0.35, seed: int = 0, progress: bool = False) -> dict[str, np.ndarray]:
+              robot_speed: float = RobotParams.max_speed, seed: int = 0, progress: bool = False
+              ) -> dict[str, np.ndarray]:
     """The same statistics from SFFM groups (2-5 members, all formations) with a robot walking to the slot."""
     rng = np.random.default_rng(seed)
     group_d, speeds, closest = [], [], []

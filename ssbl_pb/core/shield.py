@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-from ..params import RobotParams, SocialParams, _check, _positive
+from ..params import RobotParams, SocialParams, WorldParams, _check, _positive
 from .layouts import slot_keep
 from .observation import (
     BASE_SIZE,
@@ -84,13 +84,13 @@ class ShieldParams:
 
     clearance_min: float = 0.5  # m: intimate zone (0.45) + 0.05
     brake_accel: float = 0.2  # m/s^2: 2/3 of the NAOqi default 0.3, headroom for the command filter and latency
-    max_speed: float = 0.35  # m/s: the action scale
-    half_length: float = 0.24  # m: footprint half extents
-    half_width: float = 0.215
-    human_radius: float = 0.28
+    max_speed: float = RobotParams.max_speed  # m/s: the action scale
+    half_length: float = RobotParams.length / 2  # m: footprint half extents
+    half_width: float = RobotParams.width / 2
+    human_radius: float = SocialParams.human_radius
     obstacle_clearance_min: float = 0.1  # m from walls and obstacles (the scan): room to pass between desks
-    base_accel: float = 0.3  # m/s^2: the base's own limit (NAOqi default), over one control period:
-    control_period: float = 0.1  # s (the env's and the deploy loop's 10 Hz)
+    base_accel: float = RobotParams.max_accel  # m/s^2: the base's own limit (NAOqi default), over one control period:
+    control_period: float = WorldParams.dt  # s (the env's and the deploy loop's 10 Hz)
     place_clearance: float = 0.0  # m kept from every member near the place (0: off; ``from_env``'s ``at_place``)
     place_arrival_speed: float = 0.0  # m/s the approach slows to at the place's tolerance (0: off; ``at_place``)
     ospace_keep_out: bool = False  # keep out of the group's o-space short of the place's ring (``at_place``)
