@@ -75,6 +75,9 @@ def _parser() -> argparse.ArgumentParser:
     ap.add_argument("--no-watchdog", action="store_true",
                     help="run without python -m ssbl_pb.deploy.watchdog beside the robot (default: refuse to start "
                          "without it, since NAOqi keeps the base's last command if this process dies)")
+    ap.add_argument("--allow-collision-protection-off", action="store_true",
+                    help="run even when NAOqi's external collision protection for the base is off (default: refuse; "
+                         'turn it on with ALMotion.setExternalCollisionProtectionEnabled("Move", True))')
     ap.add_argument("--quiet", action="store_true", help="no status line")
     return ap
 
@@ -206,7 +209,8 @@ def main(argv: list[str] | None = None) -> int:
     params, robot_params, social, task, policy, frames = _params(args)
     _warm_up(policy)
     limits = dataclasses.replace(robot_params, max_speed=params.max_speed)
-    robot = NaoqiRobot(url, limits, user=args.user, token=args.token)
+    robot = NaoqiRobot(url, limits, user=args.user, token=args.token,
+                       allow_protection_off=args.allow_collision_protection_off)
     try:
         if robot.watchdog is None:
             if not args.no_watchdog:
