@@ -31,11 +31,11 @@ from ..core.shield import ShieldParams, footprint_clearance
 from ..core.task import TaskParams
 from ..errors import Terminated
 from ..params import RobotParams, SocialParams, _check, _positive
-from ..perception.groups.estimate import WALK_SPEED, GroupModel, member_arrays
+from ..perception.groups.estimate import GroupModel, member_arrays
 from ..perception.groups.looks import ARRIVAL_MARGIN, CONFIRM_S, Looks, claim_rule
 from .faults import EXIT_CODES, DeployFault, HumanTooClose, StaleFrame, StaleOdometry
-from .frames import Frames, transform_points
-from .guards import RangeMemory, guard_ranges, guard_unseen, mapped, unseen_margin
+from .frames import Frames
+from .guards import Guards
 from .log import RunLog, dynamics_columns
 from .perceive import Perception
 from .robot import Robot, clamp_command
@@ -123,8 +123,8 @@ class DeployLoop:
         self.s, self.p, self.log, self.now, self.sleep = setup, params or DeployParams(), log, now, sleep
         self.status = status
         self.shield = ShieldParams.from_env(setup.robot_params, setup.social, setup.task)
-        self.guard_clearance = deploy_shield(setup.robot_params, setup.social, setup.task,
-                                             self.p.stop_distance).clearance_min  # the guards' (``guards``)
+        clearance = deploy_shield(setup.robot_params, setup.social, setup.task, self.p.stop_distance).clearance_min
+        self.guards = Guards(self.shield, clearance, self.p.stop_distance, setup.frames)  # after the policy's shield
         self.period = 1.0 / self.p.rate_hz
         # the clamp of every command sent, whatever the robot implementation clamps itself
         self.limits = dataclasses.replace(setup.robot_params, max_speed=min(setup.robot_params.max_speed,
@@ -144,7 +144,6 @@ class DeployLoop:
                                 paper=setup.groups == "paper")
         setup.perception.group_model = self.group  # the tracker records rests by its joining weight
         self._last_status, self._ticks_since = -math.inf, 0
-        self.range_memory = RangeMemory()  # returns the lasers saw lately (``_guard_ranges``)
 
     # -- one tick --------------------------------------------------------------------------------------------
     def _members(self, now: float) -> tuple[np.ndarray, np.ndarray, list[Any], float | None, int]:
@@ -268,8 +267,8 @@ class DeployLoop:
                 #   m/s, took it back over the margin within the second, again and again: 3 of 20 joins unclaimed)
             if look is not None:  # a claim it cannot back yet ("confirm"), or stalled away from its place ("look")
                 state, cmd = look, self._turn_to(pos[k], odo.pose)
-        cmd = self._guard_unseen(cmd, members, pos, odo.pose, age, info.get("slot_distance_m", math.inf))
-        cmd, ranged = self._guard_ranges(cmd, odo.pose, now, pos, info.get("slot_distance_m", math.inf))
+        scan = s.robot.ranges() if hasattr(s.robot, "ranges") else None
+        cmd, guarded = self.guards(cmd, scan, members, pos, odo.pose, age, now, info.get("slot_distance_m", math.inf))
         t_send = self.now()
         sent = s.robot.send(clamp_command(cmd, self.limits))
         t_sent = self.now()
@@ -288,35 +287,9 @@ class DeployLoop:
                 "min_clearance_m": float(clearance.min()) if len(clearance) else None,
                 "estimate_age_ms": None if age is None else 1000.0 * age, "frame_age_ms": 1000.0 * (now - capture),
                 "tick_ms": tick_ms, "tick_cpu_ms": cpu_ms, "odom_ms": odom_ms, "send_ms": 1000.0 * (t_sent - t_send),
-                "late": late, "events": events, **ranged})
+                "late": late, "events": events, **guarded})
         self._report(now, elapsed, state, len(members), sum(m.seen for m in members), info)
         return state == "joined"
-
-    def _guard_unseen(self, cmd: np.ndarray, members: list[Any], pos: np.ndarray, pose: np.ndarray,
-                      age: float | None, slot_distance: float = math.inf) -> np.ndarray:
-        """``cmd`` braked for each member not detected now, beyond the policy's shield's clearance, by how far they
-        may have walked since (``Member.reach`` at the estimate, and ``WALK_SPEED`` times its ``age`` s since), as
-        ``guards.unseen_margin`` caps and fades it near the place (``slot_distance``)."""
-        reach = np.array([0.0 if m.seen else m.reach + WALK_SPEED * (age or 0.0) for m in members])
-        return guard_unseen(cmd, pos, unseen_margin(reach, slot_distance), pose, self.guard_clearance, self.shield)
-
-    def _guard_ranges(self, cmd: np.ndarray, pose: np.ndarray, now: float, people: np.ndarray,
-                      slot_distance: float = math.inf) -> tuple[np.ndarray, dict[str, Any]]:
-        """``cmd`` braked for the robot's range returns and those it remembers (``guards.guard_ranges``,
-        ``guards.RangeMemory``: their margin as a member's out of view, ``unseen_margin``), and the log's columns:
-        ``ranges`` (how many returns now; None without range sensors) and ``range_guard`` (what it changed, or
-        None)."""
-        scan = self.s.robot.ranges() if hasattr(self.s.robot, "ranges") else None
-        if scan is None:
-            return cmd, {"ranges": None, "range_guard": None}
-        known = mapped(self.s.frames, transform_points(pose, scan.points))
-        old, ages = self.range_memory.update(scan, pose, now, known, people)
-        margin = np.concatenate([np.zeros(len(scan.points)), unseen_margin(WALK_SPEED * ages, slot_distance)])
-        out, row = guard_ranges(cmd, np.vstack([scan.points, old]), np.concatenate([known, np.zeros(len(old), bool)]),
-                                max(now - scan.stamp, 0.0), self.guard_clearance, self.shield, margin)
-        if row is not None:
-            row["remembered"] = len(old)
-        return out, {"ranges": len(scan.points), "range_guard": row}
 
     def _check_odometry(self, odo: Any, now: float) -> None:
         """``StaleOdometry`` when the reading is older than ``stale_s`` by its stamp, or frozen: its pose has not

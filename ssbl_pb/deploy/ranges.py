@@ -85,6 +85,17 @@ def _to_base(mount: Mount, xy: np.ndarray) -> np.ndarray:
     return xy @ np.array([[c, s], [-s, c]]) + np.array([mount.x, mount.y])
 
 
+def in_laser_fields(points: np.ndarray, p: RangeParams = RANGES) -> np.ndarray:
+    """Which robot-frame points (k, 2) lie inside a laser's field (its 60 deg, within its range)."""
+    pts = np.asarray(points, dtype=float).reshape(-1, 2)
+    out = np.zeros(len(pts), dtype=bool)
+    for m in LASERS.values():
+        d = pts - [m.x, m.y]
+        off = np.abs(np.remainder(np.arctan2(d[:, 1], d[:, 0]) - m.yaw + math.pi, 2 * math.pi) - math.pi)
+        out |= (off <= math.radians(p.laser_fov_deg) / 2) & (np.hypot(d[:, 0], d[:, 1]) < p.laser_max)
+    return out
+
+
 def _numbers(values: Sequence[object]) -> np.ndarray:
     def number(v: object) -> float:
         try:

@@ -74,11 +74,12 @@ class Member:
     facing_std: float = math.inf  # its standard deviation (rad)
     born: int = 0  # the frame (``GroupTracker``'s count) this member was first reported
     last_seen: int = 0  # the last frame it was detected
-    unseen_s: float = 0.0  # s since it was last detected (at the frame's capture)
+    unseen_s: float = 0.0  # s it has been remembered (held by ``GroupTracker.hold``): 0 while detected, or while
+    #   the tracker still coasts it (its own model moves it and widens its covariance)
 
     @property
     def reach(self) -> float:
-        """How far (m) the person may have walked since last detected (``WALK_SPEED``): 0 while detected."""
+        """How far (m) the person may have walked since the tracker lost them (``WALK_SPEED``)."""
         return WALK_SPEED * self.unseen_s
 
 
@@ -380,7 +381,6 @@ class GroupTracker:
             m.rest = m.pos.copy() if at_rest or old is None or old.rest is None else old.rest
             m.born = self.frames if old is None else old.born
             m.last_seen = self.frames if m.seen or old is None else old.last_seen
-            m.unseen_s = 0.0 if m.seen or old is None else old.unseen_s + dt
             if old is not None:
                 m.facing, m.facing_std = old.facing, old.facing_std
             self._filter_facing(m, st.payload if st.misses == 0 else None, dt)
