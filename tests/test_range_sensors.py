@@ -5,6 +5,7 @@ rule), seen by the camera or not; a remembered member's uncertainty grows at wal
 from __future__ import annotations
 
 import math
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -195,3 +196,42 @@ def test_the_clearance_kept_from_members_out_of_view_grows_by_their_reach_capped
     out = guard_unseen(cmd, pos, np.array([0.5]), pose, 0.55, SHIELD)
     allow = math.sqrt(2 * SHIELD.brake_accel * (1.2 - 0.55 - 0.5))
     assert out == pytest.approx([allow, 0.1, 0.2])  # sideways and turning untouched
+
+
+def test_someone_seen_walking_into_a_blind_sector_is_braked_for_where_they_could_stand():
+    from ssbl_pb.deploy.guards import RANGE_MEMORY_S, Guards
+    from ssbl_pb.deploy.ranges import in_laser_fields
+    from ssbl_pb.deploy.robot import RangeScan
+
+    guards = Guards(SHIELD, 0.55, 0.45, Frames())
+    pose = np.zeros(3)
+    seen = np.array([[0.6, -2.2]])  # a leg the right laser sees (its field: 70.7-130.7 deg to the right)
+    assert in_laser_fields(seen)[0]
+    cmd = np.array([0.25, -0.25, 0.0])  # ahead-right at -45 deg: between the front laser's field and the right's
+    out, _ = guards(cmd, RangeScan(seen, 0.0), [], np.zeros((0, 2)), pose, None, 0.0)
+    assert out == pytest.approx(cmd)  # 2.2 m away: nothing to brake for yet
+    empty = RangeScan(np.zeros((0, 2)), 0.0)
+    phantoms = guards.memory.phantoms(pose, 1.0)  # a second later they may stand anywhere within 1.28 m, unseen
+    assert len(phantoms) and not in_laser_fields(phantoms).any()
+    assert np.hypot(*(phantoms - seen).T).max() <= WALK_SPEED * 1.0 + R + 1e-9
+    bearing = np.degrees(np.arctan2(phantoms[:, 1], phantoms[:, 0]))
+    wedge = (bearing < -30) & (bearing > -71)  # the blind sector between the front and right lasers' fields ...
+    assert wedge.any() and (np.hypot(*phantoms[~wedge].T) > RANGES.laser_max - 0.2).all()  # ... or out of range
+    out, cols = guards(cmd, empty, [], np.zeros((0, 2)), pose, None, 1.0)
+    assert np.hypot(*out[:2]) < 0.5 * np.hypot(*cmd[:2]) and cols["range_guard"]["phantoms"]
+    assert guards(np.array([0.0, 0.25, 0.0]), empty, [], np.zeros((0, 2)), pose, None, 1.0)[0][1] == 0.25  # left
+    assert not len(guards.memory.phantoms(pose, RANGE_MEMORY_S + 0.1))  # forgotten
+    # a leg by a tracked person is theirs (the member guard's), not remembered
+    guards = Guards(SHIELD, 0.55, 0.45, Frames())
+    guards(cmd, RangeScan(seen, 0.0), [SimpleNamespace(reach=0.0)], seen + [0.2, -0.2], pose, None, 0.0)
+    assert not len(guards.memory.phantoms(pose, 1.0))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("fault, seed, scenario", [("stranger_steps_in", 11, "default")])
+def test_the_walker_faults_end_without_an_intimate_zone_entry(tmp_path, fault, seed, scenario):
+    from ssbl_pb.bench.deploy import walker_fault
+
+    res = walker_fault(fault, tmp_path / fault, seed, lockstep=True, duration=30.0, scenario=scenario)
+    assert res["walker_acted_at"] is not None  # the person did walk into the robot's way
+    assert res["true_min_clearance_m"] >= TaskParams().intimate_zone, res

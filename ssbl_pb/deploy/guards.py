@@ -34,6 +34,10 @@ UNSEEN_NEAR, UNSEEN_FAR = PLACE_NEAR, CLEARANCE_FAR
 # s an unexplained range return is remembered (``RangeMemory``); ours: a stranger the lasers saw walk into a blind
 # sector and stop there was reached by the robot 2.7 s after they were last seen (the stranger fault, seed 11)
 RANGE_MEMORY_S = 4.0
+# m the place where someone could stand unseen grows to (at ``WALK_SPEED``, in a second: the robot needs 1.2 s to
+# brake from full speed at Pepper's 0.3 m/s^2). Ours: the stranger fault's person walked 0.75 m after the lasers
+# last saw them; grown for the memory's 4 s, it would reach every blind direction round the robot
+PHANTOM_REACH = 1.0
 MEMORY_CELL = 0.2  # m: the newest remembered return per cell of this size (a leg's returns share one or two)
 MEMORY_REACH = 3.0  # m from the robot's centre beyond which returns are not remembered (the lasers' range)
 PERSON_REACH = 0.6  # m from a tracked person within which a return is theirs (their body's 0.28 m and the remembered
@@ -147,13 +151,14 @@ class RangeMemory:
 
     def phantoms(self, pose: np.ndarray, now: float) -> np.ndarray:
         """Where someone last seen at a remembered return (before ``now``) could stand unseen: of the hidden body
-        centres within ``WALK_SPEED`` times its age of the body it came from, the nearest the robot in each 3 deg
-        of bearing (robot frame (k, 2)); none where the lasers would see every place they could be."""
-        old = self.times < now - 1e-9
+        centres within ``WALK_SPEED`` times its age (at most ``PHANTOM_REACH``) of the body it came from, the
+        nearest the robot in each 3 deg of bearing (robot frame (k, 2)); none where the lasers would see every place
+        they could be."""
+        old = (self.times < now - 1e-9) & (now - self.times <= RANGE_MEMORY_S)
         if not old.any():
             return np.zeros((0, 2))
         local = transform_points(inverse(pose), self.points[old])
-        reach = WALK_SPEED * (now - self.times[old]) + self.r
+        reach = np.minimum(WALK_SPEED * (now - self.times[old]), PHANTOM_REACH) + self.r
         near = (np.hypot(*(self.hidden[None] - local[:, None]).transpose(2, 0, 1)) <= reach[:, None]).any(axis=0)
         if not near.any():
             return np.zeros((0, 2))
