@@ -97,9 +97,9 @@ def test_scan_points_put_each_return_in_the_robot_frame():
     values[LASER_KEY.format("Left", 3, "X")] = float("nan")  # a missing value: nothing
     values[SONAR_KEY.format("Front")] = RANGES.sonar_reported_max  # no echo
     values[SONAR_KEY.format("Back")] = 1.0
-    pts = scan_points([values[k] for k in KEYS])
+    pts, sonars = scan_points([values[k] for k in KEYS])
     right = [-0.018 + math.cos(-1.757), -0.090 + math.sin(-1.757)]  # naoqi_driver's transform of (1, 0)
-    assert pts == pytest.approx(np.array([[1.056, 0.0], right, [-1.07, 0.0]]))
+    assert pts == pytest.approx(np.array([[1.056, 0.0], right, [-1.07, 0.0]])) and sonars == 1
 
 
 def test_braking_for_returns_by_hand():

@@ -29,7 +29,8 @@ UNSEEN_MARGIN = 0.5
 # m from the estimated place within which that margin fades out (none within ``PLACE_NEAR``, all of it beyond
 # ``CLEARANCE_FAR``, linear between): near the place the neighbours are out of view by design and the shield keeps
 # the place's clearance (``ShieldParams.from_env``, within ``CLEARANCE_NEAR``-``CLEARANCE_FAR``). Faded out only
-# within 0.6 m, 0.5 m held the robot about 0.85 m from its place between two neighbours 0.95 m away (ours)
+# within 0.6 m, 0.5 m would bar the way in between two neighbours: 1.2 m from the place, 100 deg apart from the
+# robot's way in, they are under 1.05 m from a robot 0.8 m out (by hand)
 UNSEEN_NEAR, UNSEEN_FAR = PLACE_NEAR, CLEARANCE_FAR
 # s an unexplained range return is remembered (``RangeMemory``); ours: a stranger the lasers saw walk into a blind
 # sector and stop there was reached by the robot 2.7 s after they were last seen (the stranger fault, seed 11)
@@ -45,8 +46,7 @@ PERSON_REACH = 0.6  # m from a tracked person within which a return is theirs (t
 # m beyond the stop distance the range returns are braked for (0.5 m by default: the training shield's clearance,
 # 0.05 m inside the deploy shield's for tracked people). A body seen as points on its surface blocks sliding round
 # it at the clearance it is braked for (the points ahead on its arc close in), and tracked members are the shield's
-# to keep: braked for at 0.55 m, the returns held a robot 0.58-0.61 m from a member it was rounding for 70 s
-# (`mixed` lockstep, seed 500019)
+# to keep at 0.55 m
 RETURN_MARGIN = 0.05
 MAPPED = 0.15  # m: a return this close to the map's walls or obstacles is theirs (the map's cells are 0.05 m,
 #   localisation drifts by a few centimetres: ours)
@@ -133,11 +133,11 @@ class RangeMemory:
         hidden = ~(in_laser_fields(c) | in_laser_fields(c + side) | in_laser_fields(c - side))
         self.hidden, self.bins = c[hidden], np.indices(bearing.shape)[1].ravel()[hidden]  # and each one's bearing
 
-    def update(self, scan: RangeScan, pose: np.ndarray, now: float, known: np.ndarray, people: np.ndarray) -> None:
-        """Remember ``scan``'s returns (read at odometry ``pose``; ``known``: those the map explains) that no
-        tracked person at odometry ``people`` explains; forget those older than ``RANGE_MEMORY_S``."""
-        fresh = transform_points(pose, scan.points)[~np.asarray(known, dtype=bool)
-                                                    & (np.hypot(*scan.points.T) <= MEMORY_REACH)]
+    def update(self, points: np.ndarray, near: np.ndarray, now: float, people: np.ndarray) -> None:
+        """Remember the returns at odometry-frame ``points`` where ``near`` (those the map does not explain, within
+        ``MEMORY_REACH``) that no tracked person at odometry ``people`` explains; forget those older than
+        ``RANGE_MEMORY_S``."""
+        fresh = np.asarray(points, dtype=float).reshape(-1, 2)[np.asarray(near, dtype=bool)]
         people = np.asarray(people, dtype=float).reshape(-1, 2)
         if len(people) and len(fresh):
             fresh = fresh[np.hypot(*(fresh[:, None] - people[None]).transpose(2, 0, 1)).min(axis=1) > PERSON_REACH]
@@ -179,11 +179,13 @@ class Guards:
         self.memory = RangeMemory(shield.human_radius)
 
     def __call__(self, cmd: np.ndarray, scan: RangeScan | None, members: list[Any], pos: np.ndarray,
-                 pose: np.ndarray, age: float | None, now: float, slot_distance: float = math.inf
-                 ) -> tuple[np.ndarray, dict[str, Any]]:
+                 pose: np.ndarray, age: float | None, now: float, slot_distance: float = math.inf,
+                 scan_pose: np.ndarray | None = None) -> tuple[np.ndarray, dict[str, Any]]:
         """``cmd`` guarded, and the log's columns: ``unseen_guard`` and ``range_guard`` (what each changed, or
         None), ``ranges`` (how many returns now; None without range sensors). ``members`` (``estimate.Member``) at
-        odometry-frame ``pos`` from an estimate ``age`` s old; ``scan`` read at odometry ``pose``."""
+        odometry-frame ``pos`` from an estimate ``age`` s old; the robot at odometry ``pose`` now, at ``scan_pose``
+        when ``scan`` was measured (default: ``pose``; its returns are moved by the difference: turning at 0.5
+        rad/s, a laser frame's age smeared a wall's returns 0.2 m off the map)."""
         reach = np.array([m.reach + WALK_SPEED * (age or 0.0) if m.reach > 0 else 0.0 for m in members])
         if scan is not None and len(pos):
             reach[in_laser_fields(transform_points(inverse(pose), pos))] = 0.0
@@ -192,10 +194,13 @@ class Guards:
                 "ranges": None, "range_guard": None}
         if scan is None:
             return out, cols
-        known = mapped(self.frames, transform_points(pose, scan.points))
-        self.memory.update(scan, pose, now, known, pos)
+        odom = transform_points(pose if scan_pose is None else scan_pose, scan.points)
+        local = transform_points(inverse(pose), odom)
+        known = mapped(self.frames, odom)
+        lasers = np.arange(len(odom)) < len(odom) - scan.sonars  # a sonar's echo is no place to remember
+        self.memory.update(odom, lasers & ~known & (np.hypot(*scan.points.T) <= MEMORY_REACH), now, pos)
         before, clearance = out.copy(), self.stop_distance + RETURN_MARGIN
-        out, row = guard_ranges(out, scan.points, known, max(now - scan.stamp, 0.0), clearance, self.shield)
+        out, row = guard_ranges(out, local, known, 0.0, clearance, self.shield)
         phantoms = self.memory.phantoms(pose, now)
         if len(phantoms):
             out = out.copy()

@@ -37,7 +37,7 @@ from .faults import EXIT_CODES, DeployFault, HumanTooClose, StaleFrame, StaleOdo
 from .frames import Frames
 from .guards import Guards
 from .log import RunLog, dynamics_columns
-from .perceive import Perception
+from .perceive import Perception, pose_at
 from .robot import Robot, clamp_command
 
 
@@ -268,7 +268,8 @@ class DeployLoop:
             if look is not None:  # a claim it cannot back yet ("confirm"), or stalled away from its place ("look")
                 state, cmd = look, self._turn_to(pos[k], odo.pose)
         scan = s.robot.ranges() if hasattr(s.robot, "ranges") else None
-        cmd, guarded = self.guards(cmd, scan, members, pos, odo.pose, age, now, info.get("slot_distance_m", math.inf))
+        cmd, guarded = self.guards(cmd, scan, members, pos, odo.pose, age, now, info.get("slot_distance_m", math.inf),
+                                   None if scan is None else pose_at(s.perception.odometry, scan.stamp))
         t_send = self.now()
         sent = s.robot.send(clamp_command(cmd, self.limits))
         t_sent = self.now()

@@ -24,7 +24,7 @@ import numpy as np
 from ..errors import UserError
 from ..params import RobotParams
 from .faults import ConnectionLost, RobotNotResponding
-from .ranges import KEYS, scan_points, scan_rays
+from .ranges import KEYS, RANGES, scan_points
 from .robot import Frame, Odometry, RangeScan, clamp_command
 
 MOTION = ("move", "stopMove", "getRobotPosition", "getRobotVelocity")
@@ -226,12 +226,14 @@ class NaoqiRobot:
         return Odometry(np.asarray(pose, dtype=float)[:3], np.asarray(velocity, dtype=float)[:3], time.monotonic())
 
     def ranges(self) -> RangeScan | None:
-        """The base's range returns (``ranges.scan_points``), stamped on receipt; None without the keys."""
+        """The base's range returns (``ranges.scan_points``); None without the keys. ALMemory holds each laser's last
+        frame (6.66 a second) without its time: stamped half a frame before receipt, its mean age."""
         if self.memory is None:
             return None
         what = "ALMemory.getListData"
         values = self._call(self._async(self.memory.getListData, list(KEYS), what=what), what)
-        return RangeScan(scan_points(values), time.monotonic(), scan_rays(values))
+        points, sonars = scan_points(values)
+        return RangeScan(points, time.monotonic() - 0.5 / RANGES.laser_hz, sonars)  # at a frame's mean age
 
     def send(self, cmd: np.ndarray) -> np.ndarray:
         c = clamp_command(cmd, self.limits)

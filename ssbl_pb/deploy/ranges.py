@@ -109,12 +109,13 @@ def _numbers(values: Sequence[object]) -> np.ndarray:
     return vals
 
 
-def scan_points(values: Sequence[object], p: RangeParams = RANGES) -> np.ndarray:
-    """Robot-frame points (k, 2) of every return in the values of ``KEYS`` (in that order): each laser segment
-    within the laser's range, and each sonar echo within its operational range as a point on the sonar's axis (as
-    naoqi_driver publishes it, a ROS Range; the echo may come from anywhere in the cone, but spread across it the
-    front sonar's echo off a member the robot passes put phantom points in its way, and the front laser covers that
-    cone in 15 segments). Missing or non-numeric values count as nothing seen."""
+def scan_points(values: Sequence[object], p: RangeParams = RANGES) -> tuple[np.ndarray, int]:
+    """Robot-frame points (k, 2) of every return in the values of ``KEYS`` (in that order), and how many of them (the
+    last) are sonar echoes: each laser segment within the laser's range, and each sonar echo within its
+    operational range as a point on the sonar's axis (as naoqi_driver publishes it, a ROS Range; the echo may come
+    from anywhere in the cone, but spread across it the front sonar's echo off a member the robot passed put phantom
+    points in its way, and the front laser covers that cone in 15 segments). Missing or non-numeric values count as
+    nothing seen."""
     vals = _numbers(values)
     out = []
     n = 2 * p.segments
@@ -123,20 +124,7 @@ def scan_points(values: Sequence[object], p: RangeParams = RANGES) -> np.ndarray
         r = np.hypot(xy[:, 0], xy[:, 1])
         ok = np.isfinite(r) & (r >= p.laser_min) & (r < p.laser_max - 1e-3)
         out.append(_to_base(mount, xy[ok]))
-    for r, mount in zip(vals[len(LASER_KEYS):], SONARS.values(), strict=True):
-        if np.isfinite(r) and p.sonar_min <= r <= p.sonar_max:
-            out.append(_to_base(mount, np.array([[r, 0.0]])))
-    return np.concatenate(out).reshape(-1, 2)
-
-
-def scan_rays(values: Sequence[object], p: RangeParams = RANGES) -> np.ndarray:
-    """Each laser segment as a robot-frame ray (n, 4): its origin (x, y), direction (rad) and how far it saw
-    free (its return's range, the laser's range when it saw nothing, 0 for a missing value)."""
-    vals = _numbers(values)
-    angles = segment_angles(p)
-    out = []
-    for i, m in enumerate(LASERS.values()):
-        xy = vals[i * 2 * p.segments:(i + 1) * 2 * p.segments].reshape(-1, 2)
-        r = np.nan_to_num(np.hypot(xy[:, 0], xy[:, 1]), nan=0.0)
-        out.append(np.column_stack([np.full(p.segments, m.x), np.full(p.segments, m.y), m.yaw + angles, r]))
-    return np.concatenate(out)
+    echoes = [_to_base(mount, np.array([[r, 0.0]])) for r, mount in zip(vals[len(LASER_KEYS):], SONARS.values(),
+                                                                         strict=True)
+              if np.isfinite(r) and p.sonar_min <= r <= p.sonar_max]
+    return np.concatenate(out + echoes).reshape(-1, 2), len(echoes)

@@ -43,12 +43,12 @@ class Odometry:
 @dataclasses.dataclass(frozen=True)
 class RangeScan:
     """The base's range returns (``deploy.ranges``): robot-frame points (k, 2) of everything the lasers and sonars
-    hit, metres, the local time they were read (s, the loop's clock), and the lasers' rays (n, 4: origin x, y,
-    direction rad, range seen free m; ``ranges.scan_rays``)."""
+    hit, metres, when they were measured (s, on the clock of ``Odometry.stamp``), and how many of the points (the
+    last) are sonar echoes (on the sonar's axis: where in its cone the echo came from is unknown)."""
 
     points: np.ndarray
     stamp: float
-    rays: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros((0, 4)))
+    sonars: int = 0
 
 
 class Robot(Protocol):

@@ -24,7 +24,6 @@ from ..deploy.ranges import (
     Mount,
     RangeParams,
     scan_points,
-    scan_rays,
     segment_angles,
     sonar_angles,
 )
@@ -58,6 +57,7 @@ class RangeSensors:
         self.world, self.p = world, params
         self.values: dict[str, float] = {}
         self.due: dict[str, float] = {}
+        self.cast_t = 0.0  # robot time of the lasers' last frame (all three are cast together)
         rp = world.robot_params
         half = (rp.length / 2, rp.width / 2)
         self._rays = {("laser", n): (m, segment_angles(params), params.laser_max, 1.0 / params.laser_hz)
@@ -77,6 +77,7 @@ class RangeSensors:
             mount, angles, top, period = self._rays[k]
             self.due[k] = max(self.due.get(k, t) + period, t + 1e-9)
             if k[0] == "laser":
+                self.cast_t = t
                 r = np.where(np.isfinite(r), r, top)
                 for j, (a, d) in enumerate(zip(angles, r, strict=True)):
                     self.values[LASER_KEY.format(k[1], j + 1, "X")] = float(d * math.cos(a))
@@ -216,8 +217,11 @@ class SimRobot:
             return [values[k] for k in keys]
 
     def ranges(self) -> RangeScan:
+        """The range returns, stamped with the lasers' last frame (on the odometry clock)."""
         values = self.memory_values(KEYS)
-        return RangeScan(scan_points(values), self.clock(), scan_rays(values))
+        with self._lock:
+            points, sonars = scan_points(values)
+            return RangeScan(points, self.clock() - (self.world.t - self.sensors.cast_t), sonars)
 
     def send(self, cmd: np.ndarray) -> np.ndarray:
         with self._lock:
