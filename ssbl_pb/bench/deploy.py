@@ -26,7 +26,9 @@ from ..core.task import TaskParams
 from ..deploy.log import LOG, SUMMARY
 from ..virtual.pepper import load_log
 
-WALKER_FAULTS = {"member_steps_in": "member", "stranger_steps_in": "stranger"}  # fault -> ``virtual.walkers`` kind
+# fault -> (``virtual.walkers`` kind, scenario, seed): runs where the person does walk into the robot's way (the
+# member out of view beside its path, the stranger ahead of it), and an entry without the range guard
+WALKER_FAULTS = {"member_steps_in": ("member", "mixed", 500_000), "stranger_steps_in": ("stranger", "default", 11)}
 FAULTS = ("robot_killed", "camera_frozen", "odometry_frozen", "robot_frozen", "sigint", "sigterm", "policy_exception",
           "deploy_killed", "watchdog_stop_hangs", *WALKER_FAULTS)
 WATCHED = ("deploy_killed", "watchdog_stop_hangs")  # deploy killed: the watchdog beside the robot stops the base
@@ -258,12 +260,15 @@ def _rss_mb(pid: int) -> float | None:
     return None
 
 
-def walker_fault(fault: str, folder: Path, seed: int = 11, policy: str = "vector", lockstep: bool = False,
-                 duration: float = 60.0, scenario: str = "mixed") -> dict[str, Any]:
-    """A walker fault (``WALKER_FAULTS``): one approach with that scripted person (in lockstep, or over qi), its
-    outcome, whether the walker acted, and the smallest true clearance to anyone (an intimate-zone entry fails)."""
+def walker_fault(fault: str, folder: Path, seed: int | None = None, policy: str = "vector", lockstep: bool = False,
+                 duration: float = 60.0, scenario: str | None = None) -> dict[str, Any]:
+    """A walker fault (``WALKER_FAULTS``; its scenario and seed unless given): one approach with that scripted
+    person (in lockstep, or over qi), its outcome, when the walker acted, and the smallest true clearance to anyone
+    (an intimate-zone entry fails)."""
+    kind, default_scenario, default_seed = WALKER_FAULTS[fault]
     run = lockstep_approach if lockstep else run_approach
-    res = run(folder, seed, policy, scenario, duration, walker=WALKER_FAULTS[fault])
+    res = run(folder, default_seed if seed is None else seed, policy, scenario or default_scenario, duration,
+              walker=kind)
     _, states, _ = load_log(folder / "virtual_pepper.jsonl")
     walkers = next((s["walkers"] for s in reversed(states) if s.get("walkers")), [{}])
     keys = ("exit_code", "outcome", "true_min_clearance_m", "true_success", "range_guard_interventions")
@@ -283,7 +288,7 @@ def run_fault(fault: str, folder: Path, seed: int = 11, policy: str = "straight"
     if fault not in FAULTS:
         raise ValueError(f"fault {fault!r}: expected one of {FAULTS}")
     if fault in WALKER_FAULTS:
-        return walker_fault(fault, folder, seed, lockstep=lockstep)
+        return walker_fault(fault, folder, lockstep=lockstep)
     folder.mkdir(parents=True, exist_ok=True)
     vp_log = folder / "virtual_pepper.jsonl"
     out: dict[str, Any] = {"fault": fault}
