@@ -179,18 +179,18 @@ def brake_closing(velocity: np.ndarray, points: np.ndarray, clearance_min: np.nd
 
 
 def brake_returns(velocity: np.ndarray, points: np.ndarray, clearance_min: np.ndarray | float, p: ShieldParams,
-                  latency: float = 0.0) -> np.ndarray:
+                  latency: float = 0.0, radius: float = 0.0) -> np.ndarray:
     """The body velocity (vx, vy) braked for range returns at robot-frame ``points`` (k, 2): standing points on
-    whatever the lasers and sonars hit (a person's legs, a wall), each one's clearance taken from the footprint's
-    circle to the point itself, its closing speed cut to ``sqrt(2 a (c - c_min))`` (``brake_closing``, nearest
-    first), ``c_min`` (per point, or one) raised by what the robot covers in ``latency`` s (the returns' age);
-    then scaled down until every point's limit holds at once (braking for one side of a passage may add speed
+    whatever the lasers and sonars hit (a person's legs, a wall; or circles of ``radius``), each one's clearance
+    taken from the footprint's circle, its closing speed cut to ``sqrt(2 a (c - c_min))`` (``brake_closing``,
+    nearest first), ``c_min`` (per point, or one) raised by what the robot covers in ``latency`` s (the returns'
+    age); then scaled down until every point's limit holds at once (braking for one side of a passage may add speed
     toward the other; every limit is >= 0, so a slower motion the same way keeps them all)."""
     pts = np.asarray(points, dtype=float).reshape(-1, 2)
     v = np.asarray(velocity, dtype=float)[:2]
     c_min = np.broadcast_to(np.asarray(clearance_min, dtype=float), (len(pts),)) + math.hypot(*v) * latency
-    out = brake_closing(v, pts, c_min, p, radius=0.0)
-    clear, toward = footprint_clearance(pts, 0.0, p, radius=0.0)
+    out = brake_closing(v, pts, c_min, p, radius=radius)
+    clear, toward = footprint_clearance(pts, 0.0, p, radius=radius)
     allow, closing = np.sqrt(2.0 * p.brake_accel * np.maximum(clear - c_min, 0.0)), toward @ out
     over = closing > allow + 1e-12
     return out * float(np.min(allow[over] / closing[over])) if over.any() else out

@@ -32,9 +32,10 @@ UNSEEN_MARGIN = 0.5
 # within 0.6 m, 0.5 m would bar the way in between two neighbours: 1.2 m from the place, 100 deg apart from the
 # robot's way in, they are under 1.05 m from a robot 0.8 m out (by hand)
 UNSEEN_NEAR, UNSEEN_FAR = PLACE_NEAR, CLEARANCE_FAR
-# s an unexplained range return is remembered (``RangeMemory``); ours: a stranger the lasers saw walk into a blind
-# sector and stop there was reached by the robot 2.7 s after they were last seen (the stranger fault, seed 11)
-RANGE_MEMORY_S = 4.0
+# s an unexplained range return is remembered (``RangeMemory``). Ours: braking for where they could be slows the
+# robot, so it reaches someone standing in a blind sector later: over qi, the stranger fault's person about 6 s
+# after the lasers last saw them; remembered for 4 s, the robot then drove on to 0.46 m from them (0.67 m with 10 s)
+RANGE_MEMORY_S = 10.0
 # m the place where someone could stand unseen grows to (at ``WALK_SPEED``, in a second: the robot needs 1.2 s to
 # brake from full speed at Pepper's 0.3 m/s^2). Ours: the stranger fault's person walked 0.75 m after the lasers
 # last saw them; grown for the memory's 4 s, it would reach every blind direction round the robot
@@ -92,27 +93,27 @@ def mapped(frames: Frames, points: np.ndarray) -> np.ndarray:
     return known
 
 
-def guard_ranges(cmd: np.ndarray, points: np.ndarray, known: np.ndarray, latency: float, clearance: float,
-                 shield: ShieldParams, margin: np.ndarray | float = 0.0) -> tuple[np.ndarray, dict[str, Any] | None]:
-    """``cmd`` (forward, left, turn) braked for the range returns at robot-frame ``points`` (k, 2) read
-    ``latency`` s ago (``shield.brake_returns``): for ``clearance`` plus each one's ``margin`` (deploy's clearance
-    for people: a laser sees a person's legs, inside the 0.28 m body circle the intimate zone is measured to, by
-    about as much as deploy's margin beyond the stop distance), or for the shield's ``obstacle_clearance_min`` where
-    ``known`` (k,) says the map explains the return (walls and furniture: the policy was trained to pass those at
-    that); and what it changed for the log (None where nothing): the command before and after, the nearest return
-    (robot frame) and its clearance from the footprint's circle."""
+def guard_ranges(cmd: np.ndarray, points: np.ndarray, known: np.ndarray, clearance: float, shield: ShieldParams
+                 ) -> tuple[np.ndarray, dict[str, Any] | None]:
+    """``cmd`` (forward, left, turn) braked for the range returns at robot-frame ``points`` (k, 2)
+    (``shield.brake_returns``): for ``clearance`` (people's: a laser sees a person's legs, within the 0.28 m body
+    circle the intimate zone is measured to), or for the shield's ``obstacle_clearance_min`` where ``known`` (k,)
+    says the map explains the return (walls and furniture: the policy was trained to pass those at that); and what
+    it changed for the log (None where nothing): the command before and after, the nearest return (robot frame) and
+    its clearance from the footprint's circle."""
     pts = np.asarray(points, dtype=float).reshape(-1, 2)
     if not len(pts):
         return cmd, None
-    c_min = np.where(np.asarray(known, dtype=bool), shield.obstacle_clearance_min, clearance + margin)
+    c_min = np.where(np.asarray(known, dtype=bool), shield.obstacle_clearance_min, clearance)
     out = np.array(cmd, dtype=float)
-    out[:2] = brake_returns(out[:2], pts, c_min, shield, latency)
+    out[:2] = brake_returns(out[:2], pts, c_min, shield)
     if np.allclose(out, cmd, atol=1e-9):
         return out, None
     clear = footprint_clearance(pts, 0.0, shield, radius=0.0)[0]
     k = int(np.argmin(clear))
     return out, {"before": list(map(float, cmd)), "after": out.tolist(), "nearest": pts[k].tolist(),
                  "clearance_m": float(clear[k]), "returns": len(pts)}
+
 
 class RangeMemory:
     """Unexplained range returns (not on the map, not by a tracked person) remembered in the odometry frame for
@@ -200,11 +201,11 @@ class Guards:
         lasers = np.arange(len(odom)) < len(odom) - scan.sonars  # a sonar's echo is no place to remember
         self.memory.update(odom, lasers & ~known & (np.hypot(*scan.points.T) <= MEMORY_REACH), now, pos)
         before, clearance = out.copy(), self.stop_distance + RETURN_MARGIN
-        out, row = guard_ranges(out, local, known, 0.0, clearance, self.shield)
+        out, row = guard_ranges(out, local, known, clearance, self.shield)
         phantoms = self.memory.phantoms(pose, now)
         if len(phantoms):
             out = out.copy()
-            out[:2] = brake_closing(out[:2], phantoms, np.full(len(phantoms), clearance), self.shield)
+            out[:2] = brake_returns(out[:2], phantoms, clearance, self.shield, radius=self.shield.human_radius)
             if row is None and not np.allclose(out, before, atol=1e-9):
                 row = {"before": before.tolist(), "after": out.tolist()}
             if row is not None:
