@@ -137,12 +137,15 @@ class RangeMemory:
     def update(self, points: np.ndarray, near: np.ndarray, now: float, people: np.ndarray) -> None:
         """Remember the returns at odometry-frame ``points`` where ``near`` (those the map does not explain, within
         ``MEMORY_REACH``) that no tracked person at odometry ``people`` explains; forget those older than
-        ``RANGE_MEMORY_S``."""
+        ``RANGE_MEMORY_S`` or explained by a person now."""
         fresh = np.asarray(points, dtype=float).reshape(-1, 2)[np.asarray(near, dtype=bool)]
         people = np.asarray(people, dtype=float).reshape(-1, 2)
-        if len(people) and len(fresh):
-            fresh = fresh[np.hypot(*(fresh[:, None] - people[None]).transpose(2, 0, 1)).min(axis=1) > PERSON_REACH]
         keep = now - self.times <= RANGE_MEMORY_S
+        if len(people):  # a person tracked since (the lasers see members before the camera does) explains them too
+            if len(fresh):
+                fresh = fresh[np.hypot(*(fresh[:, None] - people[None]).transpose(2, 0, 1)).min(axis=1) > PERSON_REACH]
+            if len(self.points):
+                keep &= np.hypot(*(self.points[:, None] - people[None]).transpose(2, 0, 1)).min(axis=1) > PERSON_REACH
         cells = {}  # the newest per cell
         for p, t in zip(np.vstack([self.points[keep], fresh]).tolist(), [*self.times[keep], *[now] * len(fresh)],
                         strict=True):
