@@ -13,6 +13,8 @@ from typing import Any
 
 import numpy as np
 
+from ..deploy.ranges import in_laser_fields
+from ..deploy.robot import relative
 from ..env.view.bullet import pybullet as p
 from ..env.view.world import World, box_circle_distance
 from ..perception.groups.estimate import WALK_SPEED
@@ -158,16 +160,20 @@ class MemberStep(Walker):
 
 
 class Stranger(Walker):
-    """A person never seen: once the robot drives (after ``start_after`` s) with every member more than 1 m away,
-    they appear ``side`` m to one side of the point ``ahead`` m along its motion (out of the camera's view, inside
-    the room, on the side away from the group where both fit), walk to that point, stand in the path ``wait_s``,
-    then walk back the way they came."""
+    """A person the camera never sees: once the robot drives (after ``start_after`` s) with every member more than
+    1 m away, they appear ``side`` m to one side of the point ``ahead`` m along its motion (out of the camera's view
+    but in a laser's field, inside the room, on the side away from the group where one of ``places`` fits), walk
+    to that point,
+    stand in the path ``wait_s``, then walk back the way they came. (Someone who stays in the lasers' blind sectors,
+    30-70 deg to either side, is seen by nothing on a Pepper: docs/deploy.md, "Limits".)"""
 
     kind = "stranger"
 
-    def __init__(self, ahead: float = 2.5, side: float = 2.0, wait_s: float = 4.0, **kw: Any) -> None:
+    def __init__(self, places: tuple[tuple[float, float], ...] = ((2.5, 2.0), (2.2, 1.8), (2.0, 1.6)),
+                 wait_s: float = 4.0, **kw: Any) -> None:
+        """``places``: (ahead, side) in m, tried in turn (the first that is out of view and in a laser's field)."""
         super().__init__(**kw)
-        self.ahead, self.side, self.wait_s = ahead, side, wait_s
+        self.places, self.wait_s = places, wait_s
         self.body: int | None = None
         self.start = np.zeros(2)
         self.across = np.zeros(2)
@@ -182,17 +188,17 @@ class Stranger(Walker):
         if world.t < self.start_after or speed < MOVING or world.human_clearance().min() < 1.0:
             return
         sx, sy = world.room.size
-        robot, centre = world.robot_pose[:2], world.group.centre
-        stop = robot + u * self.ahead
-        normal = np.array([-u[1], u[0]])
-        sides = sorted((1.0, -1.0), key=lambda s: -float((s * normal) @ (stop - centre)))  # away from the group
-        for s in sides:
-            start = stop + s * self.side * normal
-            inside = all(abs(v[i]) < lim / 2 - 0.5 for v in (start, stop) for i, lim in enumerate((sx, sy)))
-            if inside and out_of_view(world, start):
-                self.pos, self.start, self.target, self.across = start, start.copy(), stop, -s * normal
-                self.phase, self.triggered_at = "walking", world.t
-                return
+        robot, centre, normal = world.robot_pose[:2], world.group.centre, np.array([-u[1], u[0]])
+        for ahead, side in self.places:
+            stop = robot + u * ahead
+            for s in sorted((1.0, -1.0), key=lambda s: -float((s * normal) @ (stop - centre))):  # away from the group
+                start = stop + s * side * normal
+                inside = all(abs(v[i]) < lim / 2 - 0.5 for v in (start, stop) for i, lim in enumerate((sx, sy)))
+                seen = in_laser_fields(relative(world.robot_pose, np.array([*start, 0.0]))[None, :2])[0]
+                if inside and seen and out_of_view(world, start):
+                    self.pos, self.start, self.target, self.across = start, start.copy(), stop, -s * normal
+                    self.phase, self.triggered_at = "walking", world.t
+                    return
 
     def step(self, world: World, dt: float) -> None:
         if self.phase == "waiting":
