@@ -266,9 +266,8 @@ def walker_fault(fault: str, folder: Path, seed: int | None = None, policy: str 
     person (in lockstep, or over qi), its outcome, when the walker acted, and the smallest true clearance to anyone
     (an intimate-zone entry fails)."""
     kind, default_scenario, default_seed = WALKER_FAULTS[fault]
-    run = lockstep_approach if lockstep else run_approach
-    res = run(folder, default_seed if seed is None else seed, policy, scenario or default_scenario, duration,
-              walker=kind)
+    res = (lockstep_approach if lockstep else run_approach)(folder, default_seed if seed is None else seed, policy,
+                                                            scenario or default_scenario, duration, walker=kind)
     _, states, _ = load_log(folder / "virtual_pepper.jsonl")
     walkers = next((s["walkers"] for s in reversed(states) if s.get("walkers")), [{}])
     keys = ("exit_code", "outcome", "true_min_clearance_m", "true_success", "range_guard_interventions")
