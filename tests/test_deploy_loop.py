@@ -18,7 +18,6 @@ from ssbl_pb.deploy.log import RunLog, read_log
 from ssbl_pb.deploy.loop import DeployLoop, DeployParams, Setup, deploy_shield
 from ssbl_pb.deploy.perceive import Perception
 from ssbl_pb.params import RobotParams, SocialParams
-from ssbl_pb.perception.groups.looks import Looks
 from ssbl_pb.virtual.robot import SimClock, SimRobot
 
 
@@ -311,37 +310,6 @@ def test_deploy_docks_the_last_centimetres_when_the_policy_stops_short_of_its_ma
     # facing the centre at 90 deg to the odometry frame, the same place is ahead-left in the approach frame
     turned = loop._dock(obs, np.zeros(2), pose, np.array([0.0, 2.0]), np.array([0.25, 0.0]), 0.25)
     assert turned == pytest.approx([0.0, -DOCK_SPEED / RobotParams().max_speed])
-
-
-def test_members_out_of_view_are_kept_at_a_clearance_growing_with_the_time_unseen():
-    from types import SimpleNamespace
-
-    from ssbl_pb.core.shield import ShieldParams
-    from ssbl_pb.core.task import TaskParams
-    from ssbl_pb.deploy.loop import UNSEEN_GROWTH, UNSEEN_MARGIN
-
-    loop = DeployLoop.__new__(DeployLoop)
-    loop.shield = ShieldParams.from_env(RobotParams(), SocialParams(), TaskParams())
-    loop.guard_clearance = 0.55
-    loop.looks = Looks()
-    reach = math.hypot(loop.shield.half_length, loop.shield.half_width) + loop.shield.human_radius
-    pose = np.array([1.0, 2.0, math.pi / 2])  # facing +y in the odometry frame
-    pos = np.array([[1.0, 2.0 + reach + 0.75]])  # straight ahead, 0.75 m between footprint and body
-    cmd = np.array([0.3, 0.1, 0.2])
-    loop.looks.seen_at = {7: 10.0}
-    seen = [SimpleNamespace(id=7, seen=True)]
-    assert np.array_equal(loop._guard_unseen(cmd, seen, pos, pose, 20.0), cmd)  # detected now: the policy's shield
-    gone = [SimpleNamespace(id=7, seen=False)]
-    for unseen, margin in ((1.0, UNSEEN_GROWTH), (20.0, UNSEEN_MARGIN)):
-        out = loop._guard_unseen(cmd, gone, pos, pose, 10.0 + unseen)
-        allow = math.sqrt(2 * loop.shield.brake_accel * (0.75 - 0.55 - margin))
-        assert out == pytest.approx([min(0.3, allow), 0.1, 0.2])  # sideways and turning untouched
-    assert loop._guard_unseen(cmd, gone, pos, pose, 10.0 + 20.0)[0] < 0.3
-    assert np.array_equal(loop._guard_unseen(cmd, gone, pos, pose, 10.0), cmd)  # lost this instant: no margin yet
-    # near its estimated place the margin fades out (the shield's place clearance takes over)
-    assert np.array_equal(loop._guard_unseen(cmd, gone, pos, pose, 30.0, slot_distance=0.3), cmd)
-    half = loop._guard_unseen(cmd, gone, pos, pose, 30.0, slot_distance=0.45)[0]
-    assert half == pytest.approx(math.sqrt(2 * loop.shield.brake_accel * (0.75 - 0.55 - UNSEEN_MARGIN / 2)))
 
 
 def test_a_look_turns_in_place_toward_the_member_at_most_at_the_search_turn():

@@ -12,7 +12,9 @@ missed (out of view, at the image's edge, occluded, not detected), tracked twice
 centre, o-space radius and free slot errors, and how far the policy network's action moves between the perceived
 and the true observation; per run and pooled in OUT.json, a table in OUT.md and the figure OUT_errors.png.
 ``--lockstep`` runs the approaches in this process on a simulated clock (deterministic, no qi, faster than real
-time); faults and the soak always run over qi.
+time), and the walker faults (``member_steps_in``: a member walks 0.5 m toward the robot's path while out of its
+camera's view; ``stranger_steps_in``: a person never seen steps into its path) too; the other faults and the soak
+always run over qi.
 
 The runs' logs go to the folder OUT/ (OUT without its suffix). Its ``.bench_deploy`` marker lists each entry the
 tool wrote there, recorded before writing it; a rerun removes exactly those and nothing else. A folder without the
@@ -131,7 +133,7 @@ def main(argv: list[str] | None = None) -> int:
         if pooled is not None:
             res["perception"], res["perception_figure"] = pooled, str(figure)
     for f in faults:
-        res["faults"].append(bench.run_fault(f, _record(logs, f"fault_{f}")))
+        res["faults"].append(bench.run_fault(f, _record(logs, f"fault_{f}"), lockstep=args.lockstep))
     if args.soak > 0:
         res["soak"] = bench.soak(_record(logs, "soak"), args.soak, args.seed, args.policy)
     write_json(args.out.with_suffix(".json"), res)

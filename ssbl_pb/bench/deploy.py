@@ -10,6 +10,8 @@ stopped (``robot_frozen``): the time the base drove on under its last command.
 The virtual Pepper serves the ``SSBLWatchdog`` itself (as a Pepper on which the user started the watchdog), so
 every run has one and ``deploy_killed``/``watchdog_stop_hangs`` need no separate watchdog process: the hosted one
 is the arrangement users get, and its lines are in the virtual Pepper's log (``kind: watchdog``).
+The walker faults (``WALKER_FAULTS``: a member stepping toward the robot's path out of view, a stranger never seen
+stepping into it; ``virtual.walkers``) are whole approaches scored by the smallest true clearance to anyone.
 """
 
 from __future__ import annotations
@@ -31,8 +33,11 @@ from ..deploy.log import LOG, SUMMARY
 from ..deploy.watchdog import RETRY_S
 from ..virtual.pepper import load_log
 
+# fault -> (``virtual.walkers`` kind, scenario, seed): runs where the person does walk into the robot's way (the
+# member out of view beside its path, the stranger ahead of it), and an entry without the range guard
+WALKER_FAULTS = {"member_steps_in": ("member", "mixed", 500_000), "stranger_steps_in": ("stranger", "default", 11)}
 FAULTS = ("robot_killed", "camera_frozen", "odometry_frozen", "robot_frozen", "sigint", "sigterm", "sighup",
-          "policy_exception", "deploy_killed", "watchdog_stop_hangs")
+          "policy_exception", "deploy_killed", "watchdog_stop_hangs", *WALKER_FAULTS)
 WATCHED = ("deploy_killed", "watchdog_stop_hangs")  # deploy killed: the watchdog on the robot stops the base
 
 
@@ -149,15 +154,17 @@ def _map_flags(proc: subprocess.Popen, timeout: float = 60.0) -> tuple[str, ...]
 
 def run_approach(folder: Path, seed: int, policy: str = "vector", scenario: str = "default",
                  duration: float = 90.0, groups: str | None = None, detector: str = "auto",
-                 room_map: bool = True) -> dict[str, Any]:
+                 room_map: bool = True, walker: str | None = None) -> dict[str, Any]:
     """One approach against a fresh virtual Pepper: the deploy summary plus the ground-truth score. ``groups``:
     the group model of both (default: each one's own, the policy's); ``detector``: deploy's ``--detector``;
-    ``room_map``: deploy gets the room's map (``--map``, ``--start-pose``), as a user who mapped the room runs it."""
+    ``room_map``: deploy gets the room's map (``--map``, ``--start-pose``), as a user who mapped the room runs it;
+    ``walker``: the virtual Pepper's ``--walker``."""
     folder.mkdir(parents=True, exist_ok=True)
     vp_log = folder / "virtual_pepper.jsonl"
     flag = () if groups is None else ("--groups", groups)
     written = ("--write-map", str(folder / "map")) if room_map else ()
-    with virtual_pepper(vp_log, seed, scenario, *flag, *written) as (vp, url):
+    scripted = () if walker is None else ("--walker", walker)
+    with virtual_pepper(vp_log, seed, scenario, *flag, *written, *scripted) as (vp, url):
         on_map = _map_flags(vp) if room_map else ()
         proc = start_deploy(url, folder / "deploy", policy, "--duration", str(duration), "--detector", detector,
                             *flag, *on_map)
@@ -169,12 +176,13 @@ def run_approach(folder: Path, seed: int, policy: str = "vector", scenario: str 
 
 def lockstep_approach(folder: Path, seed: int, policy: Any = "vector", scenario: str = "default",
                       duration: float = 90.0, groups: str | None = None, fps: float = 15.0,
-                      detector: str = "auto", room_map: bool = True) -> dict[str, Any]:
+                      detector: str = "auto", room_map: bool = True, walker: str | None = None) -> dict[str, Any]:
     """One approach in this process, deterministic (no qi): deploy's loop on a ``SimRobot`` in lockstep
     (``SimClock``, the camera at ``fps``, perception inline), writing the two logs ``run_approach`` leaves
     (``folder/deploy/log.jsonl``, ``folder/virtual_pepper.jsonl``); ``wall`` in both is the simulated time, and
     each tick's ground truth is logged at its tick's time. ``policy``: a spec as deploy's ``--policy`` or a
-    policy object (``predict``); ``room_map`` as ``run_approach``. Returns the outcome and the ground-truth score."""
+    policy object (``predict``); ``room_map`` and ``walker`` as ``run_approach``. Returns the outcome and the
+    ground-truth score."""
     from ..agents.trained import policy_env_kwargs, policy_groups
     from ..core.task import TaskParams
     from ..deploy.__main__ import _policy
@@ -185,6 +193,7 @@ def lockstep_approach(folder: Path, seed: int, policy: Any = "vector", scenario:
     from ..params import RobotParams, SocialParams
     from ..virtual.pepper import state_row, write_room_map
     from ..virtual.robot import SimClock, SimRobot
+    from ..virtual.walkers import make_walker
 
     spec = isinstance(policy, str)
     groups = groups or (policy_groups(policy) if spec else "calibrated")
@@ -196,6 +205,8 @@ def lockstep_approach(folder: Path, seed: int, policy: Any = "vector", scenario:
     (folder / "deploy" / LOG).unlink(missing_ok=True)  # RunLog appends
     vp_log = folder / "virtual_pepper.jsonl"
     robot = SimRobot(scenario, seed, groups=groups)
+    if walker is not None:
+        robot.add_walker(make_walker(walker))
     clock = SimClock(robot, fps)
     frames = Frames()
     if room_map:
@@ -262,9 +273,24 @@ def _rss_mb(pid: int) -> float | None:
     return None
 
 
+def walker_fault(fault: str, folder: Path, seed: int | None = None, policy: str = "vector", lockstep: bool = False,
+                 duration: float = 60.0, scenario: str | None = None) -> dict[str, Any]:
+    """A walker fault (``WALKER_FAULTS``; its scenario and seed unless given): one approach with that scripted
+    person (in lockstep, or over qi), its outcome, when the walker acted, and the smallest true clearance to anyone
+    (an intimate-zone entry fails)."""
+    kind, default_scenario, default_seed = WALKER_FAULTS[fault]
+    res = (lockstep_approach if lockstep else run_approach)(folder, default_seed if seed is None else seed, policy,
+                                                            scenario or default_scenario, duration, walker=kind)
+    _, states, _ = load_log(folder / "virtual_pepper.jsonl")
+    walkers = next((s["walkers"] for s in reversed(states) if s.get("walkers")), [{}])
+    keys = ("exit_code", "outcome", "true_min_clearance_m", "true_success", "range_guard_interventions")
+    return {"fault": fault, **{k: res.get(k) for k in keys}, "walker_acted_at": walkers[0].get("triggered_at")}
+
+
 def run_fault(fault: str, folder: Path, seed: int = 11, policy: str = "straight", stale: float = 0.5,
-              hang_stops: int = 1, vp_extra: tuple[str, ...] = ()) -> dict[str, Any]:
-    """Inject ``fault`` (one of ``FAULTS``) once the base moves; exit code, exit and stop times.
+              hang_stops: int = 1, vp_extra: tuple[str, ...] = (), lockstep: bool = False) -> dict[str, Any]:
+    """Inject ``fault`` (one of ``FAULTS``) once the base moves; exit code, exit and stop times. A walker fault
+    is ``walker_fault`` with the shipped policy (``lockstep``: in this process).
 
     ``policy_exception`` runs the loop in a fresh interpreter (a policy that raises) over qi; ``deploy_killed``
     kills deploy with SIGKILL (the virtual Pepper's watchdog stops the base); ``watchdog_stop_hangs`` does the same
@@ -275,6 +301,8 @@ def run_fault(fault: str, folder: Path, seed: int = 11, policy: str = "straight"
     raise it, so that late frames do not end a run before its fault). ``vp_extra``: more virtual Pepper flags."""
     if fault not in FAULTS:
         raise ValueError(f"fault {fault!r}: expected one of {FAULTS}")
+    if fault in WALKER_FAULTS:
+        return walker_fault(fault, folder, lockstep=lockstep)
     folder.mkdir(parents=True, exist_ok=True)
     vp_log = folder / "virtual_pepper.jsonl"
     out: dict[str, Any] = {"fault": fault}
@@ -435,6 +463,8 @@ def markdown(res: dict[str, Any]) -> str:
         p99 = max(r["tick_ms_p99"] for r in runs if r.get("tick_ms_p99") is not None)
         ticks = sum(r.get("policy_ticks") or 0 for r in runs)
         shielded = sum(r.get("shield_interventions") or 0 for r in runs)
+        ranged = sum(r.get("range_ticks") or 0 for r in runs)
+        range_guarded = sum(r.get("range_guard_interventions") or 0 for r in runs)
         out += [f"**Approaches** ({len(runs)} seeded runs, seeds {runs[0]['seed']}-{runs[-1]['seed']}, scenario "
                 f"`{res['scenario']}`, {res.get('groups') or 'calibrated'} groups, policy `{res['policy']}`"
                 f"{'; lockstep, in process: tick times are not measured' if res.get('lockstep') else ''}): "
@@ -443,7 +473,9 @@ def markdown(res: dict[str, Any]) -> str:
                 f"smallest true clearance {min(cleared, default=float('nan')):.2f} m.",
                 f"Control tick (start to command sent): median of run medians {med('tick_ms_median'):.1f} ms, worst "
                 f"run p99 {p99:.1f} ms; estimate age median {med('estimate_age_ms_median'):.0f} ms. The policy's "
-                f"shield changed its command in {100 * shielded / max(ticks, 1):.1f} % of {ticks} policy ticks.", "",
+                f"shield changed its command in {100 * shielded / max(ticks, 1):.1f} % of {ticks} policy ticks; the "
+                f"range guard (the base's lasers and sonars) in {100 * range_guarded / max(ranged, 1):.1f} % of "
+                f"{ranged} ticks.", "",
                 "| seed | outcome | true success | slot (m) | heading (deg) | min clearance (m) | tick median / p99 "
                 "(ms) | estimate age (ms) | shield (%) |", "|---|---|---|---|---|---|---|---|---|"]
         for r in runs:
@@ -474,12 +506,14 @@ def markdown(res: dict[str, Any]) -> str:
     faults = res.get("faults", [])
     if faults:
         out += ["**Faults** (each injected once the base moved; times from the virtual Pepper's own log; robot time: "
-                "the simulated base's own seconds, which stand still while its process is stopped):", "",
+                "the simulated base's own seconds, which stand still while its process is stopped; the walker faults "
+                "are whole approaches, scored by the smallest true clearance to anyone):", "",
                 "| fault | exit code | process exit (s) | stop commanded (s) | stop commanded, robot time (s) | "
-                "standstill (s) |", "|---|---|---|---|---|---|"]
+                "standstill (s) | true min clearance (m) |", "|" + "---|" * 7]
         for f in faults:
             cells = ["-" if f.get(k) is None else f"{f[k]:.2f}"
-                     for k in ("exit_s", "stop_commanded_s", "stop_commanded_robot_s", "standstill_s")]
+                     for k in ("exit_s", "stop_commanded_s", "stop_commanded_robot_s", "standstill_s",
+                               "true_min_clearance_m")]
             out.append(f"| {f['fault']} | {f['exit_code']} | " + " | ".join(cells) + " |")
         out.append("")
     if res.get("soak"):

@@ -141,12 +141,15 @@ def circle_clearance(px: float, py: float, reach: float, human_radius: float) ->
     return dist - reach - human_radius, px / norm, py / norm
 
 
-def footprint_clearance(points: np.ndarray, heading: float, p: ShieldParams) -> tuple[np.ndarray, np.ndarray]:
-    """``circle_clearance`` of body circles at ``points`` (k, 2): clearances (k,) and directions (k, 2).
-    ``heading`` is kept for the signature (the circle does not depend on it)."""
+def footprint_clearance(points: np.ndarray, heading: float, p: ShieldParams, radius: float | None = None
+                        ) -> tuple[np.ndarray, np.ndarray]:
+    """``circle_clearance`` of body circles at ``points`` (k, 2) (``radius``, default ``human_radius``; 0: the
+    points themselves): clearances (k,) and directions (k, 2). ``heading`` is kept for the signature (the circle
+    does not depend on it)."""
     reach = math.hypot(p.half_length, p.half_width)
     points = np.asarray(points, dtype=float).reshape(-1, 2)
-    out = [circle_clearance(px, py, reach, p.human_radius) for px, py in points.tolist()]
+    radius = p.human_radius if radius is None else radius
+    out = [circle_clearance(px, py, reach, radius) for px, py in points.tolist()]
     return np.array([o[0] for o in out]), np.array([o[1:] for o in out]).reshape(-1, 2)
 
 
@@ -162,17 +165,35 @@ def _brake(vx: float, vy: float, ux: float, uy: float, other_vx: float, other_vy
     return vx, vy
 
 
-def brake_closing(velocity: np.ndarray, points: np.ndarray, clearance_min: np.ndarray, p: ShieldParams
-                  ) -> np.ndarray:
+def brake_closing(velocity: np.ndarray, points: np.ndarray, clearance_min: np.ndarray, p: ShieldParams,
+                  radius: float | None = None) -> np.ndarray:
     """The body velocity (vx, vy) with its closing speed on each standing body circle at robot-frame ``points``
-    (k, 2) cut to ``sqrt(2 a (c - c_min))``, each point with its own ``clearance_min`` (k,), nearest first (the
-    shield's member rule, ``_brake``, outside the observation)."""
+    (k, 2) (``radius`` as ``footprint_clearance``) cut to ``sqrt(2 a (c - c_min))``, each point with its own
+    ``clearance_min`` (k,), nearest first (the shield's member rule, ``_brake``, outside the observation)."""
     vx, vy = (float(v) for v in np.asarray(velocity, dtype=float)[:2])
-    clear, toward = footprint_clearance(points, 0.0, p)
+    clear, toward = footprint_clearance(points, 0.0, p, radius)
     for j in np.argsort(clear):
         vx, vy = _brake(vx, vy, float(toward[j, 0]), float(toward[j, 1]), 0.0, 0.0, float(clear[j]),
                         float(clearance_min[j]), p.brake_accel)
     return np.array([vx, vy])
+
+
+def brake_returns(velocity: np.ndarray, points: np.ndarray, clearance_min: np.ndarray | float, p: ShieldParams,
+                  latency: float = 0.0, radius: float = 0.0) -> np.ndarray:
+    """The body velocity (vx, vy) braked for range returns at robot-frame ``points`` (k, 2): standing points on
+    whatever the lasers and sonars hit (a person's legs, a wall; or circles of ``radius``), each one's clearance
+    taken from the footprint's circle, its closing speed cut to ``sqrt(2 a (c - c_min))`` (``brake_closing``,
+    nearest first), ``c_min`` (per point, or one) raised by what the robot covers in ``latency`` s (the returns'
+    age); then scaled down until every point's limit holds at once (braking for one side of a passage may add speed
+    toward the other; every limit is >= 0, so a slower motion the same way keeps them all)."""
+    pts = np.asarray(points, dtype=float).reshape(-1, 2)
+    v = np.asarray(velocity, dtype=float)[:2]
+    c_min = np.broadcast_to(np.asarray(clearance_min, dtype=float), (len(pts),)) + math.hypot(*v) * latency
+    out = brake_closing(v, pts, c_min, p, radius=radius)
+    clear, toward = footprint_clearance(pts, 0.0, p, radius=radius)
+    allow, closing = np.sqrt(2.0 * p.brake_accel * np.maximum(clear - c_min, 0.0)), toward @ out
+    over = closing > allow + 1e-12
+    return out * float(np.min(allow[over] / closing[over])) if over.any() else out
 
 
 RAY_PASSES = 4  # rounds of braking sector by sector: each keeps the motion along the obstacles (no dead stop)

@@ -77,6 +77,9 @@ def _parser() -> argparse.ArgumentParser:
                     help="the virtual Pepper only: run without its watchdog (default: refuse a robot without the "
                          "SSBLWatchdog service, since NAOqi keeps the base's last command if this process dies; on "
                          "a real robot start python -m ssbl_pb.deploy.watchdog beside it)")
+    ap.add_argument("--allow-collision-protection-off", action="store_true",
+                    help="run even when NAOqi's external collision protection for the base is off (default: refuse; "
+                         'turn it on with ALMotion.setExternalCollisionProtectionEnabled("Move", True))')
     ap.add_argument("--quiet", action="store_true", help="no status line")
     return ap
 
@@ -216,7 +219,8 @@ def main(argv: list[str] | None = None) -> int:
     params, robot_params, social, task, policy, frames = _params(args)
     _warm_up(policy)
     limits = dataclasses.replace(robot_params, max_speed=params.max_speed)
-    robot = NaoqiRobot(url, limits, user=args.user, token=args.token)
+    robot = NaoqiRobot(url, limits, user=args.user, token=args.token,
+                       allow_protection_off=args.allow_collision_protection_off)
     try:  # from here on every way out closes the robot (the loop closes it too; close runs once)
         return _run(args, url, folder, robot, params, robot_params, social, task, policy, frames)
     finally:

@@ -7,8 +7,11 @@ dynamics log as it stands), the measured body velocity ``vel``, the room- and ma
 command before the clamp ``cmd_policy``, the tracked humans (odometry frame, with covariance), the group
 estimate, ``estimate_age_ms``, ``tick_ms`` (tick start to command sent), ``late``, NAOqi events, and on policy
 ticks ``shield``: what the policy's safety shield changed (the action before and after it, the rules that acted,
-``cmd_before`` the body command it replaced), null where it changed nothing. The summary's
-``shield_intervention_rate`` is the share of policy ticks it changed.
+``cmd_before`` the body command it replaced), null where it changed nothing; ``ranges``, how many range returns
+the robot gave (null without range sensors) and ``range_guard``, what braking for them changed (the command before
+and after, the nearest return and its clearance; ``deploy.guards``), null where nothing. The summary's
+``shield_intervention_rate`` is the share of policy ticks the shield changed, ``range_guard_rate`` the share of
+ticks with range returns the range guard changed.
 """
 
 from __future__ import annotations
@@ -59,6 +62,8 @@ class RunLog:
         self.min_clearance = math.inf
         self.policy_ticks = 0  # ticks the policy acted in (a ``shield`` entry), and those the shield changed
         self.shielded = 0
+        self.ranged_ticks = 0  # ticks with range returns, and those the range guard changed
+        self.range_guarded = 0
 
     def write(self, row: dict[str, Any]) -> None:
         self._fh.write(json.dumps(_clean(row)) + "\n")
@@ -72,6 +77,9 @@ class RunLog:
         if "shield" in row:
             self.policy_ticks += 1
             self.shielded += row["shield"] is not None
+        if row.get("ranges") is not None:
+            self.ranged_ticks += 1
+            self.range_guarded += row.get("range_guard") is not None
 
     def summary(self, outcome: str, exit_code: int, message: str, extra: dict[str, Any]) -> dict[str, Any]:
         def pct(xs: list[float], q: float) -> float | None:
@@ -84,6 +92,8 @@ class RunLog:
                        "min_human_distance_m": self.min_clearance if math.isfinite(self.min_clearance) else None,
                        "policy_ticks": self.policy_ticks, "shield_interventions": self.shielded,
                        "shield_intervention_rate": self.shielded / self.policy_ticks if self.policy_ticks else None,
+                       "range_ticks": self.ranged_ticks, "range_guard_interventions": self.range_guarded,
+                       "range_guard_rate": self.range_guarded / self.ranged_ticks if self.ranged_ticks else None,
                        **extra})
 
     def close(self) -> None:

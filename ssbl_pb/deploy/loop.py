@@ -1,7 +1,8 @@
 """The deploy loop: odometry + the newest tracked people -> the Vector observation (the simulator's layout) ->
 the policy (with its smoothing and safety shield) -> the command clamp -> the robot, ``rate_hz`` times a second.
 
-Safety, on by default: every command clamped to ``max_speed`` here, whatever the robot; the run stops when a
+Safety, on by default: every command clamped to ``max_speed`` here, whatever the robot, and braked for members
+out of view and for the base's range returns (``guards``); the run stops when a
 tracked person comes within ``stop_distance`` of the footprint, when the newest frame is older than ``stale_s``,
 when odometry is frozen for ``stale_s`` (its pose unchanged while its own velocity says the base moves), on any
 exception, on SIGINT/SIGTERM/SIGHUP and on connection loss; every robot call is bounded; the base is stopped before
@@ -26,7 +27,7 @@ import numpy as np
 
 from ..core import observation as ob
 from ..core.layouts import member_keep_out, slot_keep
-from ..core.shield import PLACE_FAR, PLACE_NEAR, ShieldParams, brake_closing, footprint_clearance
+from ..core.shield import ShieldParams, footprint_clearance
 from ..core.task import TaskParams
 from ..errors import Terminated
 from ..params import RobotParams, SocialParams, _check, _positive
@@ -34,8 +35,9 @@ from ..perception.groups.estimate import GroupModel, member_arrays
 from ..perception.groups.looks import ARRIVAL_MARGIN, CONFIRM_S, Looks, claim_rule
 from .faults import EXIT_CODES, DeployFault, HumanTooClose, StaleFrame, StaleOdometry
 from .frames import Frames
+from .guards import Guards
 from .log import RunLog, dynamics_columns
-from .perceive import Perception
+from .perceive import Perception, pose_at
 from .robot import Robot, clamp_command
 
 
@@ -86,10 +88,6 @@ DOCK_REACH = 0.1  # m beyond the slot tolerance within which, the policy having 
 #   last centimetres to its estimated place (``_dock``): trained to stop within the tolerance (the episode ends
 #   there), the policy stood 0.2-0.27 m from it, short of ``ARRIVAL_MARGIN``, until the run's time ran out
 DOCK_SPEED = 0.06  # m/s: below the success rule's stop speed (0.1), so the robot may stop any tick
-UNSEEN_GROWTH, UNSEEN_MARGIN = 0.05, 0.15  # m/s, m: the clearance deploy keeps from a member out of view grows by
-#   this for each second since it was last detected, up to this (``_guard_unseen``). Remembered members stay where
-#   last estimated (``GroupTracker.hold``: 0.13 m median error, 0.30 m p90 against the virtual Pepper's ground
-#   truth); over qi one made room 0.15 m out of view while the robot strafed toward it and came 0.42 m from them
 
 
 def deploy_shield(robot: RobotParams, social: SocialParams, task: TaskParams, stop_distance: float,
@@ -125,8 +123,8 @@ class DeployLoop:
         self.s, self.p, self.log, self.now, self.sleep = setup, params or DeployParams(), log, now, sleep
         self.status = status
         self.shield = ShieldParams.from_env(setup.robot_params, setup.social, setup.task)
-        self.guard_clearance = deploy_shield(setup.robot_params, setup.social, setup.task,
-                                             self.p.stop_distance).clearance_min  # ``_guard_unseen``'s base
+        clearance = deploy_shield(setup.robot_params, setup.social, setup.task, self.p.stop_distance).clearance_min
+        self.guards = Guards(self.shield, clearance, self.p.stop_distance, setup.frames)  # after the policy's shield
         self.period = 1.0 / self.p.rate_hz
         # the clamp of every command sent, whatever the robot implementation clamps itself
         self.limits = dataclasses.replace(setup.robot_params, max_speed=min(setup.robot_params.max_speed,
@@ -269,7 +267,9 @@ class DeployLoop:
                 #   m/s, took it back over the margin within the second, again and again: 3 of 20 joins unclaimed)
             if look is not None:  # a claim it cannot back yet ("confirm"), or stalled away from its place ("look")
                 state, cmd = look, self._turn_to(pos[k], odo.pose)
-        cmd = self._guard_unseen(cmd, members, pos, odo.pose, now, info.get("slot_distance_m", math.inf))
+        scan = s.robot.ranges() if hasattr(s.robot, "ranges") else None
+        cmd, guarded = self.guards(cmd, scan, members, pos, odo.pose, age, now, info.get("slot_distance_m", math.inf),
+                                   None if scan is None else pose_at(s.perception.odometry, scan.stamp))
         t_send = self.now()
         sent = s.robot.send(clamp_command(cmd, self.limits))
         t_sent = self.now()
@@ -288,29 +288,9 @@ class DeployLoop:
                 "min_clearance_m": float(clearance.min()) if len(clearance) else None,
                 "estimate_age_ms": None if age is None else 1000.0 * age, "frame_age_ms": 1000.0 * (now - capture),
                 "tick_ms": tick_ms, "tick_cpu_ms": cpu_ms, "odom_ms": odom_ms, "send_ms": 1000.0 * (t_sent - t_send),
-                "late": late, "events": events})
+                "late": late, "events": events, **guarded})
         self._report(now, elapsed, state, len(members), sum(m.seen for m in members), info)
         return state == "joined"
-
-    def _guard_unseen(self, cmd: np.ndarray, members: list[Any], pos: np.ndarray, pose: np.ndarray, now: float,
-                      slot_distance: float = math.inf) -> np.ndarray:
-        """``cmd`` with its closing speed on each member not detected now braked for a clearance that grows with the
-        time since the member was last detected (``UNSEEN_GROWTH``, ``UNSEEN_MARGIN``) beyond the policy's shield's
-        (``deploy_shield``): a person out of view may have moved from where deploy remembers them. The margin fades
-        out near the estimated place (``slot_distance``) as the shield's place clearance fades in (``PLACE_FAR`` to
-        ``PLACE_NEAR``): there the neighbours are out of view by design and the shield keeps its place's clearance;
-        kept there too, the margin held the robot 0.2 m from its place for 45 s (virtual Pepper, lockstep)."""
-        unseen = np.array([0.0 if m.seen else now - self.looks.seen_at.get(m.id, now) for m in members])
-        far = min(max((slot_distance - PLACE_NEAR) / (PLACE_FAR - PLACE_NEAR), 0.0), 1.0)
-        margin = np.minimum(UNSEEN_GROWTH * unseen, UNSEEN_MARGIN) * far
-        keep = margin > 0
-        if not keep.any():
-            return cmd
-        c, sn = math.cos(pose[2]), math.sin(pose[2])
-        local = (pos[keep] - pose[:2]) @ np.array([[c, -sn], [sn, c]])  # odometry -> robot frame
-        out = np.array(cmd, dtype=float)
-        out[:2] = brake_closing(out[:2], local, self.guard_clearance + margin[keep], self.shield)
-        return out
 
     def _check_odometry(self, odo: Any, now: float) -> None:
         """``StaleOdometry`` when the reading is older than ``stale_s`` by its stamp, or frozen: its pose has not

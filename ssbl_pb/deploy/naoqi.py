@@ -1,11 +1,15 @@
-"""Pepper over NAOqi: the ``Robot`` interface on ALMotion and ALVideoDevice (the only client module importing qi).
+"""Pepper over NAOqi: the ``Robot`` interface on ALMotion, ALVideoDevice and ALMemory (the only client module
+importing qi).
 
 Every qi call is bounded (``_async=True`` + ``Future.value(timeout_ms)``): a frozen peer would otherwise block
 forever. Connecting is bounded too (a silent host otherwise takes minutes). ``session.disconnected`` fires
 within milliseconds when the robot process dies; from then on every call raises ``ConnectionLost``.
 NAOqi 2.5 speaks ``tcp://IP:9559``; 2.9 ``tcps://IP:9503`` with a login (user, token). The camera
 subscription is released on every exit (NAOqi allows 6 subscriptions per name). A ``SSBLWatchdog`` service
-(``deploy.watchdog``) registered on the robot gets a heartbeat with every command.
+(``deploy.watchdog``) registered on the robot gets a heartbeat with every command. The base's lasers and sonars
+are read from ALMemory (``ranges``: one ``getListData`` of ``ranges.KEYS``). Connecting refuses a robot whose
+external collision protection for the base (``ALMotion.getExternalCollisionProtectionEnabled("Move")``) is off,
+unless told ``allow_protection_off``.
 """
 
 from __future__ import annotations
@@ -20,7 +24,8 @@ import numpy as np
 from ..errors import UserError
 from ..params import RobotParams
 from .faults import ConnectionLost, RobotNotResponding
-from .robot import Frame, Odometry, clamp_command
+from .ranges import KEYS, RANGES, scan_points
+from .robot import Frame, Odometry, RangeScan, clamp_command
 
 MOTION = ("move", "stopMove", "getRobotPosition", "getRobotVelocity")
 VIDEO = ("subscribeCamera", "getImageRemote", "unsubscribe")
@@ -94,7 +99,7 @@ class NaoqiRobot:
     """A Pepper (or the virtual Pepper) over qi; connects, checks services and subscribes the camera."""
 
     def __init__(self, url: str, limits: RobotParams | None = None, params: NaoqiParams | None = None,
-                 user: str | None = None, token: str | None = None) -> None:
+                 user: str | None = None, token: str | None = None, allow_protection_off: bool = False) -> None:
         qi = import_qi()
         self.url, self.limits, self.p = url, limits or RobotParams(), params or NaoqiParams()
         self.lost = threading.Event()
@@ -105,6 +110,8 @@ class NaoqiRobot:
         self.watchdog: Any = None
         self.identity: dict[str, str] | None = None  # a virtual Pepper's ``describe()``; None for a real robot
         self.move_failed: list[dict[str, Any]] = []
+        self.memory: Any = None  # ALMemory where it holds the base's range sensors' keys (``ranges``)
+        self.protection: bool | None = None  # external collision protection for the base; None: cannot tell
         self._subscribers: list[Any] = []
         self.session = qi.Session()
         if user is not None or token is not None:
@@ -120,6 +127,7 @@ class NaoqiRobot:
             self.motion = self._service("ALMotion", MOTION)
             self.video = self._service("ALVideoDevice", VIDEO)
             self._optional_services()
+            self._check_protection(allow_protection_off)
             p = self.p
             self.handle = str(self._call(self.video.subscribeCamera(p.subscriber, p.camera, p.resolution,
                                                                     p.colour_space, p.fps, _async=True),
@@ -152,10 +160,28 @@ class NaoqiRobot:
             sub = self._call(memory.subscriber("ALMotion/MoveFailed", _async=True), "ALMemory.subscriber")
             sub.signal.connect(lambda value: self.move_failed.append({"t": time.monotonic(), "value": value}))
             self._subscribers.append(sub)
+            try:  # the base's lasers and sonars, where the robot publishes them (a Pepper does)
+                self._call(memory.getListData(list(KEYS), _async=True), "ALMemory.getListData")
+                self.memory = memory
+            except RuntimeError:  # no such keys: no range readings
+                pass
         if hasattr(self.motion, "robotIsWakeUp") and not self._call(self.motion.robotIsWakeUp(_async=True),
                                                                     "ALMotion.robotIsWakeUp"):
             raise RobotError(f"{self.url}: the robot is resting (ALMotion.robotIsWakeUp() is false); wake it up "
                              "(ALMotion.wakeUp, or press the chest button) and run again")
+
+    def _check_protection(self, allow_off: bool) -> None:
+        """``RobotError`` (one line: what is off, the fix) when NAOqi's external collision protection for the base
+        is off or cannot be checked, unless ``allow_off``."""
+        what = 'ALMotion.getExternalCollisionProtectionEnabled("Move")'
+        if hasattr(self.motion, "getExternalCollisionProtectionEnabled"):
+            self.protection = bool(self._call(self.motion.getExternalCollisionProtectionEnabled("Move", _async=True),
+                                              what))
+        if not self.protection and not allow_off:
+            state = "is off" if self.protection is False else "cannot be checked (ALMotion lacks it)"
+            raise RobotError(f"{self.url}: NAOqi's external collision protection for the base ({what}) {state}: turn "
+                             f'it on with ALMotion.setExternalCollisionProtectionEnabled("Move", True), or pass '
+                             f"--allow-collision-protection-off")
 
     def _call(self, future: Any, what: str, timeout_s: float | None = None) -> Any:
         """Wait for a qi future at most ``timeout_s``; timeouts and lost connections become faults."""
@@ -202,6 +228,16 @@ class NaoqiRobot:
         pose = self._call(pos, "ALMotion.getRobotPosition")
         velocity = self._call(vel, "ALMotion.getRobotVelocity")
         return Odometry(np.asarray(pose, dtype=float)[:3], np.asarray(velocity, dtype=float)[:3], time.monotonic())
+
+    def ranges(self) -> RangeScan | None:
+        """The base's range returns (``ranges.scan_points``); None without the keys. ALMemory holds each laser's last
+        frame (6.66 a second) without its time: stamped half a frame before receipt, its mean age."""
+        if self.memory is None:
+            return None
+        what = "ALMemory.getListData"
+        values = self._call(self._async(self.memory.getListData, list(KEYS), what=what), what)
+        points, sonars = scan_points(values)
+        return RangeScan(points, time.monotonic() - 0.5 / RANGES.laser_hz, sonars)  # at a frame's mean age
 
     def send(self, cmd: np.ndarray) -> np.ndarray:
         c = clamp_command(cmd, self.limits)

@@ -1,7 +1,8 @@
 """The narrow robot interface the deploy loop runs on, its command clamp, and the simulated robot.
 
 ``Robot`` is all the loop knows of a robot: the newest camera frame with its time stamp, the odometry pose and
-velocity, a velocity command that returns what was actually sent after clamping, stop and close.
+velocity, the base's range returns (lasers and sonars, ``ranges``), a velocity command that returns what was
+actually sent after clamping, stop and close.
 ``naoqi.NaoqiRobot`` speaks to a Pepper (the only client module importing ``qi``); ``virtual.robot.SimRobot`` is the
 PyBullet world and a conversation group moving by the social force model (``env``), for tests without qi and
 behind the virtual Pepper (``virtual.pepper``).
@@ -39,6 +40,17 @@ class Odometry:
     stamp: float
 
 
+@dataclasses.dataclass(frozen=True)
+class RangeScan:
+    """The base's range returns (``deploy.ranges``): robot-frame points (k, 2) of everything the lasers and sonars
+    hit, metres, when they were measured (s, on the clock of ``Odometry.stamp``), and how many of the points (the
+    last) are sonar echoes (on the sonar's axis: where in its cone the echo came from is unknown)."""
+
+    points: np.ndarray
+    stamp: float
+    sonars: int = 0
+
+
 class Robot(Protocol):
     """What the deploy loop needs of a robot; every call returns or raises within a bounded time."""
 
@@ -47,6 +59,10 @@ class Robot(Protocol):
         ...
 
     def odometry(self) -> Odometry:
+        ...
+
+    def ranges(self) -> RangeScan | None:
+        """The newest range returns; None for a robot without range sensors."""
         ...
 
     def send(self, cmd: np.ndarray) -> np.ndarray:

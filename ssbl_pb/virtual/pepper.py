@@ -1,4 +1,5 @@
-"""A virtual Pepper: ALMotion and ALVideoDevice served over libqi, backed by the simulated world (``SimRobot``).
+"""A virtual Pepper: ALMotion, ALVideoDevice and ALMemory served over libqi, backed by the simulated world
+(``SimRobot``).
 
     python -m ssbl_pb.virtual --listen tcp://127.0.0.1:9559 --seed 3 --log vp.jsonl
     python -m ssbl_pb.deploy --robot-ip 127.0.0.1 --port 9559 --log-dir runs/deploy1   # as it prints
@@ -15,8 +16,13 @@ killed deploy leaves its base stopped; ``--no-watchdog`` serves none (deploy the
 ``--no-watchdog`` too). ``--write-map DIR`` writes the room as a map with the flags deploy needs to use it.
 ``--log`` (JSONL, flushed per line) records every simulation step: time, commanded and actual velocity,
 room-frame pose, odometry pose, the members, the free slot and the clearance, so tests can see when the base
-really stopped. ``--security-distance`` imitates NAOqi's collision protection (a move toward a person closer
-than that is stopped and ``ALMotion/MoveFailed`` raised through ALMemory). Faults to test against: SIGUSR1
+really stopped. ALMemory serves the base's lasers and sonars under NAOqi's keys (``getData``, ``getListData``;
+``deploy.ranges``), ray-cast in the world at their rates. ALMotion reports its external collision protection on
+(``getExternalCollisionProtectionEnabled``, as a Pepper's defaults; ``--collision-protection-off`` starts it off);
+``--security-distance`` imitates it (a move toward a person closer than that is stopped and
+``ALMotion/MoveFailed`` raised through ALMemory) while it is on. ``--walker member|stranger`` scripts a person
+(``walkers``: a member stepping toward the robot's path out of view, or a stranger stepping into it). Faults to
+test against: SIGUSR1
 freezes the camera (frames keep their last time stamp; again to thaw), SIGUSR2 freezes odometry
 (``getRobotPosition``/``getRobotVelocity`` keep answering their last values while the base moves on; again to thaw),
 and ``--hang-stops N`` leaves the first N ``stopMove`` calls unanswered for 2 s, doing nothing (a lost call).
@@ -50,10 +56,12 @@ from ..errors import UserError
 from ..files import check_output_path
 from ..params import APPEARANCES, HumansLook, WorldParams
 from .robot import SimRobot
+from .walkers import WALKERS, StrangerBodies, make_walker
 
 LOOPBACK = ("127.0.0.1", "localhost", "[::1]")
 MAX_SUBSCRIPTIONS = 6  # NAOqi's limit per subscriber name
 DETECTOR = {"body": "movenet", "proxy": "colour"}  # the detector deploy's --detector auto picks for each look
+PROTECTION_CHAINS = ("Move", "Arms")  # ALMotion's external collision protection groups (the base, the arms)
 HANG_S = 2.0  # s a hung stopMove (``--hang-stops``) takes to return, having done nothing
 
 
@@ -76,14 +84,16 @@ def _render_worker(conn: Any, world: Any, robot: Any, social: Any, body_seed: in
     w.set_body_seed(body_seed)  # the members wear the bodies they wear in the robot's world
     w.reset(np.random.default_rng(0), n_humans=2)  # warm up (group data, compiled code, the renderer) before
     w.render_first_person(64, 48)  # the first request: a subscriber's first frame must not come late
+    strangers = StrangerBodies()
     try:
         while (msg := conn.recv()) is not None:  # EOFError: the virtual Pepper died
-            t, pose, pos, yaw, size = msg
+            t, pose, pos, yaw, extra, size = msg
             if w.group is None or w.group.n != len(pos):
                 w.reset(np.random.default_rng(0), n_humans=len(pos))
             w.base.pose = pose
             w.group.pos[:], w.group.yaw[:] = pos, yaw
             w.invalidate()
+            strangers.show(w.client, extra)
             conn.send((t, w.render_first_person(*size)[0]))
     except (EOFError, BrokenPipeError, KeyboardInterrupt):
         pass
@@ -114,8 +124,8 @@ class Camera:
         if self.busy.is_set():
             return
         self.busy.set()
-        t, pose, pos, yaw = self.robot.scene()
-        self.conn.send((t, pose, pos, yaw, self.robot.image_size))
+        t, pose, pos, yaw, extra = self.robot.scene()
+        self.conn.send((t, pose, pos, yaw, extra, self.robot.image_size))
 
     def _receive(self) -> None:
         try:
@@ -147,9 +157,10 @@ class VirtualPepper:
     """The simulation thread's state shared with the qi services (one lock: the ``SimRobot``'s)."""
 
     def __init__(self, robot: SimRobot, log: Path | None = None, fps_max: int = 30,
-                 security_distance: float = 0.0) -> None:
+                 security_distance: float = 0.0, protection: bool = True) -> None:
         self.robot = robot
         self.security_distance = security_distance  # m; > 0: NAOqi-like collision protection (see ``protect``)
+        self.protection = dict.fromkeys(PROTECTION_CHAINS, protection)  # ALMotion's external collision protection
         self.memory: Any = None  # the ALMemory service, for ALMotion/MoveFailed
         self._refused = False
         self.epoch = time.time()  # the robot clock of frame stamps: wall time at start + sim time
@@ -206,7 +217,7 @@ class VirtualPepper:
         """NAOqi's external collision protection, simplified: a move heading toward a person whose clearance is
         below ``security_distance`` is stopped and ``ALMotion/MoveFailed`` raised (once per move)."""
         r = self.robot
-        if self.security_distance <= 0 or not any(r._cmd[:2]) or self._refused:
+        if self.security_distance <= 0 or not self.protection["Move"] or not any(r._cmd[:2]) or self._refused:
             return
         w = r.world
         clear = w.human_clearance()
@@ -265,9 +276,16 @@ def write_room_map(folder: Path, robot: SimRobot, resolution: float = 0.05,
     return folder / "room.yaml", start
 
 
+def _chains(name: str) -> tuple[str, ...]:
+    """The protection groups ALMotion's ``name`` stands for ("All": every one)."""
+    if name not in (*PROTECTION_CHAINS, "All"):
+        raise RuntimeError(f"ALMotion: collision protection {name!r}: expected one of {[*PROTECTION_CHAINS, 'All']}")
+    return PROTECTION_CHAINS if name == "All" else (name,)
+
+
 def make_services(vp: VirtualPepper) -> tuple[Any, Any, Any]:
-    """ALMotion, ALVideoDevice and ALMemory (``subscriber``, for ALMotion/MoveFailed) objects with NAOqi's
-    method names and return layouts."""
+    """ALMotion, ALVideoDevice and ALMemory (``subscriber``, for ALMotion/MoveFailed; ``getData``/``getListData``
+    for the base's range sensors) objects with NAOqi's method names and return layouts."""
     qi = import_qi()
     robot = vp.robot
 
@@ -297,6 +315,15 @@ def make_services(vp: VirtualPepper) -> tuple[Any, Any, Any]:
 
         def robotIsWakeUp(self) -> bool:
             return True
+
+        def getExternalCollisionProtectionEnabled(self, name: str) -> bool:
+            return all(vp.protection[c] for c in _chains(name))
+
+        def setExternalCollisionProtectionEnabled(self, name: str, enable: bool) -> None:
+            for c in _chains(name):
+                vp.protection[c] = bool(enable)
+            vp.write({"kind": "call", "wall": time.time(), "t": robot.t, "call": "setExternalCollisionProtection",
+                      "name": name, "enable": bool(enable)})
 
     class ALVideoDevice:
         def subscribeCamera(self, name: str, camera: int, resolution: int, colour: int, fps: int) -> str:
@@ -343,6 +370,15 @@ def make_services(vp: VirtualPepper) -> tuple[Any, Any, Any]:
 
         def subscriber(self, key: str) -> Subscriber:
             return self.subscribers.setdefault(key, Subscriber())
+
+        def getData(self, key: str) -> float:
+            return self.getListData([key])[0]
+
+        def getListData(self, keys: list[str]) -> list[float]:
+            try:
+                return robot.memory_values([str(k) for k in keys])
+            except KeyError as exc:  # NAOqi's ALMemory raises on a key it does not hold
+                raise RuntimeError(f"ALMemory::getData: no data for key {exc.args[0]!r}") from None
 
         @qi.nobind
         def raise_event(self, key: str, value: Any) -> None:
@@ -399,6 +435,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--security-distance", type=float_in(0.0, 5.0), default=0.0,
                     help="m; > 0 stops moves toward a person closer than this and raises ALMotion/MoveFailed, like "
                     "NAOqi's collision protection (default 0: off)")
+    ap.add_argument("--collision-protection-off", action="store_true", help="start with ALMotion's external "
+                    "collision protection off (getExternalCollisionProtectionEnabled answers false), as a robot "
+                    "someone turned it off on")
+    ap.add_argument("--walker", choices=WALKERS, help="script a person: a member who walks 0.5 m toward the "
+                    "robot's path while out of its camera's view, or a stranger (never seen) who steps into it")
     ap.add_argument("--hang-stops", type=int_at_least(0), default=0, metavar="N",
                     help=f"leave the first N stopMove calls unanswered for {HANG_S:g} s, doing nothing (a lost "
                     "call, to test the watchdog; default 0)")
@@ -421,6 +462,8 @@ def main(argv: list[str] | None = None) -> int:
 
         groups = policy_groups("vector")
     robot = SimRobot(args.scenario, args.seed, groups=groups, world=WorldParams(humans=HumansLook(args.appearance)))
+    if args.walker is not None:
+        robot.add_walker(make_walker(args.walker))
     session = qi.Session()
     try:
         session.listenStandalone(url)
@@ -434,7 +477,8 @@ def main(argv: list[str] | None = None) -> int:
         session.close()
         robot.close()
         raise
-    vp = VirtualPepper(robot, args.log, security_distance=args.security_distance)
+    vp = VirtualPepper(robot, args.log, security_distance=args.security_distance,
+                       protection=not args.collision_protection_off)
     vp.hang_stops = args.hang_stops
     for name, service in zip(("ALMotion", "ALVideoDevice", "ALMemory"), make_services(vp), strict=True):
         session.registerService(name, service)

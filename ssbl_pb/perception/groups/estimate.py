@@ -37,6 +37,11 @@ TORSO_HALF = (0.13, 0.23)  # m: half-depth (along the facing) and half-width of 
 # step slowly, so a lower acceleration noise than the street-tracking default keeps coasting tracks in place
 TRACKER = TrackerParams(meas_std=0.1, birth_hits=2, accel_std=0.7)
 TORSO_HEIGHT = 0.60  # m: the proxy's torso box (urdf/human.urdf)
+# m/s a person out of view may walk: how fast a remembered member's uncertainty grows (``Member.reach``). Comfortable
+# walking is 1.27-1.46 m/s (Bohannon 1997, adults 20-79); ETH/UCY pedestrians moving faster than 0.3 m/s walk at a
+# median 1.16 m/s, quartiles 0.78-1.45 (shared/data/trajectories, ``calib.humans``); someone in a conversation
+# who moves steps rather than walks, and the simulated members never exceed SocialParams.max_speed (1.0)
+WALK_SPEED = 1.0
 MIN_VISIBLE = 0.35  # share of a torso's width that must show inside the image for a cut box to count
 
 
@@ -71,6 +76,13 @@ class Member:
     facing_std: float = math.inf  # its standard deviation (rad)
     born: int = 0  # the frame (``GroupTracker``'s count) this member was first reported
     last_seen: int = 0  # the last frame it was detected
+    unseen_s: float = 0.0  # s it has been remembered (held by ``GroupTracker.hold``): 0 while detected, or while
+    #   the tracker still coasts it (its own model moves it and widens its covariance)
+
+    @property
+    def reach(self) -> float:
+        """How far (m) the person may have walked since the tracker lost them (``WALK_SPEED``)."""
+        return WALK_SPEED * self.unseen_s
 
 
 FACING_MIN_SPREAD = 0.35  # rad: facing rays meeting at less than this do not fix a point by their crossing
@@ -274,8 +286,9 @@ class GroupTracker:
         return ok
 
     @staticmethod
-    def hold(gone: list[Member]) -> None:
-        """Members out of view stay where they were last estimated, standing. Measured against the virtual
+    def hold(gone: list[Member], dt: float = 0.0) -> None:
+        """Members out of view stay where they were last estimated, standing, their uncertainty growing at walking
+        speed over this frame's ``dt`` s (``Member.reach``; the covariance by its square). Measured against the virtual
         Pepper's ground truth (20 `mixed` lockstep runs, 4,618 member-ticks out of view): median error 0.13 m, p90
         0.30 m; moved by the social force model around the group (Luber et al., ICRA 2010, spawned at their rest
         positions as in the env) 0.21 / 0.50 m; coasting on their last velocity 0.23 / 0.44 m. Conversing people
@@ -285,6 +298,9 @@ class GroupTracker:
         20 runs entered the intimate zone (16/20 joined against 19/20)."""
         for m in gone:
             m.vel = np.zeros(2)
+            before = m.reach
+            m.unseen_s += dt
+            m.cov = m.cov + (m.reach ** 2 - before ** 2) * np.eye(2)
 
     def _take_over(self, states: list[Any], rot: np.ndarray, t: np.ndarray) -> list[Any]:
         """A track reported for the first time, detected now, within ``same_person_m`` of a member not detected
@@ -371,7 +387,7 @@ class GroupTracker:
         gone = [m for k, m in self.members.items() if k not in seen]
         for m in gone:
             m.seen = False
-        self.hold(gone)
+        self.hold(gone, dt)
         if gone:
             local = (np.array([m.pos for m in gone]) - t) @ rot  # odometry -> robot frame
             # anyone known may hide a remembered member: a person cut by the image's side is not detected (perceive
