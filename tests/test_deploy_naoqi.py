@@ -190,6 +190,7 @@ def _fake_pepper(calls: list[str]) -> object:
         def stopMove(self) -> None: calls.append("stopMove")  # noqa: N802, E704
         def getRobotPosition(self, s: bool) -> list[float]: return [0.0, 0.0, 0.0]  # noqa: N802
         def getRobotVelocity(self) -> list[float]: return [0.0, 0.0, 0.0]  # noqa: N802
+        def getExternalCollisionProtectionEnabled(self, name: str) -> bool: return True  # noqa: N802, E704
 
     class Video:
         def subscribeCamera(self, name: str, cam: int, res: int, space: int, fps: int) -> str:  # noqa: N802

@@ -41,8 +41,10 @@ def mask_box(mask: np.ndarray, body: int) -> tuple[np.ndarray | None, int]:
 
 
 def best_score(boxes: np.ndarray, truth: np.ndarray) -> float:
-    """Score of the best box (x, y, w, h, score) overlapping ``truth`` by ``MATCH_IOU``; 0 if none does."""
-    boxes = np.asarray(boxes, dtype=float).reshape(-1, 5)
+    """Score of the best box (x, y, w, h, score, any further columns) overlapping ``truth`` by ``MATCH_IOU``; 0 if
+    none does."""
+    boxes = np.asarray(boxes, dtype=float)
+    boxes = boxes.reshape(-1, boxes.shape[-1] if boxes.ndim == 2 else 5)[:, :5]
     if len(boxes) == 0:
         return 0.0
     hit = box_iou(boxes, truth[None])[:, 0] >= MATCH_IOU
