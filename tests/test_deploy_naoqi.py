@@ -19,16 +19,8 @@ import pytest
 
 pytest.importorskip("qi")
 
-from ssbl_pb.bench.deploy import (  # noqa: E402
-    FAULTS,
-    WALKER_FAULTS,
-    WATCHED,
-    run_fault,
-    start_deploy,
-    stop_times,
-    virtual_pepper,
-    wait_moving,
-)
+from ssbl_pb.bench.deploy import start_deploy, stop_times, virtual_pepper, wait_moving  # noqa: E402
+from ssbl_pb.bench.deploy_faults import FAULTS, WALKER_FAULTS, WATCHED, run_fault  # noqa: E402
 from ssbl_pb.deploy.naoqi import NaoqiRobot, RobotError  # noqa: E402
 from ssbl_pb.params import RobotParams  # noqa: E402
 from ssbl_pb.virtual.pepper import load_log  # noqa: E402

@@ -231,7 +231,7 @@ def test_someone_seen_walking_into_a_blind_sector_is_braked_for_where_they_could
 @pytest.mark.parametrize("fault", ["member_steps_in", "stranger_steps_in"])
 def test_the_walker_faults_end_without_an_intimate_zone_entry(tmp_path, fault):
     # lockstep, the benchmark's runs (without the range guard, the previous unseen rule: 0.44 and 0.04 m)
-    from ssbl_pb.bench.deploy import walker_fault
+    from ssbl_pb.bench.deploy_faults import walker_fault
 
     res = walker_fault(fault, tmp_path / fault, lockstep=True)
     assert res["walker_acted_at"] is not None  # the person did walk into the robot's way

@@ -66,7 +66,7 @@ def _record(logs: Path, name: str) -> Path:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from ssbl_pb.bench.deploy import FAULTS
+    from ssbl_pb.bench.deploy_faults import FAULTS
     from ssbl_pb.deploy.perceive import DETECTORS
 
     ap = ArgumentParser(description=__doc__)
@@ -111,6 +111,7 @@ def main(argv: list[str] | None = None) -> int:
     written = _written_before(logs, planned)
 
     from ssbl_pb.bench import deploy as bench
+    from ssbl_pb.bench import deploy_faults
     from ssbl_pb.files import write_json, write_text
 
     for old in written:  # what an earlier benchmark wrote into the same folder, and only that
@@ -133,9 +134,9 @@ def main(argv: list[str] | None = None) -> int:
         if pooled is not None:
             res["perception"], res["perception_figure"] = pooled, str(figure)
     for f in faults:
-        res["faults"].append(bench.run_fault(f, _record(logs, f"fault_{f}"), lockstep=args.lockstep))
+        res["faults"].append(deploy_faults.run_fault(f, _record(logs, f"fault_{f}"), lockstep=args.lockstep))
     if args.soak > 0:
-        res["soak"] = bench.soak(_record(logs, "soak"), args.soak, args.seed, args.policy)
+        res["soak"] = deploy_faults.soak(_record(logs, "soak"), args.soak, args.seed, args.policy)
     write_json(args.out.with_suffix(".json"), res)
     text = bench.markdown(res)
     write_text(args.out.with_suffix(".md"), text)

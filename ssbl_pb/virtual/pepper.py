@@ -49,20 +49,19 @@ import numpy as np
 
 from ..cli import ArgumentParser, float_in, int_at_least, run
 from ..core.layouts import GROUP_MODELS
-from ..deploy.naoqi import BGR, IDENTITY, RESOLUTIONS, RGB, import_qi
-from ..deploy.robot import Frame, compose, relative
+from ..deploy.naoqi import IDENTITY, import_qi
+from ..deploy.robot import compose, relative
 from ..deploy.watchdog import host as host_watchdog
 from ..errors import UserError
 from ..files import check_output_path
 from ..params import APPEARANCES, HumansLook, WorldParams
+from .camera import Camera
 from .robot import SimRobot
-from .walkers import WALKERS, StrangerBodies, make_walker
+from .services import HANG_S, PROTECTION_CHAINS, Identity, make_services
+from .walkers import WALKERS, make_walker
 
 LOOPBACK = ("127.0.0.1", "localhost", "[::1]")
-MAX_SUBSCRIPTIONS = 6  # NAOqi's limit per subscriber name
 DETECTOR = {"body": "movenet", "proxy": "colour"}  # the detector deploy's --detector auto picks for each look
-PROTECTION_CHAINS = ("Move", "Arms")  # ALMotion's external collision protection groups (the base, the arms)
-HANG_S = 2.0  # s a hung stopMove (``--hang-stops``) takes to return, having done nothing
 
 
 def check_listen(url: str, allow_remote: bool) -> str:
@@ -74,76 +73,6 @@ def check_listen(url: str, allow_remote: bool) -> str:
         raise UserError(f"--listen {url!r}: {host} is not a loopback address; a virtual robot answers anyone who "
                         f"reaches it, so add --allow-remote to listen there")
     return url
-
-
-def _render_worker(conn: Any, world: Any, robot: Any, social: Any, body_seed: int = 0) -> None:
-    """The camera process: renders scenes sent over ``conn`` until it receives None."""
-    from ..env.view.world import World
-
-    w = World(world, robot, social)
-    w.set_body_seed(body_seed)  # the members wear the bodies they wear in the robot's world
-    w.reset(np.random.default_rng(0), n_humans=2)  # warm up (group data, compiled code, the renderer) before
-    w.render_first_person(64, 48)  # the first request: a subscriber's first frame must not come late
-    strangers = StrangerBodies()
-    try:
-        while (msg := conn.recv()) is not None:  # EOFError: the virtual Pepper died
-            t, pose, pos, yaw, extra, size = msg
-            if w.group is None or w.group.n != len(pos):
-                w.reset(np.random.default_rng(0), n_humans=len(pos))
-            w.base.pose = pose
-            w.group.pos[:], w.group.yaw[:] = pos, yaw
-            w.invalidate()
-            strangers.show(w.client, extra)
-            conn.send((t, w.render_first_person(*size)[0]))
-    except (EOFError, BrokenPipeError, KeyboardInterrupt):
-        pass
-    finally:
-        w.close()
-
-
-class Camera:
-    """CameraTop rendered in its own process: PyBullet holds the interpreter lock while it renders (25-40 ms a
-    QVGA frame on a loaded machine, measured), which would stall the qi services that answer deploy's calls."""
-
-    def __init__(self, robot: SimRobot) -> None:
-        import multiprocessing as mp
-
-        self.robot = robot
-        ctx = mp.get_context("spawn")
-        self.conn, child = ctx.Pipe()
-        w = robot.world
-        self.proc = ctx.Process(target=_render_worker, args=(child, w.params, w.robot_params, w.social, w.body_seed),
-                                daemon=True)
-        self.proc.start()
-        self.busy = threading.Event()
-        self._rx = threading.Thread(target=self._receive, name="camera", daemon=True)
-        self._rx.start()
-
-    def request(self) -> None:
-        """Render the scene as it is now (skipped while the previous frame is still being rendered)."""
-        if self.busy.is_set():
-            return
-        self.busy.set()
-        t, pose, pos, yaw, extra = self.robot.scene()
-        self.conn.send((t, pose, pos, yaw, extra, self.robot.image_size))
-
-    def _receive(self) -> None:
-        try:
-            while True:
-                t, img = self.conn.recv()
-                self.robot.set_frame(Frame(img, t))
-                self.busy.clear()
-        except (EOFError, OSError):
-            pass
-
-    def close(self) -> None:
-        try:
-            self.conn.send(None)
-        except (BrokenPipeError, OSError):
-            pass
-        self.proc.join(2.0)
-        if self.proc.is_alive():
-            self.proc.kill()
 
 
 def state_row(robot: SimRobot, wall: float) -> dict[str, Any]:
@@ -274,136 +203,6 @@ def write_room_map(folder: Path, robot: SimRobot, resolution: float = 0.05,
     t = data["map_to_room"]
     start = compose(np.array([t["x"], t["y"], t["yaw"]]), robot.start_pose)
     return folder / "room.yaml", start
-
-
-def _chains(name: str) -> tuple[str, ...]:
-    """The protection groups ALMotion's ``name`` stands for ("All": every one)."""
-    if name not in (*PROTECTION_CHAINS, "All"):
-        raise RuntimeError(f"ALMotion: collision protection {name!r}: expected one of {[*PROTECTION_CHAINS, 'All']}")
-    return PROTECTION_CHAINS if name == "All" else (name,)
-
-
-def make_services(vp: VirtualPepper) -> tuple[Any, Any, Any]:
-    """ALMotion, ALVideoDevice and ALMemory (``subscriber``, for ALMotion/MoveFailed; ``getData``/``getListData``
-    for the base's range sensors) objects with NAOqi's method names and return layouts."""
-    qi = import_qi()
-    robot = vp.robot
-
-    @qi.multiThreaded()
-    class ALMotion:
-        def move(self, x: float, y: float, theta: float) -> None:
-            vp._refused = False
-            robot.send(np.array([x, y, theta], dtype=float))
-
-        def stopMove(self) -> Any:
-            if vp.hang_stops > 0:  # a lost call: answered late, nothing done (a future: no thread held)
-                vp.hang_stops -= 1
-                vp.write({"kind": "call", "wall": time.time(), "t": robot.t, "call": "stopMove_hung"})
-                late = qi.Promise()
-                threading.Timer(HANG_S, late.setValue, (None,)).start()
-                return late.future()
-            robot.stop()
-            vp.write({"kind": "call", "wall": time.time(), "t": robot.t, "call": "stopMove"})
-
-        def getRobotPosition(self, use_sensors: bool) -> list[float]:
-            frozen = vp.odometry_frozen
-            return list(frozen[0]) if frozen else [float(v) for v in robot.odometry().pose]
-
-        def getRobotVelocity(self) -> list[float]:
-            frozen = vp.odometry_frozen
-            return list(frozen[1]) if frozen else [float(v) for v in robot.odometry().velocity]
-
-        def robotIsWakeUp(self) -> bool:
-            return True
-
-        def getExternalCollisionProtectionEnabled(self, name: str) -> bool:
-            return all(vp.protection[c] for c in _chains(name))
-
-        def setExternalCollisionProtectionEnabled(self, name: str, enable: bool) -> None:
-            for c in _chains(name):
-                vp.protection[c] = bool(enable)
-            vp.write({"kind": "call", "wall": time.time(), "t": robot.t, "call": "setExternalCollisionProtection",
-                      "name": name, "enable": bool(enable)})
-
-    class ALVideoDevice:
-        def subscribeCamera(self, name: str, camera: int, resolution: int, colour: int, fps: int) -> str:
-            if resolution not in RESOLUTIONS or colour not in (RGB, BGR) or camera != 0:
-                raise RuntimeError(f"virtual Pepper: camera {camera}, resolution {resolution}, colour space {colour}"
-                                   f" not served (CameraTop 0; resolutions {sorted(RESOLUTIONS)}; RGB 11 or BGR 13)")
-            for k in range(MAX_SUBSCRIPTIONS):
-                handle = f"{name}_{k}"
-                if handle not in vp.subs:
-                    vp.subs[handle] = (resolution, colour)
-                    robot.image_size = RESOLUTIONS[resolution]
-                    vp.fps = max(1, min(int(fps), vp.fps_max))
-                    vp.write({"kind": "call", "wall": time.time(), "t": robot.t, "call": "subscribeCamera",
-                              "handle": handle})
-                    return handle
-            raise RuntimeError(f"ALVideoDevice: {MAX_SUBSCRIPTIONS} subscriptions named {name!r} already exist")
-
-        @qi.bind("(iiiiiiriffff)", ("s",))
-        def getImageRemote(self, handle: str) -> list[Any]:
-            if handle not in vp.subs:
-                raise RuntimeError(f"ALVideoDevice.getImageRemote: unknown handle {handle!r}")
-            frame = robot.frame() or robot.render()
-            resolution, colour = vp.subs[handle]
-            w, h = RESOLUTIONS[resolution]
-            img = frame.image if frame.image.shape[1] == w else cv2.resize(frame.image, (w, h))
-            img = img[..., ::-1] if colour == BGR else img
-            stamp = vp.epoch + frame.stamp
-            half_h, half_v = math.radians(robot.world.robot_params.camera_hfov_deg) / 2, math.atan(
-                math.tan(math.radians(robot.world.robot_params.camera_hfov_deg) / 2) * h / w)
-            return [w, h, 3, colour, int(stamp), int(round((stamp % 1.0) * 1e6)) % 1000000,
-                    np.ascontiguousarray(img).tobytes(), 0, -half_h, -half_v, half_h, half_v]
-
-        def unsubscribe(self, handle: str) -> bool:
-            vp.write({"kind": "call", "wall": time.time(), "t": robot.t, "call": "unsubscribe", "handle": handle})
-            return vp.subs.pop(handle, None) is not None
-
-    class Subscriber:
-        def __init__(self) -> None:
-            self.signal = qi.Signal("m")
-
-    class ALMemory:
-        def __init__(self) -> None:
-            self.subscribers: dict[str, Subscriber] = {}
-
-        def subscriber(self, key: str) -> Subscriber:
-            return self.subscribers.setdefault(key, Subscriber())
-
-        def getData(self, key: str) -> float:
-            return self.getListData([key])[0]
-
-        def getListData(self, keys: list[str]) -> list[float]:
-            try:
-                return robot.memory_values([str(k) for k in keys])
-            except KeyError as exc:  # NAOqi's ALMemory raises on a key it does not hold
-                raise RuntimeError(f"ALMemory::getData: no data for key {exc.args[0]!r}") from None
-
-        @qi.nobind
-        def raise_event(self, key: str, value: Any) -> None:
-            if key in self.subscribers:
-                self.subscribers[key].signal(value)
-
-    vp.memory = ALMemory()
-    return ALMotion(), ALVideoDevice(), vp.memory
-
-
-class Identity:
-    """``SSBLVirtualPepper``: what deploy needs to know of this robot (``describe``), and its fault switch for
-    harnesses (``hangStops``: ``--hang-stops`` armed at a chosen moment)."""
-
-    def __init__(self, facts: dict[str, str], vp: VirtualPepper | None = None) -> None:
-        self.facts, self._vp = facts, vp
-
-    def describe(self) -> dict[str, str]:
-        return dict(self.facts)
-
-    def hangStops(self, n: int) -> None:  # noqa: N802 - a qi method, NAOqi's style
-        """Leave the next ``n`` stopMove calls unanswered for ``HANG_S``, doing nothing."""
-        if self._vp is not None:
-            self._vp.hang_stops = int(n)
-            self._vp.write({"kind": "call", "wall": time.time(), "t": self._vp.robot.t, "call": "hangStops", "n": n})
 
 
 def deploy_command(url: str, groups: str | None = None, on_map: tuple[Path, np.ndarray] | None = None,
