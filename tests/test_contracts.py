@@ -178,6 +178,7 @@ CASES = [
     C("-m ssbl_pb.deploy.plot", "{tmp}", expect="no log.jsonl"),
     C("bench_deploy.py", "--faults", "meteor", "--out", "{out}", expect="--faults meteor"),
     C("bench_deploy.py", "--runs", "-1", "--out", "{out}", expect="argument --runs"),
+    C("bench_deploy.py", "--walker-runs", "0", "--out", "{out}", expect="argument --walker-runs"),
     C("bench_deploy.py", "--policy", "nosuch", "--out", "{out}", expect="--policy 'nosuch'"),
     C("bench_deploy.py", "--groups", "round", "--out", "{out}", expect="argument --groups"),
     # the observation model

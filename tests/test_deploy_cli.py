@@ -100,3 +100,14 @@ def test_watchdog_alone_on_a_robot_keeps_the_contract(tmp_path):
                          cwd=tmp_path, timeout=60)
     lines = [ln for ln in res.stderr.splitlines() if ln.strip()]
     assert res.returncode == 2 and len(lines) == 1 and lines[0].startswith("error: argument --limit"), res.stderr
+
+
+def test_walker_faults_run_several_seeds_and_are_summed_up_with_their_entries():
+    from ssbl_pb.bench.deploy import walker_summary
+
+    runs = [{"fault": "member_steps_in", "seed": 500_000 + k, "exit_code": 0, "true_min_clearance_m": c,
+             "walker_acted_at": 3.0 if k != 1 else None} for k, c in enumerate((0.52, 0.61, 0.44))]
+    once = [{"fault": "stranger_steps_in", "seed": 11, "exit_code": 0, "true_min_clearance_m": 0.7}]
+    lines = walker_summary(runs + once + [{"fault": "sigint", "exit_code": 130}])
+    assert lines == ["`member_steps_in` over 3 runs (seeds 500000-500002; the walker acted in 2): intimate-zone "
+                     "entries **1**, smallest true clearance 0.44 m.", ""]

@@ -66,7 +66,7 @@ def _record(logs: Path, name: str) -> Path:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from ssbl_pb.bench.deploy_faults import FAULTS
+    from ssbl_pb.bench.deploy_faults import FAULTS, WALKER_FAULTS
     from ssbl_pb.deploy.perceive import DETECTORS
 
     ap = ArgumentParser(description=__doc__)
@@ -77,6 +77,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--groups", choices=GROUP_MODELS, help="the group model of the virtual Pepper and deploy "
                     "(default: the policy's, its config's env.groups)")
     ap.add_argument("--faults", default=",".join(FAULTS), help=f"comma list of {', '.join(FAULTS)}, or none")
+    ap.add_argument("--walker-runs", type=int_at_least(1), default=1, metavar="N",
+                    help="run each walker fault N times, on its seed and the N-1 after it (default 1)")
     ap.add_argument("--soak", type=float_in(0.0, 86400.0), default=600.0, help="soak seconds (0: none)")
     ap.add_argument("--detector", choices=("auto", *DETECTORS), default="auto",
                     help="deploy's --detector (default auto: the one the virtual Pepper names)")
@@ -107,7 +109,9 @@ def main(argv: list[str] | None = None) -> int:
     check_output_path(figure, is_dir=False)
     logs = args.out.with_suffix("")
     check_output_path(logs)
-    planned = [f"run{i:02d}" for i in range(args.runs)] + [f"fault_{f}" for f in faults] + ["soak"] * (args.soak > 0)
+    repeats = {f: args.walker_runs if f in WALKER_FAULTS else 1 for f in faults}
+    fault_runs = [(f, k, f"fault_{f}" + (f"_{k:02d}" if k else "")) for f in faults for k in range(repeats[f])]
+    planned = [f"run{i:02d}" for i in range(args.runs)] + [name for *_, name in fault_runs] + ["soak"] * (args.soak > 0)
     written = _written_before(logs, planned)
 
     from ssbl_pb.bench import deploy as bench
@@ -133,8 +137,8 @@ def main(argv: list[str] | None = None) -> int:
             r["perception"] = p
         if pooled is not None:
             res["perception"], res["perception_figure"] = pooled, str(figure)
-    for f in faults:
-        res["faults"].append(deploy_faults.run_fault(f, _record(logs, f"fault_{f}"), lockstep=args.lockstep))
+    for f, k, name in fault_runs:
+        res["faults"].append(deploy_faults.run_fault(f, _record(logs, name), lockstep=args.lockstep, walker_run=k))
     if args.soak > 0:
         res["soak"] = deploy_faults.soak(_record(logs, "soak"), args.soak, args.seed, args.policy)
     write_json(args.out.with_suffix(".json"), res)

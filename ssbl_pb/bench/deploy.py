@@ -269,7 +269,7 @@ def markdown(res: dict[str, Any]) -> str:
     if runs:
         ok = sum(r.get("true_success", False) for r in runs)
         claimed = sum(r.get("outcome") == "success" for r in runs)
-        intimate = sum(r.get("true_min_clearance_m", 9) < 0.45 for r in runs)
+        intimate = sum(r.get("true_min_clearance_m", 9) < TaskParams.intimate_zone for r in runs)
         # a run that ended on a fault before its first tick has no clearance
         cleared = [r["true_min_clearance_m"] for r in runs if r.get("true_min_clearance_m") is not None]
 
@@ -331,8 +331,10 @@ def markdown(res: dict[str, Any]) -> str:
             cells = ["-" if f.get(k) is None else f"{f[k]:.2f}"
                      for k in ("exit_s", "stop_commanded_s", "stop_commanded_robot_s", "standstill_s",
                                "true_min_clearance_m")]
-            out.append(f"| {f['fault']} | {f['exit_code']} | " + " | ".join(cells) + " |")
+            name = f"{f['fault']} (seed {f['seed']})" if "seed" in f else f["fault"]
+            out.append(f"| {name} | {f['exit_code']} | " + " | ".join(cells) + " |")
         out.append("")
+        out += walker_summary(faults)
     if res.get("soak"):
         s = res["soak"]
         growth = "-" if s["rss_growth"] is None else f"{100 * s['rss_growth']:+.1f} %"
@@ -343,3 +345,19 @@ def markdown(res: dict[str, Any]) -> str:
     env = res.get("environment", {})
     out.append(f"\nMachine: {env.get('cpus')} cores, load average {env.get('loadavg')} at the start (shared).")
     return "\n".join(out) + "\n"
+
+
+def walker_summary(faults: list[dict[str, Any]], intimate: float = TaskParams.intimate_zone) -> list[str]:
+    """One line per walker fault run more than once: runs, how many the walker acted in, intimate-zone entries
+    (true clearance below ``intimate``) and the smallest clearance."""
+    lines = []
+    for name in dict.fromkeys(f["fault"] for f in faults if "seed" in f):
+        runs = [f for f in faults if f["fault"] == name]
+        if len(runs) < 2:
+            continue
+        clear = [f["true_min_clearance_m"] for f in runs if f.get("true_min_clearance_m") is not None]
+        acted = sum(f.get("walker_acted_at") is not None for f in runs)
+        lines.append(f"`{name}` over {len(runs)} runs (seeds {runs[0]['seed']}-{runs[-1]['seed']}; the walker acted in "
+                     f"{acted}): intimate-zone entries **{sum(c < intimate for c in clear)}**, smallest true "
+                     f"clearance {min(clear, default=float('nan')):.2f} m.")
+    return lines + ([""] if lines else [])

@@ -40,16 +40,19 @@ def walker_fault(fault: str, folder: Path, seed: int | None = None, policy: str 
     person (in lockstep, or over qi), its outcome, when the walker acted, and the smallest true clearance to anyone
     (an intimate-zone entry fails)."""
     kind, default_scenario, default_seed = WALKER_FAULTS[fault]
-    res = (lockstep_approach if lockstep else run_approach)(folder, default_seed if seed is None else seed, policy,
-                                                            scenario or default_scenario, duration, walker=kind)
+    seed = default_seed if seed is None else seed
+    res = (lockstep_approach if lockstep else run_approach)(folder, seed, policy, scenario or default_scenario,
+                                                            duration, walker=kind)
     _, states, _ = load_log(folder / "virtual_pepper.jsonl")
     walkers = next((s["walkers"] for s in reversed(states) if s.get("walkers")), [{}])
     keys = ("exit_code", "outcome", "true_min_clearance_m", "true_success", "range_guard_interventions")
-    return {"fault": fault, **{k: res.get(k) for k in keys}, "walker_acted_at": walkers[0].get("triggered_at")}
+    return {"fault": fault, "seed": seed, **{k: res.get(k) for k in keys},
+            "walker_acted_at": walkers[0].get("triggered_at")}
 
 
 def run_fault(fault: str, folder: Path, seed: int = 11, policy: str = "straight", stale: float = 0.5,
-              hang_stops: int = 1, vp_extra: tuple[str, ...] = (), lockstep: bool = False) -> dict[str, Any]:
+              hang_stops: int = 1, vp_extra: tuple[str, ...] = (), lockstep: bool = False, walker_run: int = 0
+              ) -> dict[str, Any]:
     """Inject ``fault`` (one of ``FAULTS``) once the base moves; exit code, exit and stop times. A walker fault
     is ``walker_fault`` with the shipped policy (``lockstep``: in this process).
 
@@ -62,8 +65,8 @@ def run_fault(fault: str, folder: Path, seed: int = 11, policy: str = "straight"
     raise it, so that late frames do not end a run before its fault). ``vp_extra``: more virtual Pepper flags."""
     if fault not in FAULTS:
         raise ValueError(f"fault {fault!r}: expected one of {FAULTS}")
-    if fault in WALKER_FAULTS:
-        return walker_fault(fault, folder, lockstep=lockstep)
+    if fault in WALKER_FAULTS:  # its own seed, or the ``walker_run``-th after it
+        return walker_fault(fault, folder, WALKER_FAULTS[fault][2] + walker_run, lockstep=lockstep)
     folder.mkdir(parents=True, exist_ok=True)
     vp_log = folder / "virtual_pepper.jsonl"
     out: dict[str, Any] = {"fault": fault}
