@@ -6,11 +6,11 @@ import pytest
 
 from ssbl_pb.agents.policies import SFFMPolicy, StraightPolicy
 from ssbl_pb.core import observation as ob
+from ssbl_pb.core.actions import ActionFilter
 from ssbl_pb.core.reward import TERMS, RewardWeights, total_reward, weight_vector
 from ssbl_pb.core.shield import ShieldParams, shield_action, shield_actions
 from ssbl_pb.env.engine.batched import BatchedApproach
 from ssbl_pb.env.gymenv.approach import ApproachGroupEnv
-from ssbl_pb.env.gymenv.wrappers import ActionFilter
 
 
 def _drive(num: int, steps: int, seed: int, noise: float = 0.15, **kwargs):

@@ -1,4 +1,4 @@
-"""Deploy's command-line tools as a user meets them (issue 39): the deploy benchmark removes only what it wrote,
+"""Deploy's command-line tools as a user meets them: the deploy benchmark removes only what it wrote,
 the virtual Pepper checks its port before it writes anything, the watchdog's help tells its real exit codes."""
 
 from __future__ import annotations

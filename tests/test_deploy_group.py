@@ -144,7 +144,7 @@ def test_the_group_model_defaults_to_the_one_the_policy_was_trained_on(tmp_path)
     assert policy_groups(str(tmp_path)) == "calibrated"  # the env's default
 
 
-# -- issue 37: one id per person ---------------------------------------------------------------------------------
+# -- one id per person ---------------------------------------------------------------------------------
 def test_a_person_who_comes_back_into_view_keeps_their_id():
     # the tracker drops a person out of view after max_misses; the group remembers them, and the track the
     # tracker starts when they come back is that remembered member (it had a new id, and lost its rest position)

@@ -131,7 +131,7 @@ def test_duration_ends_the_run(tmp_path):
     assert json.loads((tmp_path / "log.jsonl").read_text().splitlines()[0])["state"] == "settle"
 
 
-# -- issue 39: the stop path under every fault ---------------------------------------------------------------
+# -- the stop path under every fault ---------------------------------------------------------------
 class FrozenOdometry(SimRobot):
     """Odometry that keeps answering its reading at ``freeze_at`` s (pose and velocity) while the base moves on."""
 

@@ -515,7 +515,7 @@ def test_evaluation_reports_the_shield_intervention_rate_the_same_played_alone_o
 
 
 def test_action_stages_smooth_then_shield_and_reset_rows():
-    from ssbl_pb.env.gymenv.wrappers import ActionFilter, ActionStages
+    from ssbl_pb.core.actions import ActionFilter, ActionStages
 
     core = ApproachGroupEnv()
     obs, _ = core.reset(seed=3)
@@ -535,3 +535,17 @@ def test_action_stages_smooth_then_shield_and_reset_rows():
     assert ActionStages(1.0, None)(rows, np.array([[2.0, 0.0]])).tolist() == [[2.0, 0.0]]  # both off: unchanged
     with pytest.raises(UserError, match="action smoothing alpha 0"):
         ActionStages(0.0)
+
+
+def test_the_shield_builder_and_the_last_stage_perception_takes_over():
+    from ssbl_pb.core.actions import ActionStages, take_over
+
+    core = ApproachGroupEnv(robot={"max_speed": 0.3})
+    built = ActionStages.of(core, 0.5, shield=True, at_place=True).shield.params
+    assert built == ShieldParams.from_env(core.robot_params, core.social, core.task, True) and built.max_speed == 0.3
+    assert ActionStages.of(core, shield=False).shield is None
+    actions = np.array([[0.4, -0.2, 0.9], [1.0, 1.0, 1.0]])
+    body = np.array([[0.15, 0.0], [0.0, 0.06]])  # perception's own command (m/s): a search, a look's sidestep
+    out = take_over(actions, np.array([False, True]), body, 0.3)
+    assert out.tolist() == [[0.4, -0.2, 0.9], [0.0, 0.2, 0.0]] and actions[1].tolist() == [1.0, 1.0, 1.0]
+    assert take_over(actions, np.zeros(2, bool), body, 0.3) is actions  # nobody driven: the policy's, as is

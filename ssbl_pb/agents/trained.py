@@ -12,11 +12,11 @@ import gymnasium as gym
 import numpy as np
 import yaml
 
+from ..core.actions import ActionStages
 from ..core.layouts import GroupModel as EnvGroups
 from ..core.observation import BASE_SIZE, OBS_SIZE
 from ..core.shield import ShieldParams
 from ..core.task import TaskParams
-from ..env.gymenv.wrappers import ActionStages
 from ..errors import UserError
 from ..files import copy_file, write_text
 from ..params import RobotParams, SocialParams, parse_yaml

@@ -48,8 +48,7 @@ def build_policy(spec: str, env: gym.Env, shield: bool | None = None) -> Policy:
             raise UserError(f"policy '{spec}' reads the vector observation; use --obs-mode vector")
         return make_policy(spec, core.robot_params, core.social, seed=0)
     # the shield brakes within this env's (possibly calibrated) robot limits, as the model was trained
-    return load_trained(spec, env.observation_space, shield, ShieldParams.from_env(core.robot_params, core.social,
-                                                                                   core.task, shield_at_place(spec)))
+    return load_trained(spec, env.observation_space, shield, ShieldParams.of(core, shield_at_place(spec)))
 
 
 def check_policy_spec(spec: str, flag: str = "--policy") -> None:

@@ -114,10 +114,10 @@ class ShieldParams:
         approach to half the success rule's stop speed where the place's tolerance begins (``place_speed_cap``); and
         it keeps the robot's centre out of the o-space (``ospace_keep_out``, ``OSPACE_MARGIN``).
 
-        Ours (issue 14): braking for 0.5 m, the shield ended the approach 5-10 cm past the place, inside the
+        Ours: braking for 0.5 m, the shield ended the approach 5-10 cm past the place, inside the
         members' 1.2 m repulsion zone, and they stepped away (members displaced 0.17 m against the SFFM's 0.07).
         Kept everywhere, 0.6 m also blocked ways round a group's members (10 points of `mixed`). The speed cap
-        (ours, issue 14's arrival speed): the policy braked at the base's limit into the place and arrived at
+        (ours): the policy braked at the base's limit into the place and arrived at
         0.087 m/s, the success rule's 0.1 less one period's braking, however its reward priced the arrival."""
         return cls(clearance_min=task.intimate_zone + 0.05, brake_accel=robot.max_accel * 2.0 / 3.0,
                    max_speed=robot.max_speed, half_length=robot.length / 2, half_width=robot.width / 2,
@@ -125,6 +125,12 @@ class ShieldParams:
                    place_clearance=slot_keep(social, robot.reach, task.intimate_zone, task.route_margin)
                    - social.human_radius - robot.reach if at_place else 0.0,
                    place_arrival_speed=task.stop_speed / 2 if at_place else 0.0, ospace_keep_out=at_place)
+
+    @classmethod
+    def of(cls, env: Any, at_place: bool = False) -> ShieldParams:
+        """``from_env`` of anything holding ``robot_params``, ``social`` and ``task`` (an env's core, a batched
+        env, deploy's ``Setup``): the one builder of a robot's shield."""
+        return cls.from_env(env.robot_params, env.social, env.task, at_place)
 
 
 @njit(cache=True)

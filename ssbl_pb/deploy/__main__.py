@@ -63,15 +63,17 @@ def _parser() -> argparse.ArgumentParser:
     ap.add_argument("--start-pose", type=float, nargs=3, metavar=("X", "Y", "YAW"),
                     help="with --map: the robot's start pose on the map (metres, degrees)")
     ap.add_argument("--log-dir", type=Path, help="output folder (default runs/deploy-DATE-TIME)")
-    ap.add_argument("--max-speed", type=float, default=0.35, help="m/s clamp on the base speed (default 0.35)")
+    ap.add_argument("--max-speed", type=float, default=DeployParams.max_speed,
+                    help="m/s clamp on the base speed (default %(default)g)")
     ap.add_argument("--rate", type=float, help="control rate in Hz (default: the policy's own, 10 Hz for every "
                     "shipped one; a learned policy runs only at the rate it was trained at, since its action "
                     "smoothing and shield assume that period)")
     ap.add_argument("--duration", type=float, default=DeployParams.duration_s,
                     help="give up after this many seconds (default %(default)g)")
-    ap.add_argument("--stop-distance", type=float, default=0.45,
-                    help="stop when a tracked person is this close to the footprint (m, default 0.45)")
-    ap.add_argument("--stale", type=float, default=0.5, help="stop when frame or odometry is older (s, default 0.5)")
+    ap.add_argument("--stop-distance", type=float, default=DeployParams.stop_distance,
+                    help="stop when a tracked person is this close to the footprint (m, default %(default)g)")
+    ap.add_argument("--stale", type=float, default=DeployParams.stale_s,
+                    help="stop when frame or odometry is older (s, default %(default)g)")
     ap.add_argument("--continue-after-success", action="store_true", help="hold the slot until --duration")
     ap.add_argument("--no-watchdog", action="store_true",
                     help="the virtual Pepper only: run without its watchdog (default: refuse a robot without the "

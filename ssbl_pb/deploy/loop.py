@@ -30,7 +30,7 @@ from ..core.layouts import member_keep_out, slot_keep
 from ..core.shield import ShieldParams, footprint_clearance
 from ..core.task import TaskParams
 from ..errors import Terminated
-from ..params import RobotParams, SocialParams, _check, _positive
+from ..params import RobotParams, SocialParams, WorldParams, _check, _positive
 from ..perception.groups.estimate import GroupModel, member_arrays
 from ..perception.groups.looks import ARRIVAL_MARGIN, CONFIRM_S, Looks, claim_rule
 from .faults import EXIT_CODES, DeployFault, HumanTooClose, StaleFrame, StaleOdometry
@@ -45,10 +45,10 @@ from .robot import Robot, clamp_command
 class DeployParams:
     """The loop's rate and safety limits (flags of ``python -m ssbl_pb.deploy``)."""
 
-    rate_hz: float = 10.0  # the policy's control period (WorldParams.dt = 0.1 s)
-    max_speed: float = 0.35  # m/s clamp on the planar speed (NAOqi default, RobotParams.max_speed)
+    rate_hz: float = 1.0 / WorldParams.dt  # Hz: the policy's control period (0.1 s)
+    max_speed: float = RobotParams.max_speed  # m/s clamp on the planar speed (NAOqi's default)
     stale_s: float = 0.5  # newest frame / odometry older than this stops the run (ROS cmd_vel muxes, lerobot)
-    stop_distance: float = 0.45  # m between bodies: Hall's intimate zone (TaskParams.intimate_zone)
+    stop_distance: float = TaskParams.intimate_zone  # m between bodies: Hall's intimate zone
     duration_s: float = 90.0  # s: three simulated episodes (30 s). Deploy also searches (a full turn: 12.6 s), looks
     #   at members before a claim (up to LOOK_S each) and docks slowly: `mixed` lockstep joins took up to 57 s, and
     #   a five-person group approached from 6 m behind reached its place at 55 s, unclaimed when 60 s ran out
@@ -122,7 +122,7 @@ class DeployLoop:
                  status: Callable[[str], None] | None = None) -> None:
         self.s, self.p, self.log, self.now, self.sleep = setup, params or DeployParams(), log, now, sleep
         self.status = status
-        self.shield = ShieldParams.from_env(setup.robot_params, setup.social, setup.task)
+        self.shield = ShieldParams.of(setup)
         clearance = deploy_shield(setup.robot_params, setup.social, setup.task, self.p.stop_distance).clearance_min
         self.guards = Guards(self.shield, clearance, self.p.stop_distance, setup.frames)  # after the policy's shield
         self.period = 1.0 / self.p.rate_hz

@@ -115,7 +115,7 @@ class EvalCheckpointCallback(BaseCallback):
         core = env.unwrapped  # the shield brakes within the training env's robot limits, as in training
         at_place = getattr(self.make_eval_env, "shield_at_place", False)  # the config's (EnvFactory)
         policy = TrainedPolicy(self.model, self.training_env, self.recurrent, self.smoothing, self.shield,
-                               ShieldParams.from_env(core.robot_params, core.social, core.task, at_place))
+                               ShieldParams.of(core, at_place))
         try:
             res = [run_episode(env, policy, self.eval_seed + i, keep_trajectory=False).metrics
                    for i in range(self.eval_episodes)]

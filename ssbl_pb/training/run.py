@@ -22,9 +22,9 @@ from ..agents.policies import make_policy
 from ..agents.rollout import run_episode
 from ..agents.trained import STEP_STAMP, resolve_model
 from ..cli import DeferredSignals
-from ..core.shield import ShieldParams
+from ..core.actions import ActionStages
 from ..env.gymenv.approach import core_kwargs, make_env
-from ..env.gymenv.wrappers import ActionStages, ActionStagesWrapper
+from ..env.gymenv.wrappers import ActionStagesWrapper
 from ..errors import UserError
 from ..files import check_output_path, output_dir, remove_temporaries, write_text
 from ..params import ConfigError, parse_yaml
@@ -93,9 +93,8 @@ class EnvFactory:
     def __call__(self) -> Any:
         env = make_env(**self.kwargs)
         if self.shield or self.smoothing < 1.0:
-            core = env.unwrapped
-            shield = ShieldParams.from_env(core.robot_params, core.social, core.task, self.shield_at_place)
-            env = ActionStagesWrapper(env, ActionStages(self.smoothing, shield if self.shield else None))
+            stages = ActionStages.of(env.unwrapped, self.smoothing, self.shield, self.shield_at_place)
+            env = ActionStagesWrapper(env, stages)
         if self.monitor:
             from stable_baselines3.common.monitor import Monitor
 

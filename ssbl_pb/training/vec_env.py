@@ -18,9 +18,8 @@ from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices
 
 from ..agents.trained import TrainedPolicy
 from ..core import observation as ob
-from ..core.shield import ShieldParams
+from ..core.actions import ActionStages
 from ..env.engine.batched import BatchedApproach
-from ..env.gymenv.wrappers import ActionStages
 
 
 class BatchedVecEnv(VecEnv):
@@ -30,8 +29,7 @@ class BatchedVecEnv(VecEnv):
                  **env_kwargs: Any) -> None:
         self.batch = BatchedApproach(num, **env_kwargs)
         b = self.batch
-        self.stages = ActionStages(smoothing, ShieldParams.from_env(b.robot_params, b.social, b.task, shield_at_place)
-                                   if shield else None)
+        self.stages = ActionStages.of(b, smoothing, shield, shield_at_place)
         self.render_mode = None
         size = b.obs_size  # with the range scan or without (``scan=False``)
         obs_space = gym.spaces.Box(-ob.OBS_LIMIT, ob.OBS_LIMIT, shape=(size,), dtype=np.float32)

@@ -19,6 +19,7 @@ import numpy as np
 from gymnasium.utils import seeding
 
 from ...core import observation as ob
+from ...core.actions import take_over
 from ...core.base import BaseArrays, BaseParams
 from ...core.humans import KEEP, MAX_HUMANS, RADIUS, GroupArrays, free_slot, sffm_params
 from ...core.layouts import GroupModel, member_keep_out, slot_keep
@@ -285,10 +286,8 @@ class BatchedApproach:
             aim, search, looking = self.perceived.steer(self.pose, self.task.heading_gain, self.dt,
                                                         self._static_clearance, speed, self.task)
             aim = self._turn_guard(aim)
-            a, lost = a.copy(), ~self.perceived.known
-            driven = lost | looking  # deploy drives these itself: its search, or a look at a member in place
-            a[driven] = 0.0
-            a[driven, :2] = search[driven] / self.robot_params.max_speed
+            lost = ~self.perceived.known  # the action pipeline's last stage: deploy drives these itself (its
+            a = take_over(a, lost | looking, search, self.robot_params.max_speed)  # search, or a look in place)
             # searching is not approaching: its time is added to the episode, up to one episode more (deploy's
             # 60 s --duration is twice the simulated episode, for the search)
             more = lost & (self.search_steps < self.task.max_steps)

@@ -32,12 +32,12 @@ import torch
 from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
 from torch import nn
 
+from ...core.actions import ExponentialFilter
 from ...errors import UserError
 from ...params import RobotParams
 from ...perception.autoencoding.ae_train import checkpoint_info, load_autoencoder
 from ...perception.autoencoding.autoencoders import Autoencoder, to_input
 from ...perception.camera import PinholeCamera
-from .wrappers import ExponentialFilter
 
 ENCODED_ARCHS = ("conv", "saev")
 
