@@ -105,7 +105,7 @@ class TrainConfig:
     encoder_checkpoint: str = ""
     # low-pass of the frozen encoder's features over an episode, the newest frame's weight (env.gymenv.encoded; 1 = off)
     feature_smoothing: float = 1.0
-    action_smoothing: float = 0.4  # agent-side action filter (env.gymenv.wrappers.ActionStages); 1.0 = off
+    action_smoothing: float = 0.4  # agent-side action filter (core.actions.ActionStages); 1.0 = off
     safety_shield: bool = True  # agent-side safety shield (core.shield), the last action stage; it reads the
     #                             Vector observation, so camera modes train without it
     # VecNormalize's running standardisation of the observation (the original's "normalize: true"); false feeds
