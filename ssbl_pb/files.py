@@ -12,6 +12,7 @@ import json
 import os
 import re
 import shutil
+import subprocess
 import tempfile
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
@@ -194,3 +195,17 @@ def write_yaml(path: str | Path, data: dict[str, Any], header: str = "") -> Path
     body = yaml.dump(data, Dumper=_Dumper, sort_keys=False, default_flow_style=False, width=100)
     head = "".join(f"# {line}\n" for line in header.splitlines()) if header else ""
     return write_text(path, head + body)
+
+
+def source_commit() -> str | None:
+    """This checkout's short commit (with ``+`` when tracked files have changes), or None outside git: results
+    record the code that made them."""
+    root = Path(__file__).resolve().parents[1]
+    try:
+        head = subprocess.run(["git", "-C", str(root), "rev-parse", "--short", "HEAD"], capture_output=True,
+                              text=True, check=True, timeout=10).stdout.strip()
+        dirty = subprocess.run(["git", "-C", str(root), "status", "--porcelain", "--untracked-files=no"],
+                               capture_output=True, text=True, check=True, timeout=10).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return head + ("+" if dirty else "")

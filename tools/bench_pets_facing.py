@@ -14,29 +14,17 @@ Exit code 2 on bad input (the data folder, the frame range, the output path), wi
 from __future__ import annotations
 
 import json
-import subprocess
 import sys
 import time
 from pathlib import Path
 
 from ssbl_pb.cli import ArgumentParser, command_line, run
 from ssbl_pb.errors import UserError
+from ssbl_pb.files import source_commit
 
 ROOT = Path(__file__).resolve().parents[1]
 PETS = ROOT.parent / "shared" / "data" / "video" / "pets2009_s2l1"
 PETS_FPS = 7.0  # PETS 2009 frame rate (vtest.avi's header says 10; tools/bench_tracking.py)
-
-
-def commit() -> str | None:
-    """The checkout's short commit (with ``+`` when it has changes), or None outside git."""
-    try:
-        head = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"], capture_output=True,
-                              text=True, check=True).stdout.strip()
-        dirty = subprocess.run(["git", "-C", str(ROOT), "status", "--porcelain", "--untracked-files=no"],
-                               capture_output=True, text=True, check=True).stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        return None
-    return head + ("+" if dirty else "")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -75,7 +63,7 @@ def main(argv: list[str] | None = None) -> int:
     cv2.setNumThreads(1)  # tools/track.py's timing: one core
     t0 = time.time()
     report = run_bench(video, calib, gt, args.start, args.stop, PETS_FPS, params)
-    report.update({"command": command_line("tools/bench_pets_facing.py", argv), "commit": commit(),
+    report.update({"command": command_line("tools/bench_pets_facing.py", argv), "commit": source_commit(),
                    "date": time.strftime("%Y-%m-%d %H:%M"), "start": args.start,
                    "stop": args.start + report["forward"]["run"]["frames"], "seconds": round(time.time() - t0)})
     write_json(args.out.with_suffix(".json"), report)

@@ -6,12 +6,14 @@ Examples:
     python tools/train_pb.py --config configs/vector_lstm.yaml --total-steps 200000
     python tools/train_pb.py --scenario mixed --out runs/mixed --set reward.w_smooth=0.1
     python tools/train_pb.py --resume runs/ppo_vector          # continue a killed run
+    python tools/train_pb.py --recipe configs/recipes/vector.yaml --seed 1   # the shipped policy's stages, in one
     tensorboard --logdir runs/                                   # watch
 """
 
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 from ssbl_pb.cli import ArgumentParser, fail, int_at_least, int_in, run
 from ssbl_pb.training.config import SEED_MAX
@@ -40,7 +42,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--resume", type=Path, metavar="RUN_DIR", help="continue a run from its last checkpoint")
     ap.add_argument("--init-from", type=Path, metavar="RUN_DIR",
                     help="start from another run's final weights (fine-tuning with this config)")
+    ap.add_argument("--recipe", type=Path, metavar="YAML", help="run a recipe's stages one after another, each "
+                    "from the one before (configs/recipes/); the same command continues a stopped recipe; with "
+                    "--out (default runs/<name>_recipe) and --seed only")
     args = ap.parse_args(argv)
+    if args.recipe:
+        return _recipe(args)
 
     from ssbl_pb.training.config import load_config, parse_overrides, run_name
     from ssbl_pb.training.run import resume, train
@@ -65,6 +72,24 @@ def main(argv: list[str] | None = None) -> int:
                  "no evaluation yet (the run ended before eval_every steps)")
     print(f"{summary['steps']} steps in {summary['wall_time_s']} s ({summary['steps_per_s']} steps/s); {best_text} "
           f"-> {out}")
+    return 0
+
+
+def _recipe(args: Any) -> int:
+    from ssbl_pb.training.recipe import load_recipe, run_recipe
+
+    given = {"--config": args.config, "--resume": args.resume, "--set": args.set, "--init-from": args.init_from,
+             "--overwrite": args.overwrite, "--total-steps": args.total_steps, "--obs-mode": args.obs_mode,
+             "--encoder": args.encoder, "--policy": args.policy, "--scenario": args.scenario, "--n-envs": args.n_envs,
+             "--vec-env": args.vec_env}
+    others = [flag for flag, value in given.items() if value]
+    if others:
+        return fail(f"--recipe sets every stage itself; drop {', '.join(others)} (only --out and --seed apply)")
+    recipe = load_recipe(args.recipe)
+    out = args.out or ROOT / "runs" / f"{recipe.name}_recipe"
+    record = run_recipe(recipe, out, args.seed)
+    print(f"{record['total_steps']} steps in {len(record['stages'])} stages -> {out} (final model: "
+          f"{record['final_model']}; learning curve: {out / 'learning_curve.png'})")
     return 0
 
 

@@ -426,7 +426,7 @@ def resume(run_dir: Path, total_steps: int | None = None) -> dict[str, Any]:
         raise RunError(f"{run_dir}: not a run directory (no config.yaml){hint}")
     cfg = load_config(run_dir / "config.yaml", None if total_steps is None else {"total_steps": total_steps})
     model_path, norm_path, step = latest_checkpoint(run_dir)
-    if step >= cfg.total_steps and _finished_at(run_dir) == step:
+    if step >= cfg.total_steps and finished_at(run_dir) == step:
         raise RunError(f"{run_dir}: already finished ({step} of {cfg.total_steps} steps); nothing changed. To train "
                        f"it longer: --resume {run_dir} --total-steps N with N > {step}")
     torch.set_num_threads(cfg.torch_threads)
@@ -453,7 +453,7 @@ def resume(run_dir: Path, total_steps: int | None = None) -> dict[str, Any]:
     return _learn(cfg, run_dir, model, venv, step)
 
 
-def _finished_at(run_dir: Path) -> int | None:
+def finished_at(run_dir: Path) -> int | None:
     """The step ``summary.json`` records the run finished at (None: not finished, or unreadable)."""
     try:
         steps = json.loads((run_dir / "summary.json").read_text())["steps"]
