@@ -83,3 +83,17 @@ def test_the_command_line_refuses_flags_a_recipe_sets_itself(tmp_path: Path, cap
     assert tool.main(["--recipe", str(path), "--total-steps", "10", "--set", "seed=1"]) != 0
     assert "drop --set, --total-steps (only --out and --seed apply)" in capsys.readouterr().err
     assert not (ROOT / "runs" / "tiny_recipe").exists()
+
+
+def test_a_stage_knows_its_recipe_seed_and_commit(tmp_path: Path) -> None:
+    from ssbl_pb.training.recipe import provenance
+
+    stage = tmp_path / "out" / "01_first"
+    stage.mkdir(parents=True)
+    (stage / "config.yaml").write_text(yaml.safe_dump({**yaml.safe_load((ROOT / "configs" / "vector_ff.yaml")
+                                                                       .read_text()), "seed": 9}))
+    assert provenance(stage) == {"seed": 9, "recipe": None}  # a plain run
+    (stage.parent / "recipe.json").write_text(json.dumps({"recipe": "r.yaml", "seed": 9, "commit": "abc1234",
+                                                          "stages": [{"stage": "first", "dir": str(stage)}]}))
+    assert provenance(stage) == {"seed": 9, "recipe": "r.yaml", "recipe_seed": 9, "stage": "first",
+                                 "commit": "abc1234"}

@@ -80,8 +80,9 @@ def main(argv: list[str] | None = None) -> int:
 
     from ssbl_pb.agents.trained import copy_policy, load_trained, policy_env_kwargs, resolve_model
     from ssbl_pb.env.gymenv.approach import make_env
-    from ssbl_pb.files import make_stage_dir, write_json
+    from ssbl_pb.files import make_stage_dir, source_commit, write_json
     from ssbl_pb.policies import SHIPPED_DIR
+    from ssbl_pb.training.recipe import provenance
 
     if not args.name.isidentifier():
         raise UserError(f"--name {args.name!r}: expected a plain name (letters, digits, _)")
@@ -108,8 +109,8 @@ def main(argv: list[str] | None = None) -> int:
                                         for sc in worse) + "); nothing replaced (--force ships it anyway)")
         info = {"source_run": str(args.run), "source_model": str(model), "model": args.model,
                 "episodes": args.episodes, "seeds": [seeds[0], seeds[-1]], "results": results,
-                "replaced": current, "forced": bool(worse),
-                "command": command_line("tools/ship_policy.py", argv)}
+                "replaced": current, "forced": bool(worse), "training": provenance(args.run),
+                "commit": source_commit(), "command": command_line("tools/ship_policy.py", argv)}
         write_json(stage / "evaluation.json", info)
         old = SHIPPED_DIR / f".old-{args.name}"
         shutil.rmtree(old, ignore_errors=True)

@@ -141,3 +141,19 @@ def join_stages(recipe: Recipe, out: Path, seed: int | None) -> dict[str, Any]:
     write_json(out / "recipe.json", record)
     return record
 
+
+
+def provenance(run_dir: Path) -> dict[str, Any]:
+    """Where a run came from, for a shipped policy's record: its config's seed, and, when it is a stage of a
+    recipe (``run_recipe``'s folder holds its ``recipe.json``), the recipe, its seed and the commit it ran at."""
+    run_dir = Path(run_dir)
+    config = run_dir / "config.yaml"
+    out: dict[str, Any] = {"seed": load_config(config).seed if config.is_file() else None, "recipe": None}
+    record = run_dir.parent / "recipe.json"
+    try:
+        data = json.loads(record.read_text())
+        stage = next(s["stage"] for s in data["stages"] if Path(s["dir"]).resolve() == run_dir.resolve())
+    except (OSError, ValueError, KeyError, TypeError, StopIteration):
+        return out
+    return {**out, "recipe": data.get("recipe"), "recipe_seed": data.get("seed"), "stage": stage,
+            "commit": data.get("commit")}
