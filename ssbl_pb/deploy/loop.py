@@ -33,6 +33,7 @@ from ..errors import Terminated
 from ..params import RobotParams, SocialParams, WorldParams, _check, _positive
 from ..perception.groups.estimate import GroupModel, member_arrays
 from ..perception.groups.looks import ARRIVAL_MARGIN, CONFIRM_S, Looks, claim_rule
+from ..perception.groups.observation_model import PerceptionParams
 from .faults import EXIT_CODES, DeployFault, HumanTooClose, StaleFrame, StaleOdometry
 from .frames import Frames
 from .guards import Guards
@@ -53,13 +54,14 @@ class DeployParams:
     #   at members before a claim (up to LOOK_S each) and docks slowly: `mixed` lockstep joins took up to 57 s, and
     #   a five-person group approached from 6 m behind reached its place at 55 s, unclaimed when 60 s ran out
     settle_s: float = 0.5  # s standing still at start while the tracker confirms what is in view
-    search_turn: float = 0.5  # rad/s in place while fewer than two people are known (half NAOqi's default)
-    sidestep_s: float = 3.0  # s stepping sideways when one person hides the others (after a full turn) ...
-    sidestep_speed: float = 0.2  # m/s ... 0.6 m: at 3-5 m that opens a person's width between the lines of sight
+    # the search, written once where the simulator's observation model runs it too (``PerceptionParams``):
+    search_turn: float = PerceptionParams.search_turn  # rad/s in place while fewer than two people are known
+    sidestep_s: float = PerceptionParams.sidestep_s  # s stepping sideways when one person hides the others ...
+    sidestep_speed: float = PerceptionParams.sidestep_speed  # m/s ... 0.6 m: at 3-5 m that opens a person's width
     # ... up to this many in a row while that person stays the only one known: a pair in line 3-3.5 m ahead, one
     # sidestep opened too little (the observation model in the small map room: 9 % of 200 starts searched the whole
     # episode); the camera faces that person, and so the one behind, all the way
-    sidestep_repeats: int = 3
+    sidestep_repeats: int = PerceptionParams.sidestep_repeats
     # s: success is claimed only when every member known was seen within this of the claim's first try (or since,
     # while the robot stays within the place's tolerance); else it looks at each one first (``looks.Looks``)
     confirm_s: float = CONFIRM_S

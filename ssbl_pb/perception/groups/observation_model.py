@@ -65,7 +65,8 @@ class PerceptionParams:
     facing_std_deg: float = 10.0  # deg: facing noise of a person whose front the camera sees ...
     facing_front_deg: float = 80.0  # ... within this angle of looking at the robot; from further round ...
     facing_back_std_deg: float = 30.0  # ... with this (inf: unknown)
-    search_turn: float = 0.5  # rad/s in place while fewer than two people are known (DeployParams.search_turn)
+    search_turn: float = 0.5  # rad/s in place while fewer than two people are known (half NAOqi's default; deploy
+    #   takes these search values as its own defaults, DeployParams)
     sidestep_s: float = 3.0  # s sideways after a full turn with one person known ... (DeployParams.sidestep_s)
     sidestep_speed: float = 0.2  # m/s ... (DeployParams.sidestep_speed)
     sidestep_repeats: int = 3  # ... up to this many in a row (DeployParams.sidestep_repeats)
