@@ -24,7 +24,6 @@ from scipy.optimize import linear_sum_assignment
 from ..perception.datasets.pets import load_ground_truth
 from ..perception.datasets.tsai import TsaiCamera
 from ..perception.tracking.pipeline import read_frames
-from ..perception.tracking.tracking_io import read_world, track_video
 
 MIN_SPEED = 0.5  # m/s: GT people walking at least this fast count
 HALF_WINDOW = 3  # frames each side of the central difference (0.43 s at PETS' 7 frames/s)
@@ -119,6 +118,9 @@ def run(video: str | Path, calib: str | Path, gt_path: str | Path, start: int, s
         params: dict[str, Any] | None = None, progress: bool = False) -> dict[str, Any]:
     """``tracking_io.track_video`` (tools/track.py's code path) over frames ``[start, stop)`` forward and over a
     reversed copy, each scored by ``facing_errors``; the reversed run's frames mapped back to the video's."""
+    # lazy: optional, tools/track.py's code path needs motmetrics (the tracking extra)
+    from ..perception.tracking.tracking_io import read_world, track_video
+
     camera = TsaiCamera.from_xml(calib)
     motion = gt_motion(load_ground_truth(gt_path), camera, fps)
     out: dict[str, Any] = {}

@@ -30,7 +30,6 @@ from ..perception.detection.movenet import MoveNetFacing
 from ..perception.detection.proxy_facing import estimate_facing
 from ..perception.groups.estimate import MIN_VISIBLE, TORSO_HALF, TORSO_HEIGHT, TRACKER, GroupTracker, Member
 from ..perception.tracking.tracker import TrackerParams
-from ..perception.tracking.tuning import MOVENET_DEFAULT, SSD_DEFAULT
 from ..urdf import HUMAN_COLOURS
 from .robot import Frame, Robot
 
@@ -137,6 +136,9 @@ def make_detector(name: str) -> tuple[Callable[[np.ndarray], np.ndarray], bool]:
         # Pepper's QVGA frames show a standing person 2-5 m away 100-250 px tall: downscales fit the 128 px window
         hog = HogDetector(HogParams(scales=(0.5, 0.7, 1.0)))
         return (lambda rgb: hog(np.ascontiguousarray(rgb[..., ::-1]))), False
+    if name in ("ssd", "movenet"):
+        # lazy: optional, the PETS-tuned settings' module needs motmetrics (the tracking extra)
+        from ..perception.tracking.tuning import MOVENET_DEFAULT, SSD_DEFAULT
     if name == "ssd":
         # thresholds as chosen on PETS, without its minimum height (people near the robot are large)
         return SsdDetector(dataclasses.replace(SSD_DEFAULT.ssd, min_height=0.0), rgb=True), False
