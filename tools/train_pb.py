@@ -14,7 +14,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ssbl_pb.cli import ArgumentParser, fail, int_at_least, int_in, run
-from ssbl_pb.training.config import SEED_MAX
+from ssbl_pb.training.config import SEED_MAX, load_config, parse_overrides, run_name
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -42,8 +42,7 @@ def main(argv: list[str] | None = None) -> int:
                     help="start from another run's final weights (fine-tuning with this config)")
     args = ap.parse_args(argv)
 
-    from ssbl_pb.training.config import load_config, parse_overrides, run_name
-    from ssbl_pb.training.run import resume, train
+    from ssbl_pb.training.run import resume, train  # lazy: torch and SB3 (~3 s), which --help does without
 
     if args.resume:
         if args.overwrite or args.init_from or args.config or args.set:
