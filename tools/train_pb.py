@@ -42,11 +42,11 @@ def main(argv: list[str] | None = None) -> int:
                     help="start from another run's final weights (fine-tuning with this config)")
     args = ap.parse_args(argv)
 
-    from ssbl_pb.training.run import resume, train  # lazy: torch and SB3 (~3 s), which --help does without
-
     if args.resume:
         if args.overwrite or args.init_from or args.config or args.set:
             return fail("--resume continues a run with its own config; drop --config/--set/--init-from/--overwrite")
+        from ssbl_pb.training.run import resume  # lazy: torch and SB3 (~3 s), which --help does without
+
         summary = resume(args.resume, args.total_steps)
         out = args.resume
     else:
@@ -58,6 +58,8 @@ def main(argv: list[str] | None = None) -> int:
         cfg = load_config(config, over, env_check=True)
         cfg = run_name(cfg, load_config(config), "name" in over)
         out = args.out or ROOT / "runs" / cfg.name
+        from ssbl_pb.training.run import train  # lazy: as above, and a config error comes before them
+
         summary = train(cfg, out, args.overwrite, args.init_from)
     best = summary.get("best_eval")
     best_text = (f"best eval success {best['success_rate']:.0%}" if best else
