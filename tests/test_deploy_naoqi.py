@@ -231,12 +231,11 @@ def test_a_failure_in_set_up_after_connecting_leaves_no_subscription_and_no_fold
     """Everything after connecting (the detector, the log folder, run.json) is inside the ``try`` that closes the
     robot: a detector package missing releases the camera and leaves no log folder (nor the parents it made)."""
     from ssbl_pb.deploy import __main__ as deploy
-    from ssbl_pb.deploy import perceive
 
     def missing(*args, **kwargs):
         raise ImportError("No module named 'a_detector_package'")
 
-    monkeypatch.setattr(perceive, "Perception", missing)
+    monkeypatch.setattr(deploy, "Perception", missing)
     log = tmp_path / "vp.jsonl"
     handlers = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGHUP)}
     switch = sys.getswitchinterval()

@@ -10,7 +10,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ssbl_pb.analysis.study import analyze, markdown, plot
 from ssbl_pb.cli import ArgumentParser, run
+from ssbl_pb.files import check_output_path, output_dir, write_json, write_text
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -19,9 +21,6 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--conditions", nargs=2, metavar=("A", "B"), help="the two conditions (A - B is tested)")
     ap.add_argument("--out", type=Path, default=Path("results/study"))
     args = ap.parse_args(argv)
-
-    from ssbl_pb.analysis.study import analyze, markdown, plot
-    from ssbl_pb.files import check_output_path, output_dir, write_json, write_text
 
     check_output_path(args.out)
     res = analyze(args.ratings, tuple(args.conditions) if args.conditions else None)

@@ -14,7 +14,9 @@ import os
 import platform
 from pathlib import Path
 
+from ssbl_pb.analysis.report import write_json
 from ssbl_pb.cli import ArgumentParser, int_at_least, run
+from ssbl_pb.files import check_output_path
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -31,12 +33,10 @@ def main(argv: list[str] | None = None) -> int:
                     help="also time evaluating the shipped policy on this many episodes (0: skip; default 200)")
     args = ap.parse_args(argv)
 
-    from ssbl_pb.files import check_output_path
-
     check_output_path(args.out, is_dir=False)
     if not args.all_cores and hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})
-    from ssbl_pb.analysis.report import write_json
+    # lazy: torch, SB3 and the renderer (~3 s), which --help does without
     from ssbl_pb.bench.simulator import evaluation_seconds, people_frame_rates, simulator_rates
 
     r = simulator_rates(args.steps, args.frames)

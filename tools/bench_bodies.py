@@ -16,6 +16,7 @@ import sys
 from pathlib import Path
 
 from ssbl_pb.cli import ArgumentParser, int_at_least, run
+from ssbl_pb.files import check_output_path, write_json, write_text
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -27,11 +28,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, default=ROOT / "results" / "bench_bodies",
                     help="results stem: OUT.json and OUT.md (default results/bench_bodies)")
     args = ap.parse_args(argv)
-    from ssbl_pb.files import check_output_path, write_json, write_text
-
     for suffix in (".json", ".md"):
         check_output_path(args.out.with_suffix(suffix), is_dir=False)
-    from ssbl_pb.bench import body_detection as bd
+    from ssbl_pb.bench import body_detection as bd  # lazy: the renderer and MoveNet (~1.7 s), not for --help
 
     detect = bd.movenet_detector()  # raises naming the install command when MoveNet is missing
     single = bd.single(detect)

@@ -21,7 +21,9 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from ssbl_pb.cli import ArgumentParser, run
+from ssbl_pb.cli import ArgumentParser, make_bar, run
+from ssbl_pb.errors import UserError
+from ssbl_pb.files import check_output_path, write_json
 
 PARTS = ("encoders", "throughput", "autoencoders", "probe", "precision", "jitter", "tracking", "pets")
 
@@ -39,9 +41,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--threads", type=int, default=2, help="torch threads (default 2)")
     args = ap.parse_args(argv)
 
-    from ssbl_pb.errors import UserError
-    from ssbl_pb.files import check_output_path, write_json
-    from ssbl_pb.perception.autoencoding.ae_train import read_checkpoint
+    from ssbl_pb.perception.autoencoding.ae_train import read_checkpoint  # lazy: torch (~2 s), not for --help
 
     parts = args.only.split(",") if args.only else list(PARTS)
     if bad := sorted(set(parts) - set(PARTS)):
@@ -62,7 +62,7 @@ def main(argv: list[str] | None = None) -> int:
     check_output_path(args.out, "--out", is_dir=False)
     frames = None
     if args.frames is not None and {"probe", "precision", "jitter", "tracking"} & set(parts):
-        from ssbl_pb.analysis.frames import load_frames
+        from ssbl_pb.analysis.frames import load_frames  # lazy: the env, for these parts only
 
         frames = load_frames(args.frames, 64)
 
@@ -70,7 +70,7 @@ def main(argv: list[str] | None = None) -> int:
 
     import torch
 
-    from ssbl_pb.bench import camera as cb
+    from ssbl_pb.bench import camera as cb  # lazy: torch and SB3, not for --help
 
     torch.set_num_threads(args.threads)
     res: dict = {"threads": args.threads, "load_average_at_start": [round(v, 2) for v in os.getloadavg()]}
@@ -93,7 +93,7 @@ def main(argv: list[str] | None = None) -> int:
     if "tracking" in parts:
         res["tracking_saev"] = cb.keypoint_tracking(frames, str(args.saev))
     if "pets" in parts:
-        from ssbl_pb.cli import make_bar
+        # lazy: optional, PETS scoring needs motmetrics (the tracking extra)
         from ssbl_pb.perception.autoencoding.pets_saev import pets_saev
 
         bar = make_bar(args.pets_steps, "SAEV on PETS", "step")

@@ -27,9 +27,17 @@ import os
 import shutil
 from pathlib import Path
 
+from ssbl_pb.agents.trained import policy_groups
+from ssbl_pb.analysis.evaluation import check_policy_spec
+from ssbl_pb.bench import deploy as bench
+from ssbl_pb.bench import deploy_faults
+from ssbl_pb.bench.deploy_faults import FAULTS, WALKER_FAULTS
 from ssbl_pb.cli import ArgumentParser, float_in, int_at_least, progress_bar, run
 from ssbl_pb.core.layouts import GROUP_MODELS
+from ssbl_pb.deploy.perceive import DETECTORS
+from ssbl_pb.env.rooms.scenarios import ScenarioMix
 from ssbl_pb.errors import UserError
+from ssbl_pb.files import check_output_path, write_json, write_text
 
 ROOT = Path(__file__).resolve().parents[1]
 MARKER = ".bench_deploy"  # in OUT/: the entries this tool wrote there, one name a line after the header
@@ -66,9 +74,6 @@ def _record(logs: Path, name: str) -> Path:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from ssbl_pb.bench.deploy_faults import FAULTS, WALKER_FAULTS
-    from ssbl_pb.deploy.perceive import DETECTORS
-
     ap = ArgumentParser(description=__doc__)
     ap.add_argument("--runs", type=int_at_least(0), default=20, help="seeded approaches (default 20)")
     ap.add_argument("--seed", type=int_at_least(0), default=500_000, help="first held-out seed (>= 0)")
@@ -93,15 +98,10 @@ def main(argv: list[str] | None = None) -> int:
     bad = sorted(set(faults) - set(FAULTS))
     if bad:
         raise UserError(f"--faults {','.join(bad)}: expected a comma list of {', '.join(FAULTS)}, or none")
-    from ssbl_pb.analysis.evaluation import check_policy_spec
-    from ssbl_pb.env.rooms.scenarios import ScenarioMix
-    from ssbl_pb.files import check_output_path
 
     ScenarioMix(args.scenario)  # a bad name fails here, before any folder exists
     check_policy_spec(args.policy)
     if args.groups is None:
-        from ssbl_pb.agents.trained import policy_groups
-
         args.groups = policy_groups(args.policy)
     check_output_path(args.out.with_suffix(".json"), is_dir=False)
     check_output_path(args.out.with_suffix(".md"), is_dir=False)
@@ -113,10 +113,6 @@ def main(argv: list[str] | None = None) -> int:
     fault_runs = [(f, k, f"fault_{f}" + (f"_{k:02d}" if k else "")) for f in faults for k in range(repeats[f])]
     planned = [f"run{i:02d}" for i in range(args.runs)] + [name for *_, name in fault_runs] + ["soak"] * (args.soak > 0)
     written = _written_before(logs, planned)
-
-    from ssbl_pb.bench import deploy as bench
-    from ssbl_pb.bench import deploy_faults
-    from ssbl_pb.files import write_json, write_text
 
     for old in written:  # what an earlier benchmark wrote into the same folder, and only that
         shutil.rmtree(old) if old.is_dir() and not old.is_symlink() else old.unlink()

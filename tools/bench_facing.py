@@ -17,6 +17,8 @@ import sys
 from pathlib import Path
 
 from ssbl_pb.cli import ArgumentParser, int_at_least, progress_bar, run
+from ssbl_pb.files import check_output_path, write_json, write_text
+from ssbl_pb.perception.detection.proxy_facing import FacingParams
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -29,14 +31,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, default=ROOT / "results" / "bench_facing",
                     help="results stem: OUT.json and OUT.md (default results/bench_facing)")
     args = ap.parse_args(argv)
-    from ssbl_pb.files import check_output_path, write_json, write_text
-
     for suffix in (".json", ".md"):
         check_output_path(args.out.with_suffix(suffix), is_dir=False)
     import numpy as np
 
-    from ssbl_pb.bench.facing import markdown, run_bench, summarise
-    from ssbl_pb.perception.detection.proxy_facing import FacingParams
+    from ssbl_pb.bench.facing import markdown, run_bench, summarise  # lazy: the renderer and tracker, not for --help
 
     with progress_bar(3 * args.frames, "frames", "frame") as bar:
         samples, seconds = run_bench(args.frames, args.seed, progress=bar)

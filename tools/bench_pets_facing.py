@@ -18,9 +18,13 @@ import sys
 import time
 from pathlib import Path
 
+import cv2
+
+from ssbl_pb.bench.pets_facing import markdown
+from ssbl_pb.bench.pets_facing import run as run_bench
 from ssbl_pb.cli import ArgumentParser, command_line, run
 from ssbl_pb.errors import UserError
-from ssbl_pb.files import source_commit
+from ssbl_pb.files import check_output_path, source_commit, write_json, write_text
 
 ROOT = Path(__file__).resolve().parents[1]
 PETS = ROOT.parent / "shared" / "data" / "video" / "pets2009_s2l1"
@@ -37,7 +41,6 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, default=ROOT / "results" / "tracking" / "facing_pets",
                     help="results stem: OUT.json and OUT.md (default results/tracking/facing_pets)")
     args = ap.parse_args(argv)
-    from ssbl_pb.files import check_output_path, write_json, write_text
 
     data = Path(args.data)
     video, gt, calib = data / "vtest.avi", data / "PETS2009-S2L1.xml", data / "View_001_tsai_calibration.xml"
@@ -55,11 +58,6 @@ def main(argv: list[str] | None = None) -> int:
             raise UserError(f"--params {args.params}: cannot read pipeline parameters as JSON ({exc})") from exc
     for suffix in (".json", ".md"):
         check_output_path(args.out.with_suffix(suffix), is_dir=False)
-    import cv2
-
-    from ssbl_pb.bench.pets_facing import markdown
-    from ssbl_pb.bench.pets_facing import run as run_bench
-
     cv2.setNumThreads(1)  # tools/track.py's timing: one core
     t0 = time.time()
     report = run_bench(video, calib, gt, args.start, args.stop, PETS_FPS, params)

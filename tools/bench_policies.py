@@ -14,8 +14,12 @@ import os
 from pathlib import Path
 from typing import Any
 
+from ssbl_pb.agents.rollout import run_episodes
+from ssbl_pb.analysis.evaluation import Setup, check_policy_spec
+from ssbl_pb.analysis.report import summarize, write_json
 from ssbl_pb.cli import ArgumentParser, int_at_least, progress_bar, run
 from ssbl_pb.errors import UserError
+from ssbl_pb.files import check_output_path, output_dir, write_text
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -34,11 +38,6 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, default=ROOT / "results" / "bench_policies",
                     help="results stem: OUT.json and OUT.md (default results/bench_policies)")
     args = ap.parse_args(argv)
-
-    from ssbl_pb.agents.rollout import run_episodes
-    from ssbl_pb.analysis.evaluation import Setup, check_policy_spec
-    from ssbl_pb.analysis.report import summarize, write_json
-    from ssbl_pb.files import check_output_path, output_dir, write_text
 
     pols, scs = args.policies.split(","), args.scenarios.split(",")
     percs = args.perception.split(",")

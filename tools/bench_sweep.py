@@ -13,8 +13,11 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from ssbl_pb.bench.sweep_pool import bench_pool, markdown
 from ssbl_pb.cli import ArgumentParser, command_line, int_at_least, run
 from ssbl_pb.errors import UserError
+from ssbl_pb.files import check_output_path, write_json, write_text
+from ssbl_pb.sweep import load_spec
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -28,10 +31,6 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     if args.out.suffix != ".json":
         raise UserError(f"--out {args.out}: expected a .json file name")
-
-    from ssbl_pb.bench.sweep_pool import bench_pool, markdown
-    from ssbl_pb.files import check_output_path, write_json, write_text
-    from ssbl_pb.sweep import load_spec
 
     spec = load_spec(args.spec)
     check_output_path(args.out, "--out", is_dir=False)

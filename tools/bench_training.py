@@ -20,7 +20,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ssbl_pb.analysis.report import write_json
 from ssbl_pb.cli import ArgumentParser, UserError, int_at_least, run
+from ssbl_pb.files import check_output_path
+from ssbl_pb.training.config import load_config, parse_overrides
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -42,10 +45,7 @@ def main(argv: list[str] | None = None) -> int:
     if bad or not settings:
         raise UserError(f"--settings {args.settings!r}: expected a comma list of {SETTINGS}")
 
-    from ssbl_pb.analysis.report import write_json
-    from ssbl_pb.bench.training import CONFIG, measure
-    from ssbl_pb.files import check_output_path
-    from ssbl_pb.training.config import load_config, parse_overrides
+    from ssbl_pb.bench.training import CONFIG, measure  # lazy: torch and SB3 (~3 s), which --help does without
 
     check_output_path(args.out, is_dir=False)
     overrides = parse_overrides(args.set)

@@ -16,7 +16,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ssbl_pb.analysis.evaluation import check_policy_spec
+from ssbl_pb.analysis.frames import check_hfov, collect, save_frames
 from ssbl_pb.cli import ArgumentParser, int_at_least, progress_bar, run
+from ssbl_pb.env.rooms.scenarios import ScenarioMix
+from ssbl_pb.errors import UserError
+from ssbl_pb.files import check_output_path
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -33,11 +38,6 @@ def main(argv: list[str] | None = None) -> int:
                          "Unity camera: 26.5). The encoder trained on these frames keeps it")
     args = ap.parse_args(argv)
 
-    from ssbl_pb.analysis.evaluation import check_policy_spec
-    from ssbl_pb.analysis.frames import check_hfov, collect, save_frames
-    from ssbl_pb.errors import UserError
-    from ssbl_pb.files import check_output_path
-
     if args.out.suffix != ".npz":
         raise UserError(f"--out {args.out}: expected a .npz file name")
     if not 16 <= args.size <= 256:
@@ -51,8 +51,6 @@ def main(argv: list[str] | None = None) -> int:
         check_policy_spec(p)
     check_hfov(args.camera_hfov)
     check_output_path(args.out, "--out", is_dir=False)
-    from ssbl_pb.env.rooms.scenarios import ScenarioMix
-
     ScenarioMix(args.scenario)  # a bad scenario fails before any episode
     with progress_bar(args.episodes, "collect frames") as bar:
         data = collect(args.episodes, args.size, args.seed, policies, args.scenario, bar, args.camera_hfov)

@@ -15,7 +15,14 @@ import os
 from pathlib import Path
 from typing import Any
 
+from ssbl_pb.agents.rollout import run_episodes
+from ssbl_pb.analysis.compare import SOCIAL, compare_rows, markdown_table, plot_speed_vs_distance
+from ssbl_pb.analysis.evaluation import Setup, build_policy, check_policy_spec, outcome
+from ssbl_pb.analysis.report import plot_paths, write_json
+from ssbl_pb.analysis.video import record_episode, write_mp4
 from ssbl_pb.cli import ArgumentParser, int_at_least, progress_bar, run
+from ssbl_pb.env.gymenv.approach import make_env
+from ssbl_pb.files import check_output_path, output_dir, write_text
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -32,10 +39,6 @@ def main(argv: list[str] | None = None) -> int:
                     help="starts drawn side by side and rendered as mp4 pairs (default 3)")
     ap.add_argument("--workers", type=int_at_least(0), default=0, help="processes (default 0: all cores)")
     args = ap.parse_args(argv)
-
-    from ssbl_pb.agents.rollout import run_episodes
-    from ssbl_pb.analysis.evaluation import Setup, check_policy_spec
-    from ssbl_pb.files import check_output_path, output_dir
 
     workers = args.workers or os.cpu_count() or 1
     check_policy_spec(args.policy)
@@ -57,13 +60,6 @@ def main(argv: list[str] | None = None) -> int:
 
 def report(args: Any, results: dict[str, list[Any]], seeds: range) -> None:
     """comparison.json, paths.png, speed_vs_distance.png, videos/ and report.md in ``args.out``."""
-    from ssbl_pb.analysis.compare import SOCIAL, compare_rows, markdown_table, plot_speed_vs_distance
-    from ssbl_pb.analysis.evaluation import build_policy, outcome
-    from ssbl_pb.analysis.report import plot_paths, write_json
-    from ssbl_pb.analysis.video import record_episode, write_mp4
-    from ssbl_pb.env.gymenv.approach import make_env
-    from ssbl_pb.files import write_text
-
     rows = {k: [r.metrics for r in v] for k, v in results.items()}
     cmp = compare_rows(rows["learned"], rows["sffm"])
     better = [k for k in SOCIAL if cmp[k]["better"] == "learned"]

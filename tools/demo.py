@@ -10,7 +10,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ssbl_pb.analysis.evaluation import build_policy, check_policy_spec
+from ssbl_pb.analysis.video import contact_sheet, record_episode, save_png, write_mp4
 from ssbl_pb.cli import ArgumentParser, int_at_least, int_in, run
+from ssbl_pb.env.gymenv.approach import make_env
+from ssbl_pb.files import check_output_path, output_dir
 from ssbl_pb.params import APPEARANCES
 
 
@@ -23,11 +27,6 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--appearance", choices=APPEARANCES, default="body",
                     help="how the people look: body (default) or proxy (boxes)")
     args = ap.parse_args(argv)
-
-    from ssbl_pb.analysis.evaluation import build_policy, check_policy_spec
-    from ssbl_pb.analysis.video import contact_sheet, record_episode, save_png, write_mp4
-    from ssbl_pb.env.gymenv.approach import make_env
-    from ssbl_pb.files import check_output_path, output_dir
 
     check_policy_spec(args.policy)
     check_output_path(args.out)

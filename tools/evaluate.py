@@ -13,6 +13,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+from ssbl_pb.analysis.evaluation import Setup, evaluate
 from ssbl_pb.cli import ArgumentParser, int_at_least, progress_bar, run
 
 
@@ -46,8 +47,6 @@ def main(argv: list[str] | None = None) -> int:
                        ("groups", "tools/calibrate_groups.py")):
         ap.add_argument(f"--{name}-yaml", help=f"calibrated {name} parameters ({what}'s output)")
     args = ap.parse_args(argv)
-
-    from ssbl_pb.analysis.evaluation import Setup, evaluate
 
     workers = args.workers or ((os.cpu_count() or 1) if args.episodes >= 40 else 1)
     calib = tuple((f"{k}_yaml", v) for k in ("camera", "robot", "social", "room", "groups")

@@ -18,6 +18,9 @@ from pathlib import Path
 from ssbl_pb.calib.io import check_outputs
 from ssbl_pb.calib.room_map import extract_room, read_map, room_figure, room_yaml
 from ssbl_pb.cli import ArgumentParser, UserError, run
+from ssbl_pb.env.rooms.obstacles import box_rows
+from ssbl_pb.env.rooms.rooms import Room
+from ssbl_pb.env.rooms.spawn import fitting_sizes
 from ssbl_pb.files import write_yaml
 
 
@@ -57,12 +60,6 @@ def main(argv: list[str] | None = None) -> int:
 
 def fits(data: dict) -> list[int]:
     """Group sizes the simulator can place in the room with the robot (``env.rooms.spawn.fitting_sizes``)."""
-    import math
-
-    from ssbl_pb.env.rooms.obstacles import box_rows
-    from ssbl_pb.env.rooms.rooms import Room
-    from ssbl_pb.env.rooms.spawn import fitting_sizes
-
     boxes = [[x, y, sx, sy, math.radians(yaw)] for x, y, sx, sy, yaw in data["obstacles"]["boxes"]]
     size = tuple(data["world"]["room_size"])
     return fitting_sizes(Room(size, box_rows(boxes) if boxes else None, "imported"))

@@ -15,8 +15,13 @@ import math
 import os
 from pathlib import Path
 
+from ssbl_pb.analysis.compare_plot import plot_summaries
+from ssbl_pb.analysis.evaluation import Setup, build_policy, evaluate
+from ssbl_pb.analysis.video import record_episode, write_mp4
 from ssbl_pb.cli import ArgumentParser, int_at_least, int_in, progress_bar, run
-from ssbl_pb.training.config import SEED_MAX
+from ssbl_pb.env.gymenv.approach import make_env
+from ssbl_pb.files import check_output_path, write_text
+from ssbl_pb.training.config import SEED_MAX, load_config
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -30,12 +35,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int_in(0, SEED_MAX), default=0)
     args = ap.parse_args(argv)
 
-    from ssbl_pb.analysis.compare_plot import plot_summaries
-    from ssbl_pb.analysis.evaluation import Setup, build_policy, evaluate
-    from ssbl_pb.analysis.video import record_episode, write_mp4
-    from ssbl_pb.env.gymenv.approach import make_env
-    from ssbl_pb.files import check_output_path, write_text
-    from ssbl_pb.training.run import load_config, train
+    from ssbl_pb.training.run import train  # lazy: torch and SB3 (~3 s), which --help does without
 
     check_output_path(args.out)
     over = {"seed": args.seed, "name": "quickstart"}

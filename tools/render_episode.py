@@ -12,7 +12,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ssbl_pb.analysis.evaluation import build_policy, check_policy_spec, outcome
+from ssbl_pb.analysis.video import contact_sheet, record_episode, save_png, write_mp4
 from ssbl_pb.cli import ArgumentParser, fail, int_at_least, int_in, run
+from ssbl_pb.env.gymenv.approach import make_env
+from ssbl_pb.files import check_output_path, output_dir
 from ssbl_pb.params import APPEARANCES
 
 
@@ -28,11 +32,6 @@ def main(argv: list[str] | None = None) -> int:
                     "(default: body with --first-person, else proxy)")
     args = ap.parse_args(argv)
     look = args.appearance or ("body" if args.first_person else "proxy")
-
-    from ssbl_pb.analysis.evaluation import build_policy, check_policy_spec, outcome
-    from ssbl_pb.analysis.video import contact_sheet, record_episode, save_png, write_mp4
-    from ssbl_pb.env.gymenv.approach import make_env
-    from ssbl_pb.files import check_output_path, output_dir
 
     if args.out.suffix != ".mp4":
         return fail(f"--out {args.out}: expected a .mp4 file name")

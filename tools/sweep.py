@@ -21,7 +21,10 @@ import time
 from pathlib import Path
 
 from ssbl_pb.cli import ArgumentParser, command_line, run
-from ssbl_pb.sweep.cli import add_run_options
+from ssbl_pb.files import output_dir, write_json
+from ssbl_pb.sweep import finished, load_spec
+from ssbl_pb.sweep.cli import TrialsRoot, add_run_options
+from ssbl_pb.sweep.summary import write_summary
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -31,11 +34,6 @@ def main(argv: list[str] | None = None) -> int:
     add_run_options(ap)
     ap.add_argument("--dry-run", action="store_true", help="check the spec and list the trials; run nothing")
     args = ap.parse_args(argv)
-
-    from ssbl_pb.files import output_dir, write_json
-    from ssbl_pb.sweep import finished, load_spec
-    from ssbl_pb.sweep.cli import TrialsRoot
-    from ssbl_pb.sweep.summary import write_summary
 
     where = TrialsRoot(args)
     spec = load_spec(args.spec)

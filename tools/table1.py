@@ -25,13 +25,14 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ssbl_pb.analysis.table1_rows import BUDGETS, ROWS, TABLE_CAMERA_HFOV, TABLE_FEATURE_SMOOTHING
 from ssbl_pb.cli import ArgumentParser, command_line, int_at_least, run
-from ssbl_pb.sweep.cli import add_run_options
+from ssbl_pb.errors import UserError
+from ssbl_pb.sweep import finished
+from ssbl_pb.sweep.cli import TrialsRoot, add_run_options
 
 
 def main(argv: list[str] | None = None) -> int:
-    from ssbl_pb.analysis.table1_rows import BUDGETS, ROWS, TABLE_CAMERA_HFOV, TABLE_FEATURE_SMOOTHING
-
     ap = ArgumentParser(description=__doc__)
     ap.add_argument("--budget", required=True, help=f"one of {', '.join(BUDGETS)}")
     ap.add_argument("--seeds", type=int, default=1, help="seeds per row (0 .. K-1; default 1)")
@@ -51,11 +52,10 @@ def main(argv: list[str] | None = None) -> int:
     add_run_options(ap)
     args = ap.parse_args(argv)
 
+    # lazy: torch, SB3 and the env (~3 s), which --help does without
     from ssbl_pb.analysis.frames import check_hfov
-    from ssbl_pb.analysis.table1 import check_given_encoders, find_row, get_budget
-    from ssbl_pb.env.gymenv.encoded import check_feature_smoothing
-    from ssbl_pb.errors import UserError
-    from ssbl_pb.sweep.cli import TrialsRoot
+    from ssbl_pb.analysis.table1 import check_given_encoders, find_row, get_budget  # lazy: as above
+    from ssbl_pb.env.gymenv.encoded import check_feature_smoothing  # lazy: as above
 
     budget = get_budget(args.budget)
     if args.seeds < 1:
@@ -70,9 +70,8 @@ def main(argv: list[str] | None = None) -> int:
 
     import torch
 
-    from ssbl_pb.analysis.table1 import prepare_encoders, row_trials
-    from ssbl_pb.analysis.table1_report import write_table
-    from ssbl_pb.sweep import finished
+    from ssbl_pb.analysis.table1 import prepare_encoders, row_trials  # lazy: as above
+    from ssbl_pb.analysis.table1_report import write_table  # lazy: as above
 
     torch.set_num_threads(args.threads)
     args.out.mkdir(parents=True, exist_ok=True)

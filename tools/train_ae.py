@@ -21,12 +21,24 @@ import shutil
 import sys
 from pathlib import Path
 
-from ssbl_pb.cli import ArgumentParser, command_line, int_at_least, run
+import torch
+
+from ssbl_pb.cli import ArgumentParser, command_line, int_at_least, make_bar, run
+from ssbl_pb.errors import UserError
+from ssbl_pb.files import check_output_path, output_dir
+from ssbl_pb.perception.autoencoding.ae_losses import LossWeights
+from ssbl_pb.perception.autoencoding.ae_train import (
+    AETrainParams,
+    checkpoint_info,
+    resume_state,
+    save_checkpoint,
+    split_centres,
+    train_autoencoder,
+)
+from ssbl_pb.perception.autoencoding.autoencoders import ARCHS, DEFAULT_SIZE, SIZES, build, get_size
 
 
 def main(argv: list[str] | None = None) -> int:
-    from ssbl_pb.perception.autoencoding.autoencoders import ARCHS, DEFAULT_SIZE, SIZES
-
     ap = ArgumentParser(description=__doc__)
     ap.add_argument("--frames", type=Path, required=True, help=".npz from tools/collect_frames.py")
     ap.add_argument("--arch", required=True, help=f"one of {', '.join(ARCHS)}")
@@ -51,11 +63,9 @@ def main(argv: list[str] | None = None) -> int:
                          "is that of an uninterrupted run")
     args = ap.parse_args(argv)
 
-    from ssbl_pb.analysis.frames import FramesError, load_frames
-    from ssbl_pb.errors import UserError
-    from ssbl_pb.perception.autoencoding.ae_losses import LossWeights
-    from ssbl_pb.perception.autoencoding.ae_train import AETrainParams, resume_state, split_centres
-    from ssbl_pb.perception.autoencoding.autoencoders import build, get_size
+    # lazy: the env and the renderer (~1.4 s on top of torch), which --help does without
+    from ssbl_pb.analysis.ae_report import write_report
+    from ssbl_pb.analysis.frames import FramesError, load_frames  # lazy: as above
 
     model_size = build(args.arch, args.size).size.name  # unknown arch / size: exit 2 before reading anything
     params = AETrainParams(steps=args.steps, batch=args.batch, lr=args.lr, seed=args.seed,
@@ -66,8 +76,6 @@ def main(argv: list[str] | None = None) -> int:
         raise UserError(f"--snapshot-every {args.snapshot_every}: expected 0 or a multiple of the evaluation "
                         f"interval {params.eval_every}")
     if args.resume:  # a missing or foreign snapshot fails before the frames are read
-        from ssbl_pb.perception.autoencoding.ae_train import checkpoint_info
-
         if "resume" not in checkpoint_info(args.resume, "--resume")["extra"]:
             raise UserError(f"--resume {args.resume}: holds no training state (a snapshot of --snapshot-every does)")
     data = load_frames(args.frames, get_size(args.size).input_size)
@@ -78,13 +86,6 @@ def main(argv: list[str] | None = None) -> int:
     resumed_at = 0
     if args.resume:  # the snapshot continues this run (settings, frames): checked before any output
         resumed_at = int(resume_state(args.resume, args.arch, model_size, params, len(data["frames"]))["step"])
-
-    import torch
-
-    from ssbl_pb.analysis.ae_report import write_report
-    from ssbl_pb.cli import make_bar
-    from ssbl_pb.files import check_output_path, output_dir
-    from ssbl_pb.perception.autoencoding.ae_train import save_checkpoint, train_autoencoder
 
     torch.set_num_threads(max(1, args.threads))
     created, snapshots = not args.out.exists(), []

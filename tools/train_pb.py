@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from ssbl_pb.cli import ArgumentParser, fail, int_at_least, int_in, run
-from ssbl_pb.training.config import SEED_MAX
+from ssbl_pb.training.config import SEED_MAX, load_config, parse_overrides, run_name
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -49,12 +49,11 @@ def main(argv: list[str] | None = None) -> int:
     if args.recipe:
         return _recipe(args)
 
-    from ssbl_pb.training.config import load_config, parse_overrides, run_name
-    from ssbl_pb.training.run import resume, train
-
     if args.resume:
         if args.overwrite or args.init_from or args.config or args.set:
             return fail("--resume continues a run with its own config; drop --config/--set/--init-from/--overwrite")
+        from ssbl_pb.training.run import resume  # lazy: torch and SB3 (~3 s), which --help does without
+
         summary = resume(args.resume, args.total_steps)
         out = args.resume
     else:
@@ -66,6 +65,8 @@ def main(argv: list[str] | None = None) -> int:
         cfg = load_config(config, over, env_check=True)
         cfg = run_name(cfg, load_config(config), "name" in over)
         out = args.out or ROOT / "runs" / cfg.name
+        from ssbl_pb.training.run import train  # lazy: as above, and a config error comes before them
+
         summary = train(cfg, out, args.overwrite, args.init_from)
     best = summary.get("best_eval")
     best_text = (f"best eval success {best['success_rate']:.0%}" if best else
@@ -76,7 +77,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _recipe(args: Any) -> int:
-    from ssbl_pb.training.recipe import load_recipe, run_recipe
+    from ssbl_pb.training.recipe import load_recipe, run_recipe  # lazy: as above (training.run, torch and SB3)
 
     given = {"--config": args.config, "--resume": args.resume, "--set": args.set, "--init-from": args.init_from,
              "--overwrite": args.overwrite, "--total-steps": args.total_steps, "--obs-mode": args.obs_mode,

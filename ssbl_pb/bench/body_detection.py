@@ -22,6 +22,7 @@ from ..env.view.people import PeopleScene
 from ..env.view.world import World
 from ..params import HumansLook, WorldParams
 from ..perception.detection.learned import box_iou
+from ..perception.detection.movenet import selected
 from ..perception.tracking.tuning import MOVENET_DEFAULT
 
 DISTANCES = (1.0, 1.5, 2.0, 2.5, 3.0, 4.0, 5.0)  # m, base centre to the person
@@ -52,9 +53,8 @@ def best_score(boxes: np.ndarray, truth: np.ndarray) -> float:
 
 
 def movenet_detector() -> Callable[[np.ndarray], np.ndarray]:
-    """Deploy's MoveNet boxes for RGB frames (``movenet.selected``, the built-in pipeline's settings)."""
-    from ..perception.detection.movenet import selected  # ai-edge-litert and the weights: the tracking extra
-
+    """Deploy's MoveNet boxes for RGB frames (``movenet.selected``, the built-in pipeline's settings; needs
+    ai-edge-litert and the weights: the tracking extra)."""
     return selected(MOVENET_DEFAULT.ssd, rgb=True)
 
 

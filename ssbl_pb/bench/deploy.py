@@ -28,9 +28,18 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+from ..agents.trained import policy_env_kwargs, policy_groups
 from ..core.task import TaskParams
-from ..deploy.log import LOG, SUMMARY
-from ..virtual.pepper import load_log
+from ..deploy.frames import Frames, load_room
+from ..deploy.log import LOG, SUMMARY, RunLog, write_run, write_summary
+from ..deploy.loop import DeployLoop, DeployParams, Setup
+from ..deploy.perceive import Perception
+from ..deploy.policy import load_policy
+from ..params import RobotParams, SocialParams
+from ..virtual.pepper import load_log, state_row, write_room_map
+from ..virtual.robot import SimClock, SimRobot
+from ..virtual.walkers import make_walker
+from .perception_errors import analyse_folder, markdown_table, plot, pool, summarise
 
 
 def _module(name: str, *args: str) -> list[str]:
@@ -175,23 +184,11 @@ def lockstep_approach(folder: Path, seed: int, policy: Any = "vector", scenario:
     each tick's ground truth is logged at its tick's time. ``policy``: a spec as deploy's ``--policy`` or a
     policy object (``predict``); ``room_map`` and ``walker`` as ``run_approach``. Returns the outcome and the
     ground-truth score."""
-    from ..agents.trained import policy_env_kwargs, policy_groups
-    from ..core.task import TaskParams
-    from ..deploy.__main__ import _policy
-    from ..deploy.frames import Frames, load_room
-    from ..deploy.log import RunLog, write_run, write_summary
-    from ..deploy.loop import DeployLoop, DeployParams, Setup
-    from ..deploy.perceive import Perception
-    from ..params import RobotParams, SocialParams
-    from ..virtual.pepper import state_row, write_room_map
-    from ..virtual.robot import SimClock, SimRobot
-    from ..virtual.walkers import make_walker
-
     spec = isinstance(policy, str)
     groups = groups or (policy_groups(policy) if spec else "calibrated")
     robot_params, social, task, params = RobotParams(), SocialParams(), TaskParams(), DeployParams(
         duration_s=duration, status_s=0.0)
-    pol = _policy(policy, robot_params, social, task, params.stop_distance) if spec else policy
+    pol = load_policy(policy, robot_params, social, task, params.stop_distance) if spec else policy
     seen = policy_env_kwargs(policy) if spec and hasattr(pol, "model") else {}
     (folder / "deploy").mkdir(parents=True, exist_ok=True)
     (folder / "deploy" / LOG).unlink(missing_ok=True)  # RunLog appends
@@ -236,14 +233,7 @@ def perception_report(folders: list[Path], policy: str = "vector", figure: Path 
                       ) -> tuple[list[dict[str, Any] | None], dict[str, Any] | None]:
     """Perception's errors (``perception_errors``) of each run folder (None where it has no logs) and pooled
     over them, the policy's action difference with the policy ``policy``; ``figure``: the pooled figure."""
-    from ..agents.trained import policy_env_kwargs
-    from ..core.task import TaskParams
-    from ..deploy.__main__ import _policy
-    from ..deploy.loop import DeployParams
-    from ..params import RobotParams, SocialParams
-    from .perception_errors import analyse_folder, plot, pool, summarise
-
-    pol = _policy(policy, RobotParams(), SocialParams(), TaskParams(), DeployParams().stop_distance)
+    pol = load_policy(policy, RobotParams(), SocialParams(), TaskParams(), DeployParams().stop_distance)
     seen = policy_env_kwargs(policy) if hasattr(pol, "model") else {}
     waypoints = (bool(seen.get("waypoints", False)), bool(seen.get("waypoints_near_group", False)))
     parts = [analyse_folder(f, pol, waypoints=waypoints)
@@ -303,8 +293,6 @@ def markdown(res: dict[str, Any]) -> str:
                        f"{100 * (r.get('shield_intervention_rate') or 0):.0f} |")
         out.append("")
     if res.get("perception"):
-        from .perception_errors import markdown_table
-
         per = res["perception"]
         pos, ids, miss = per["position_error_m"], per["ids_per_member"], per["missed"]
         figure = f" Figure: `{res['perception_figure']}`." if res.get("perception_figure") else ""

@@ -13,8 +13,15 @@ import time
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
+from ..deploy.frames import Frames
 from ..deploy.log import LOG, SUMMARY
+from ..deploy.loop import DeployLoop, DeployParams, Setup
+from ..deploy.naoqi import IDENTITY, NaoqiRobot, import_qi
+from ..deploy.perceive import Perception
 from ..deploy.watchdog import RETRY_S
+from ..params import RobotParams
 from ..virtual.pepper import load_log
 from .deploy import lockstep_approach, run_approach, start_deploy, stop_times, virtual_pepper, wait_moving
 
@@ -124,8 +131,6 @@ def run_fault(fault: str, folder: Path, seed: int = 11, policy: str = "straight"
 def hang_stops_now(url: str, n: int) -> None:
     """Make the virtual Pepper at ``url`` leave its next ``n`` stopMove calls unanswered (``--hang-stops``, from
     now on)."""
-    from ..deploy.naoqi import IDENTITY, import_qi
-
     session = import_qi().Session()
     session.connect(url, _async=True).value(5000)
     try:
@@ -136,14 +141,6 @@ def hang_stops_now(url: str, n: int) -> None:
 
 def _policy_exception(url: str, vp_log: Path, stale: float) -> dict[str, Any]:
     """The loop in this process over qi, with a policy that raises after a second of driving."""
-    import numpy as np
-
-    from ..deploy.frames import Frames
-    from ..deploy.loop import DeployLoop, DeployParams, Setup
-    from ..deploy.naoqi import NaoqiRobot
-    from ..deploy.perceive import Perception
-    from ..params import RobotParams
-
     class Raising:
         calls, raised_at = 0, None
 

@@ -31,10 +31,13 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from ..core import observation as ob
+from ..core.layouts import member_keep_out
+from ..core.task import TaskParams
 from ..deploy.frames import Frames, inverse, load_room, transform_points
 from ..deploy.log import RUN, read_log
 from ..deploy.robot import compose
-from ..params import RobotParams
+from ..params import RobotParams, SocialParams
+from ..virtual.pepper import load_log
 
 VIEW_CLASSES = ("in_view", "edge", "occluded", "out_of_view")  # why a member may be missed, by the true geometry
 DISTANCE_BINS = (0.0, 1.0, 1.5, 2.0, 2.5, 3.0, 4.0, 6.0, math.inf)  # m, for position error against distance
@@ -320,11 +323,6 @@ def _copy_frames(fr: Frames) -> Frames:
 def analyse_folder(folder: Path, policy: Any = None, p: ErrorParams | None = None,
                    waypoints: tuple[bool, bool] = (False, False)) -> Samples:
     """``analyse`` of a benchmark run's folder (``deploy/`` and ``virtual_pepper.jsonl``, as ``bench`` writes)."""
-    from ..core.layouts import member_keep_out
-    from ..core.task import TaskParams
-    from ..params import SocialParams
-    from ..virtual.pepper import load_log
-
     folder = Path(folder)
     rows = read_log(folder / "deploy")
     start, states, _ = load_log(folder / "virtual_pepper.jsonl")

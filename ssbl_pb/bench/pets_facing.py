@@ -21,6 +21,7 @@ import cv2
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
+from ..perception.datasets.pets import load_ground_truth
 from ..perception.datasets.tsai import TsaiCamera
 from ..perception.tracking.pipeline import read_frames
 
@@ -117,7 +118,7 @@ def run(video: str | Path, calib: str | Path, gt_path: str | Path, start: int, s
         params: dict[str, Any] | None = None, progress: bool = False) -> dict[str, Any]:
     """``tracking_io.track_video`` (tools/track.py's code path) over frames ``[start, stop)`` forward and over a
     reversed copy, each scored by ``facing_errors``; the reversed run's frames mapped back to the video's."""
-    from ..perception.datasets.pets import load_ground_truth
+    # lazy: optional, tools/track.py's code path needs motmetrics (the tracking extra)
     from ..perception.tracking.tracking_io import read_world, track_video
 
     camera = TsaiCamera.from_xml(calib)

@@ -93,8 +93,6 @@ def people_frame_rates(n_frames: int = 200, sizes: tuple[tuple[int, int], ...] =
     """First-person frames per second with the five members of ``FIVE_IN_VIEW`` drawn as proxies and as bodies
     (``humans.appearance``), at each of ``sizes`` (w, h): ``people5_fps_{proxy,body}_{w}`` and the frame-time
     ratio ``people5_body_vs_proxy_time_{w}``. Each frame syncs the scene (as a moving group needs) and renders."""
-    from ..env.view.world import World
-
     out: dict[str, float] = {}
     worlds = {}
     for look in ("proxy", "body"):

@@ -15,11 +15,13 @@ import tempfile
 import time
 from pathlib import Path
 
+import cv2
 import numpy as np
 
 from ..cli import command_line
 from ..errors import UserError
 from ..files import write_json, write_text
+from ..perception.datasets.occlusion import FeetHidden, median_background
 from ..perception.datasets.pets import load_ground_truth
 from ..perception.datasets.tsai import TsaiCamera
 from ..perception.detection.detectors import HogParams
@@ -150,10 +152,6 @@ def parse_size(text: str) -> tuple[int, int]:
 def tune_detector(data: Path, out: Path, args: argparse.Namespace, argv: list[str] | None) -> int:
     """``--tune``: thresholds on frames 0-399 (feet visible and hidden), written to OUT/{detector}_params.json;
     frames 400-794 reported through tools/track.py's code path on one thread."""
-    import cv2
-
-    from ..perception.datasets.occlusion import FeetHidden, median_background
-
     det = args.detector
     init = default_params(det) if args.init == "default" else {"ssd": SSD_UNTUNED, "movenet": MOVENET_UNTUNED}.get(
         det, UNTUNED)
@@ -253,8 +251,6 @@ DETECTOR_INFO = {  # licence and the size of what carries the weights (measured 
 def compare(data: Path, out: Path, doc: Path, argv: list[str] | None, variants: list[str] = ()) -> int:
     """HOG, the SSD and MoveNet on PETS S2L1, feet visible and hidden; one thread; table into ``doc``.
     ``variants``: more rows, ``LABEL=PARAMS.json`` (pipeline parameters as ``--tune`` writes them)."""
-    import cv2
-
     video, gt_path, calib = pets_files(data)
     if missing(video, gt_path, calib):
         return 2

@@ -29,18 +29,26 @@ from typing import Any
 
 import numpy as np
 
+from ..agents.trained import policy_env_kwargs, policy_groups, resolve_model
 from ..cli import ArgumentParser, run
+from ..core import observation as ob
 from ..core.layouts import GROUP_MODELS
+from ..core.task import TaskParams
+from ..env.gymenv.approach import core_kwargs
 from ..errors import Terminated, UserError
 from ..files import check_output_path
+from ..params import RobotParams, SocialParams, WorldParams, from_dict
+from ..perception.camera import PinholeCamera
+from .frames import Frames, load_room
 from .log import LOG, RunLog, write_run, write_summary
-
-BASELINES = ("sffm", "straight", "random")
+from .loop import DeployLoop, DeployParams, Setup, status_printer
+from .naoqi import NaoqiRobot, check_watchdog, robot_url
+from .perceive import DETECTORS, Perception
+from .plot import draw
+from .policy import BASELINES, load_policy
 
 
 def _parser() -> argparse.ArgumentParser:
-    from .loop import DeployParams
-
     ap = ArgumentParser(prog="python -m ssbl_pb.deploy", description=__doc__)
     ap.add_argument("--robot-ip", help="the robot's address (NAOqi 2.5: tcp://IP:PORT)")
     ap.add_argument("--port", type=int, default=9559, help="NAOqi port (default 9559)")
@@ -93,13 +101,6 @@ def _number(flag: str, value: float, lo: float, hi: float, unit: str) -> None:
 
 def _params(args: argparse.Namespace) -> Any:
     """Every input checked before anything connects or is written: (params, robot, social, task, policy, frames)."""
-    from ..core.task import TaskParams
-    from ..env.gymenv.approach import core_kwargs
-    from ..params import RobotParams, SocialParams, from_dict
-    from .frames import Frames, load_room
-    from .loop import DeployParams
-    from .perceive import DETECTORS
-
     _number("--max-speed", args.max_speed, 0.0, 0.55, "m/s (Pepper's hardware max is 0.55)")
     args.rate = _rate(args.policy, args.rate)
     _number("--duration", args.duration, 0.0, 86400.0, "s")
@@ -125,40 +126,18 @@ def _params(args: argparse.Namespace) -> Any:
         start = np.array([x, y, math.radians(yaw)])
     frames = Frames(load_room(args.map) if args.map else None, start)
     frames.check_start()
-    policy = _policy(args.policy, robot, social, task, params.stop_distance)
+    policy = load_policy(args.policy, robot, social, task, params.stop_distance)
     if args.groups is None:
-        from ..agents.trained import policy_groups
-
         args.groups = policy_groups(args.policy)
     return params, robot, social, task, policy, frames
-
-
-def _policy(spec: str, robot: Any, social: Any, task: Any, stop_distance: float) -> Any:
-    """A baseline by name or a trained Vector model, its shield braking within this robot's limits and short of
-    the stop distance (``loop.deploy_shield``)."""
-    import gymnasium as gym
-
-    from ..agents.policies import make_policy
-    from ..agents.trained import load_trained, shield_at_place
-    from ..core import observation as ob
-    from .loop import deploy_shield
-
-    if spec in BASELINES:
-        return make_policy(spec, robot, social, seed=0, task=task)
-    space = gym.spaces.Box(-ob.OBS_LIMIT, ob.OBS_LIMIT, shape=(ob.OBS_SIZE,), dtype=np.float32)
-    return load_trained(spec, space, None, deploy_shield(robot, social, task, stop_distance, shield_at_place(spec)))
 
 
 def _rate(spec: str, rate: float | None) -> float:
     """The control rate: ``--rate`` checked, by default the policy's own (its config's ``env.world.dt``). A learned
     policy is refused any other: its action smoothing (alpha per step) and its shield (``control_period``) are
     those of its training period, and so is what it learned; baselines run at any rate up to 50 Hz."""
-    from ..params import WorldParams
-
     trained = None
     if spec not in BASELINES:
-        from ..agents.trained import resolve_model
-
         world = (resolve_model(spec)[2].get("env") or {}).get("world") or {}
         trained = 1.0 / float(world.get("dt", WorldParams.dt)) if isinstance(world, dict) else None
     if rate is None:
@@ -185,8 +164,6 @@ def _warm_up(policy: Any) -> None:
     first approach ticks took 306, 140 and 79 ms without it). Also one torch thread (a small MLP; more only
     contend with detection) and a 1 ms GIL switch interval, so the control thread gets the interpreter back
     within ~1 ms of each robot call while the detector thread runs Python (5 ms by default)."""
-    from ..core import observation as ob
-
     sys.setswitchinterval(0.001)
     if hasattr(policy, "model"):  # a trained model (baselines need no torch)
         import torch
@@ -211,8 +188,6 @@ def main(argv: list[str] | None = None) -> int:
         # the ssh connection to this machine dropping stops the run, as SIGTERM, even under nohup (cli.run leaves
         # an ignored SIGHUP ignored): a run nobody watches must not go on driving (tmux or screen outlive a drop)
         signal.signal(signal.SIGHUP, _hang_up)
-    from .naoqi import NaoqiRobot, robot_url
-
     url = robot_url(args.robot_ip, args.port, args.url)
     folder = args.log_dir or Path("runs") / time.strftime("deploy-%Y%m%d-%H%M%S")
     check_output_path(folder, "--log-dir")
@@ -239,12 +214,6 @@ def _new_folders(folder: Path) -> Path | None:
 
 def _run(args: argparse.Namespace, url: str, folder: Path, robot: Any, params: Any, robot_params: Any, social: Any,
          task: Any, policy: Any, frames: Any) -> int:
-    from ..agents.trained import policy_env_kwargs
-    from ..perception.camera import PinholeCamera
-    from .loop import DeployLoop, Setup, status_printer
-    from .naoqi import check_watchdog
-    from .perceive import Perception
-
     made = _new_folders(folder)
     try:  # set-up: a failure here leaves no folder behind (and main closes the robot)
         warning = check_watchdog(robot, url, args.no_watchdog)
@@ -281,8 +250,6 @@ def _run(args: argparse.Namespace, url: str, folder: Path, robot: Any, params: A
 
 def _finish(folder: Path, log: Any, loop: Any, frames: Any, perception: Any) -> None:
     """The summary and the paths' figure, once the base is stopped; neither may change how the run ended."""
-    from .plot import draw
-
     log.close()
     extra = {"stop": loop.stop_note or "stopMove answered", **frames.info(), "perception": perception.info()}
     if loop.shutdown_error:

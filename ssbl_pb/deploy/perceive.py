@@ -16,16 +16,21 @@ import threading
 from collections.abc import Callable
 from typing import Any
 
+import cv2
 import numpy as np
 
 from ..errors import UserError
 from ..params import RobotParams, SocialParams
 from ..perception.camera import PinholeCamera, sim_camera
-from ..perception.detection.facing import Facing
+from ..perception.detection.detectors import ColourDetector, HogDetector, HogParams
+from ..perception.detection.facing import Facing, facing_yaw
 from ..perception.detection.ground import ProxyGeometry, boxes_to_ground
+from ..perception.detection.learned import SsdDetector
+from ..perception.detection.movenet import MoveNetFacing
 from ..perception.detection.proxy_facing import estimate_facing
 from ..perception.groups.estimate import MIN_VISIBLE, TORSO_HALF, TORSO_HEIGHT, TRACKER, GroupTracker, Member
 from ..perception.tracking.tracker import TrackerParams
+from ..urdf import HUMAN_COLOURS
 from .robot import Frame, Robot
 
 DETECTORS = ("colour", "hog", "ssd", "movenet")
@@ -51,16 +56,11 @@ def torso_depth(xy: np.ndarray, centre: np.ndarray | None) -> np.ndarray:
     return a * np.abs(cos) + b * np.sqrt(1.0 - cos * cos)
 
 
-
-
 def one_per_colour(palette: list[Any]) -> Callable[[np.ndarray], np.ndarray]:
     """The colour detector with one box per colour, the union of that colour's blobs: each simulated person wears
     their own colour (``world.HUMAN_COLOURS``), and one standing behind a nearer person shows a sliver of their
     torso on either side of that person, which made two detections, hence two tracks, of one person (virtual
     Pepper, lockstep ``mixed`` runs). The union spans the torso's hidden middle, so its centre is the torso's."""
-    import cv2
-
-    from ..perception.detection.detectors import ColourDetector
 
     class OnePerColour(ColourDetector):
         last: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None  # frame, hsv, boxes, colours
@@ -130,26 +130,19 @@ def make_detector(name: str) -> tuple[Callable[[np.ndarray], np.ndarray], bool]:
     those are ranged from the head by ``boxes_to_ground``, MoveNet's from its keypoints by ``detector.ground()``).
     The colour detector and MoveNet also tell each box's facing: after a call, ``detector.facing()``
     (``one_per_colour``, ``movenet.MoveNetFacing``)."""
-    from ..perception.detection.detectors import HogDetector, HogParams
-
     if name == "colour":
-        from ..urdf import HUMAN_COLOURS
-
         return one_per_colour(HUMAN_COLOURS), True
     if name == "hog":
         # Pepper's QVGA frames show a standing person 2-5 m away 100-250 px tall: downscales fit the 128 px window
         hog = HogDetector(HogParams(scales=(0.5, 0.7, 1.0)))
         return (lambda rgb: hog(np.ascontiguousarray(rgb[..., ::-1]))), False
+    if name in ("ssd", "movenet"):
+        # lazy: optional, the PETS-tuned settings' module needs motmetrics (the tracking extra)
+        from ..perception.tracking.tuning import MOVENET_DEFAULT, SSD_DEFAULT
     if name == "ssd":
-        from ..perception.detection.learned import SsdDetector
-        from ..perception.tracking.tuning import SSD_DEFAULT
-
         # thresholds as chosen on PETS, without its minimum height (people near the robot are large)
         return SsdDetector(dataclasses.replace(SSD_DEFAULT.ssd, min_height=0.0), rgb=True), False
     if name == "movenet":
-        from ..perception.detection.movenet import MoveNetFacing
-        from ..perception.tracking.tuning import MOVENET_DEFAULT
-
         # positions and facing from the keypoints too (``ground``, ``facing``)
         return MoveNetFacing(dataclasses.replace(MOVENET_DEFAULT.ssd, min_height=0.0), MOVENET_DEFAULT.rng), False
     raise UserError(f"--detector {name!r}: expected one of {list(DETECTORS)}")
@@ -266,8 +259,6 @@ class Perception:
         dt = frame.stamp - prev if prev is not None and 0 < frame.stamp - prev < 1.0 else 0.1
         facing = facing_std = None
         if seen is not None:  # phi relative to the line of sight from the robot's origin, as the tracker takes it
-            from ..perception.detection.facing import facing_yaw
-
             phi, std = seen.phi[whole][found], seen.std[whole][found]
             yaw = facing_yaw(xy, np.nan_to_num(phi), self._group.camera.centre()[:2])
             facing = np.where(np.isfinite(phi), yaw - np.arctan2(-xy[:, 1], -xy[:, 0]), np.nan)

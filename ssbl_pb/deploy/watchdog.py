@@ -240,7 +240,8 @@ def main(argv: list[str] | None = None) -> int:
     qi.logging.setLevel(qi.logging.ERROR)
     session = qi.Session()
     if args.user is not None or args.token is not None:
-        from ssbl_pb.deploy.naoqi import _Authenticator  # 2.9 logins: only with the package
+        # lazy: optional, this file also runs alone on the robot without the package (2.9 logins need it)
+        from ssbl_pb.deploy.naoqi import _Authenticator
 
         session.setClientAuthenticatorFactory(_Authenticator(args.user or "nao", args.token or ""))
     try:

@@ -173,8 +173,6 @@ def _ray_trial(config: dict[str, Any], trials: dict[str, Trial], root: str) -> N
     import ray
     from ray import tune
 
-    import ssbl_pb  # noqa: F401  (registers the env in this worker process)
-
     task = trials[config["trial"]]
     path = trial_dir(Path(root), task.name) / RESULT
     record = None

@@ -21,6 +21,8 @@ import re
 from pathlib import Path
 from typing import Any
 
+from ..core.reward import RewardWeights
+from ..env.gymenv.approach import make_env
 from ..errors import UserError
 from ..params import ConfigError, from_dict, load_yaml
 from ..training.config import PPOConfig, TrainConfig, config_to_dict, env_kwargs, load_config, nest_overrides
@@ -136,8 +138,6 @@ def _mapping(path: Path, key: str, value: Any) -> dict[str, Any]:
 def _check_keys(path: Path, keys: list[tuple[str, str]]) -> None:
     """Keys the config has (top level and the ppo / reward fields; env keys are checked by the config itself),
     no seed (the spec's seeds give it), none twice and none inside another."""
-    from ..core.reward import RewardWeights  # lazy: numba (this module stays light: the sweep CLI imports it)
-
     top = {f.name for f in dataclasses.fields(TrainConfig)}
     nested = {"ppo": {f.name for f in dataclasses.fields(PPOConfig)},
               "reward": {f.name for f in dataclasses.fields(RewardWeights)}}
@@ -168,8 +168,6 @@ def _evaluation(path: Path, data: Any) -> EvalSpec:
 def _check_env(path: Path, name: str, cfg: Any, evaluation: EvalSpec) -> None:
     """The env of a configuration and its evaluation can be built (scenario, room, robot, social values), and a
     ``model: best`` evaluation has an in-training evaluation to pick from."""
-    from ..env.gymenv.approach import make_env  # lazy: the env (numba, pybullet), as above
-
     try:
         make_env(**env_kwargs(cfg)).close()
         if evaluation.scenario:

@@ -55,8 +55,9 @@ class TrainEvalTrial:
         return {"kind": "train_eval", "config": self.config, "eval": dataclasses.asdict(self.evaluation)}
 
     def __call__(self, trial_dir: Path) -> dict[str, Any]:
-        from ..analysis.evaluation import Setup, evaluate  # lazy: the env, for the worker (keeps the sweep CLI light)
-        from ..training.run import train  # lazy: torch and SB3, for the worker (keeps the sweep CLI light)
+        # lazy: the worker's work, which keeps the sweep CLI from importing torch, SB3 and the tracker
+        from ..analysis.evaluation import Setup, evaluate
+        from ..training.run import train  # lazy: as above
 
         cfg = load_config(None, self.config)
         if not _trained(trial_dir, cfg):  # an unfinished run starts again from scratch: results stay exact

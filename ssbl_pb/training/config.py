@@ -21,11 +21,15 @@ action mean        not given           tanh-bounded (``ppo.bounded_mean``, train
 from __future__ import annotations
 
 import dataclasses
+import inspect
 from pathlib import Path
 from typing import Any
 
 import yaml
 
+from ..core.reward import RewardWeights
+from ..env.engine.env_params import parse_env_params
+from ..env.gymenv.approach import ApproachGroupEnv, make_env
 from ..errors import UserError
 from ..files import write_text
 from ..params import ConfigError, _check, from_dict, load_yaml, parse_yaml
@@ -185,8 +189,6 @@ class TrainConfig:
         unknown = sorted(set(self.env) - set(env_keys()))
         _check(not unknown, "config", "env", unknown, f"keys among {env_keys()} (the config sets obs_mode, "
                "scenario, reward and camera size itself)")
-        from ..core.reward import RewardWeights  # lazy: numba (this module stays light: the sweep CLI imports it)
-
         from_dict(RewardWeights, self.reward, "config.reward")  # validates names and values early
         for key, value in self.reward_ramp.items():
             _check(isinstance(value, list | tuple) and len(value) == 2, "config", f"reward_ramp.{key}", value,
@@ -208,14 +210,15 @@ class TrainConfig:
             return
         _check(bool(path) and Path(path).is_file(), "config", "encoder_checkpoint", self.encoder_checkpoint,
                f"an existing {self.encoder} checkpoint from tools/train_ae.py (none is shipped for {self.encoder})")
-        from ..perception.autoencoding.ae_train import checkpoint_info  # lazy: loads torch
+        # lazy: torch, for a frozen encoder only (the sweep CLI and train_pb import this module)
+        from ..perception.autoencoding.ae_train import checkpoint_info
 
         info = checkpoint_info(path)
         _check(info["arch"] == self.encoder, "config", "encoder_checkpoint", path,
                f"a {self.encoder} checkpoint (encoder: {self.encoder}), it holds a {info['arch']} autoencoder")
         _check(info["resolution"] == self.camera_size, "config", "camera_size", self.camera_size,
                f"{info['resolution']}, the input resolution of encoder checkpoint {path}")
-        from ..env.gymenv.encoded import with_encoder_camera  # lazy: loads torch and SB3
+        from ..env.gymenv.encoded import with_encoder_camera  # lazy: torch and SB3, as above
 
         try:  # env.robot's camera may not contradict the one the encoder learned through
             with_encoder_camera(dict(self.env), path)
@@ -229,10 +232,6 @@ class TrainConfig:
 
 def env_keys() -> list[str]:
     """The env arguments a config's ``env:`` may set (``make_env``'s and the core env's, minus the config's own)."""
-    import inspect
-
-    from ..env.gymenv.approach import ApproachGroupEnv, make_env  # lazy: the env (numba, pybullet), as above
-
     own = {"obs_mode", "scenario", "reward", "camera_width", "camera_height", "render_mode", "render_width",
            "record", "self", "kwargs", "feature_smoothing"}
     names = [*inspect.signature(make_env).parameters, *inspect.signature(ApproachGroupEnv.__init__).parameters]
@@ -307,8 +306,8 @@ def _from_dict(data: dict[str, Any], where: str) -> TrainConfig:
 def check_env(cfg: TrainConfig) -> None:
     """The config's env parameters as the env will check them (room size for its groups, group data, room
     YAMLs, the observation model), before anything is built."""
-    from ..env.engine.env_params import parse_env_params  # lazy: numba, as above
-    from ..perception.groups.observation_model import PerceptionParams  # lazy: the tracker's filterpy and scipy
+    # lazy: the tracker's filterpy and scipy (~1 s), for a config check only, not for tools that import this module
+    from ..perception.groups.observation_model import PerceptionParams
 
     env = cfg.env
     try:
@@ -340,7 +339,7 @@ def env_kwargs(cfg: TrainConfig) -> dict[str, Any]:
     kwargs = {"obs_mode": cfg.obs_mode, "scenario": cfg.scenario, "reward": dict(cfg.reward),
               "camera_width": cfg.camera_size, "camera_height": cfg.camera_size, **cfg.env}
     if cfg.encoder_file:  # the camera the encoder learned through
-        from ..env.gymenv.encoded import with_encoder_camera  # lazy: loads torch and SB3
+        from ..env.gymenv.encoded import with_encoder_camera  # lazy: torch and SB3, for a frozen encoder only
 
         kwargs = with_encoder_camera(kwargs, cfg.encoder_file)
     return kwargs

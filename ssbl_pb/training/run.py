@@ -17,6 +17,13 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import torch
+import yaml
+from sb3_contrib import RecurrentPPO
+from stable_baselines3 import PPO
+from stable_baselines3.common.monitor import Monitor
+from stable_baselines3.common.utils import LinearSchedule
+from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor, VecNormalize
 
 from ..agents.policies import make_policy
 from ..agents.rollout import run_episode
@@ -24,13 +31,25 @@ from ..agents.trained import STEP_STAMP, resolve_model
 from ..cli import DeferredSignals
 from ..core.actions import ActionStages
 from ..env.gymenv.approach import core_kwargs, make_env
+from ..env.gymenv.encoded import EncodedVecEnv, load_encoder
 from ..env.gymenv.wrappers import ActionStagesWrapper
 from ..errors import UserError
 from ..files import check_output_path, output_dir, remove_temporaries, write_text
 from ..params import ConfigError, parse_yaml
+from .callbacks import (
+    EpisodeLogCallback,
+    EvalCheckpointCallback,
+    ProgressCallback,
+    RewardRampCallback,
+    StopOnSignal,
+    save_checkpoint,
+    save_model,
+)
 from .config import TrainConfig, load_config, save_config
 from .config import env_kwargs as _env_kwargs
 from .curves import plot_learning_curve
+from .policies import bounded_policy
+from .vec_env import BatchedVecEnv
 
 # what a run directory holds: all that tools/train_pb.py writes there, and all --overwrite may remove
 RUN_ENTRIES = ("config.yaml", "baselines.json", "model.zip", "vecnormalize.pkl", "best", "checkpoints",
@@ -47,8 +66,6 @@ class RunError(UserError):
 def is_run_dir(path: Path) -> bool:
     """``path`` holds a run of this tool: its ``config.yaml`` is a mapping of training settings, or it holds only
     the first checkpoint (a run killed in the moment between that and its ``config.yaml``)."""
-    import yaml
-
     try:
         cfg = parse_yaml((path / "config.yaml").read_text())
     except (OSError, ValueError, yaml.YAMLError):
@@ -96,8 +113,6 @@ class EnvFactory:
             stages = ActionStages.of(env.unwrapped, self.smoothing, self.shield, self.shield_at_place)
             env = ActionStagesWrapper(env, stages)
         if self.monitor:
-            from stable_baselines3.common.monitor import Monitor
-
             env = Monitor(env, info_keywords=("is_success",))
         return env
 
@@ -110,15 +125,11 @@ class BatchedFactory:
         self.smoothing, self.shield, self.at_place = cfg.action_smoothing, cfg.shield_active, cfg.shield_at_place
 
     def __call__(self, n: int) -> Any:
-        from .vec_env import BatchedVecEnv  # lazy: torch and SB3, once a run starts (the checks before stay quick)
-
         return BatchedVecEnv(n, self.smoothing, self.shield, self.at_place, **self.env_kwargs)
 
 
 def make_vec_env(cfg: TrainConfig, seed: int) -> Any:
     """The training VecEnv (batched, Dummy or Subproc, ``cfg.vec_env_kind``), seeded, with VecNormalize."""
-    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor, VecNormalize
-
     kind = cfg.vec_env_kind
     if kind == "batched":
         venv = VecMonitor(BatchedFactory(_env_kwargs(cfg), cfg)(cfg.n_envs), info_keywords=("is_success",))
@@ -129,8 +140,6 @@ def make_vec_env(cfg: TrainConfig, seed: int) -> Any:
         venv = SubprocVecEnv(fns, start_method="forkserver") if kind == "subproc" else DummyVecEnv(fns)
     venv.seed(seed)
     if cfg.encoder_file:  # frozen autoencoder: all envs' images encoded in one batch per step (env.gymenv.encoded)
-        from ..env.gymenv.encoded import EncodedVecEnv, load_encoder  # lazy: torch, as above
-
         venv = EncodedVecEnv(venv, load_encoder(cfg.encoder_file, cfg.camera_size), cfg.feature_smoothing)
     if cfg.policy_obs_mode == "vector":
         return VecNormalize(venv, norm_obs=cfg.standardises_obs, norm_reward=True, gamma=cfg.ppo.gamma)
@@ -141,13 +150,7 @@ def make_vec_env(cfg: TrainConfig, seed: int) -> Any:
 
 
 def _algo(cfg: TrainConfig) -> Any:
-    if cfg.policy == "lstm":
-        from sb3_contrib import RecurrentPPO
-
-        return RecurrentPPO
-    from stable_baselines3 import PPO
-
-    return PPO
+    return RecurrentPPO if cfg.policy == "lstm" else PPO
 
 
 def build_model(cfg: TrainConfig, venv: Any, tb_dir: Path) -> Any:
@@ -160,13 +163,9 @@ def build_model(cfg: TrainConfig, venv: Any, tb_dir: Path) -> Any:
         names = {"vector": "MlpPolicy", "camera": "CnnPolicy", "camera_speed": "MultiInputPolicy"}
     policy: Any = names[cfg.policy_obs_mode]
     if p.bounded_mean:
-        from .policies import bounded_policy  # lazy: torch, as above
-
         policy = bounded_policy(cfg.policy_obs_mode, cfg.policy == "lstm")
     lr: Any = p.learning_rate
     if p.learning_rate_end is not None:
-        from stable_baselines3.common.utils import LinearSchedule
-
         lr = LinearSchedule(p.learning_rate, p.learning_rate_end, 1.0)
     return _algo(cfg)(policy, venv, learning_rate=lr, n_steps=p.n_steps,
                       batch_size=p.batch_size, n_epochs=p.n_epochs, gamma=p.gamma, gae_lambda=p.gae_lambda,
@@ -192,9 +191,6 @@ def baseline_returns(cfg: TrainConfig) -> dict[str, float]:
 
 
 def _callbacks(cfg: TrainConfig, run_dir: Path) -> list[Any]:
-    # lazy: torch and SB3, as above
-    from .callbacks import EpisodeLogCallback, EvalCheckpointCallback, ProgressCallback, RewardRampCallback
-
     eval_kwargs = _env_kwargs(cfg)  # evaluated with the ramps' final weights, comparable across the run
     if cfg.encoder_file:
         eval_kwargs["encoder"] = cfg.encoder_file
@@ -212,8 +208,6 @@ def _callbacks(cfg: TrainConfig, run_dir: Path) -> list[Any]:
 def _learn(cfg: TrainConfig, run_dir: Path, model: Any, venv: Any, resumed_from: int | None) -> dict[str, Any]:
     """Train to ``cfg.total_steps``. Ctrl-C / SIGTERM stop at the next env step: a checkpoint is saved, the
     ``--resume`` command printed, and the signal re-raised (exit 130 / 143 through ``cli.run``)."""
-    from .callbacks import StopOnSignal, save_checkpoint, save_model  # lazy: torch and SB3, as above
-
     start_steps, t0 = model.num_timesteps, time.perf_counter()
     remaining = max(0, cfg.total_steps - model.num_timesteps)
     with DeferredSignals() as signals:  # also covers the final saves: a signal then waits for them
@@ -285,10 +279,6 @@ def train(cfg: TrainConfig, run_dir: Path, overwrite: bool = False, init_from: P
     The run is resumable from its first second: the model is built before anything is written, and its initial
     state (checkpoint 0) is the first file, before ``config.yaml``, which makes the folder a run; if anything
     fails while setting up, the run directory is removed again."""
-    import torch
-
-    from .callbacks import save_checkpoint  # lazy: torch and SB3, as above
-
     check_new_run(cfg, run_dir, overwrite, init_from)
     torch.set_num_threads(cfg.torch_threads)
     venv = make_vec_env(cfg, cfg.seed)
@@ -353,8 +343,6 @@ def _match_action_head(source: dict[str, Any], target: dict[str, Any], old_input
     ``action_net.0.weight``) so fine-tuning across the two keeps them; with ``old_inputs`` < ``new_inputs``, the
     layers reading the observation get zero weights for the entries appended to it (the fine-tuned policy starts
     acting exactly as the source, blind to them); raise when layers still do not match."""
-    import torch
-
     out = dict(source)
     for key, w in list(out.items()):
         t = target.get(key)
@@ -417,9 +405,6 @@ def latest_checkpoint(run_dir: Path) -> tuple[Path, Path, int]:
 
 def resume(run_dir: Path, total_steps: int | None = None) -> dict[str, Any]:
     """Continue a run from its last checkpoint: step counter, optimiser state and normalisation intact."""
-    import torch
-    from stable_baselines3.common.vec_env import VecNormalize
-
     if not (run_dir / "config.yaml").is_file():
         hint = "; it was killed as it was created: start it again with the same command" if (
             run_dir.is_dir() and _only_checkpoints(run_dir)) else ""

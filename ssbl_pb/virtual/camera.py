@@ -9,14 +9,13 @@ from typing import Any
 import numpy as np
 
 from ..deploy.robot import Frame
+from ..env.view.world import World
 from .robot import SimRobot
 from .walkers import StrangerBodies
 
 
 def _render_worker(conn: Any, world: Any, robot: Any, social: Any, body_seed: int = 0) -> None:
     """The camera process: renders scenes sent over ``conn`` until it receives None."""
-    from ..env.view.world import World
-
     w = World(world, robot, social)
     w.set_body_seed(body_seed)  # the members wear the bodies they wear in the robot's world
     w.reset(np.random.default_rng(0), n_humans=2)  # warm up (group data, compiled code, the renderer) before

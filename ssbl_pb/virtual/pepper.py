@@ -47,13 +47,15 @@ from typing import Any
 import cv2
 import numpy as np
 
+from ..agents.trained import policy_groups
+from ..calib.room_map import extract_room, read_map, room_yaml
 from ..cli import ArgumentParser, float_in, int_at_least, run
 from ..core.layouts import GROUP_MODELS
 from ..deploy.naoqi import IDENTITY, import_qi
 from ..deploy.robot import compose, relative
 from ..deploy.watchdog import host as host_watchdog
 from ..errors import UserError
-from ..files import check_output_path
+from ..files import check_output_path, write_yaml
 from ..params import APPEARANCES, HumansLook, WorldParams
 from .camera import Camera
 from .robot import SimRobot
@@ -181,9 +183,6 @@ def write_room_map(folder: Path, robot: SimRobot, resolution: float = 0.05,
     """The simulated room as a ROS map (``map.pgm``, ``map.yaml``) and its room YAML (``room.yaml``, as
     ``tools/import_map.py`` makes it), the room's centre at ``centre`` on the map (so the frames differ); returns
     the room YAML and the robot's start pose on the map (x, y, yaw)."""
-    from ..calib.room_map import extract_room, read_map, room_yaml
-    from ..files import write_yaml
-
     sx, sy = robot.world.params.room_size
     wall = robot.world.params.wall_thickness
     margin = 1.0 + wall
@@ -257,8 +256,6 @@ def main(argv: list[str] | None = None) -> int:
     qi = import_qi()
     groups = args.groups
     if groups is None:
-        from ..agents.trained import policy_groups
-
         groups = policy_groups("vector")
     robot = SimRobot(args.scenario, args.seed, groups=groups, world=WorldParams(humans=HumansLook(args.appearance)))
     if args.walker is not None:
