@@ -4,6 +4,7 @@ the virtual Pepper checks its port before it writes anything, the watchdog's hel
 from __future__ import annotations
 
 import importlib.util
+import json
 import socket
 import subprocess
 import sys
@@ -64,6 +65,31 @@ def test_bench_deploy_rerun_removes_exactly_the_entries_it_wrote(tmp_path, monke
     with pytest.raises(UserError, match="run00 exists and this tool did not write it"):
         tool.main(["--runs", "1", *argv])
     assert sorted(p.name for p in out.iterdir()) == [".bench_deploy", "run00", "run_old", "runtime_notes.txt"]
+
+
+def test_bench_deploy_keeps_its_results_when_a_fault_cannot_be_injected(tmp_path, monkeypatch, capsys):
+    """Deploy ending before the base moved (a late frame on a loaded machine) is tried once more in a fresh
+    folder, then written as "not injected": the other faults' results are kept."""
+    from ssbl_pb.bench import deploy_faults
+
+    calls = []
+
+    def fault(name, folder, **_kw):
+        calls.append((name, sorted(p.name for p in folder.iterdir()) if folder.exists() else None))
+        if name == "sigint":
+            folder.mkdir(parents=True, exist_ok=True)
+            (folder / "half").write_text("x")
+            raise deploy_faults.NotInjected("sigint: the base did not move")
+        return {"fault": name, "exit_code": 143}
+
+    monkeypatch.setattr(deploy_faults, "run_fault", fault)
+    tool, out = _bench_deploy_tool(), tmp_path / "bench"
+    assert tool.main(["--lockstep", "--runs", "0", "--faults", "sigint,sigterm", "--soak", "0", "--out", str(out)]) == 0
+    assert calls == [("sigint", None), ("sigint", None), ("sigterm", None)]  # again, in a fresh folder
+    res = json.loads(out.with_suffix(".json").read_text())
+    assert res["faults"][1] == {"fault": "sigterm", "exit_code": 143}
+    assert res["faults"][0]["exit_code"] is None and "did not move" in res["faults"][0]["not_injected"]
+    assert "| sigint | not injected |" in out.with_suffix(".md").read_text()
 
 
 def test_virtual_pepper_on_a_port_in_use_writes_no_map_and_says_so_in_one_line(tmp_path):

@@ -26,6 +26,7 @@ from __future__ import annotations
 import os
 import shutil
 from pathlib import Path
+from typing import Any
 
 from ssbl_pb.agents.trained import policy_groups
 from ssbl_pb.analysis.evaluation import check_policy_spec
@@ -134,7 +135,7 @@ def main(argv: list[str] | None = None) -> int:
         if pooled is not None:
             res["perception"], res["perception_figure"] = pooled, str(figure)
     for f, k, name in fault_runs:
-        res["faults"].append(deploy_faults.run_fault(f, _record(logs, name), lockstep=args.lockstep, walker_run=k))
+        res["faults"].append(_fault(f, _record(logs, name), args.lockstep, k))
     if args.soak > 0:
         res["soak"] = deploy_faults.soak(_record(logs, "soak"), args.soak, args.seed, args.policy)
     write_json(args.out.with_suffix(".json"), res)
@@ -142,6 +143,19 @@ def main(argv: list[str] | None = None) -> int:
     write_text(args.out.with_suffix(".md"), text)
     print(text)
     return 0
+
+
+def _fault(fault: str, folder: Path, lockstep: bool, walker_run: int, tries: int = 2) -> dict[str, Any]:
+    """``run_fault``, tried again (in a fresh folder) when deploy ended before the base moved and the fault could
+    not be injected; after ``tries`` such ends, a row saying so, so that one late frame loses no other result."""
+    for _ in range(tries):
+        try:
+            return deploy_faults.run_fault(fault, folder, lockstep=lockstep, walker_run=walker_run)
+        except deploy_faults.NotInjected as exc:
+            print(f"warning: {exc}", flush=True)
+            note = str(exc)
+            shutil.rmtree(folder, ignore_errors=True)
+    return {"fault": fault, "exit_code": None, "not_injected": note}
 
 
 if __name__ == "__main__":

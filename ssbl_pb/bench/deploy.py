@@ -320,7 +320,8 @@ def markdown(res: dict[str, Any]) -> str:
                      for k in ("exit_s", "stop_commanded_s", "stop_commanded_robot_s", "standstill_s",
                                "true_min_clearance_m")]
             name = f"{f['fault']} (seed {f['seed']})" if "seed" in f else f["fault"]
-            out.append(f"| {name} | {f['exit_code']} | " + " | ".join(cells) + " |")
+            code = "not injected" if f.get("not_injected") else f["exit_code"]
+            out.append(f"| {name} | {code} | " + " | ".join(cells) + " |")
         out.append("")
         out += walker_summary(faults)
     if res.get("soak"):

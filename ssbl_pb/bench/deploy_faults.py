@@ -57,6 +57,11 @@ def walker_fault(fault: str, folder: Path, seed: int | None = None, policy: str 
             "walker_acted_at": walkers[0].get("triggered_at")}
 
 
+class NotInjected(RuntimeError):
+    """Deploy ended before its base moved (on a loaded machine: a frame late before the fault), so the fault was
+    never injected: nothing was measured."""
+
+
 def run_fault(fault: str, folder: Path, seed: int = 11, policy: str = "straight", stale: float = 0.5,
               hang_stops: int = 1, vp_extra: tuple[str, ...] = (), lockstep: bool = False, walker_run: int = 0
               ) -> dict[str, Any]:
@@ -94,7 +99,7 @@ def run_fault(fault: str, folder: Path, seed: int = 11, policy: str = "straight"
         except RuntimeError:
             proc.kill()
             said = proc.communicate()[1][-500:]
-            raise RuntimeError(f"{fault}: the base did not move; deploy said {said!r}") from None
+            raise NotInjected(f"{fault}: the base did not move; deploy said {said!r}") from None
         if fault == "watchdog_stop_hangs":  # armed now: a stall before the kill must not spend them
             hang_stops_now(url, hang_stops)
         t_event = time.time()
