@@ -220,8 +220,8 @@ def test_someone_seen_walking_into_a_blind_sector_is_braked_for_where_they_could
     out, cols = guards(cmd, empty, [], np.zeros((0, 2)), pose, None, 1.0)
     assert np.hypot(*out[:2]) < 0.5 * np.hypot(*cmd[:2]) and cols["range_guard"]["phantoms"]
     assert guards(np.array([0.0, 0.25, 0.0]), empty, [], np.zeros((0, 2)), pose, None, 1.0)[0][1] == 0.25  # left
-    far = np.hypot(*(guards.memory.phantoms(pose, 2.0) - seen).T)  # two seconds on: up to 1.5 m further on
-    assert PHANTOM_REACH == 1.5 and 1.0 + R < far.max() <= PHANTOM_REACH + R + 1e-9
+    far = np.hypot(*(guards.memory.phantoms(pose, 2.0) - seen).T)  # two seconds on: up to 1.25 m further on
+    assert PHANTOM_REACH == 1.25 and 1.0 + R < far.max() <= PHANTOM_REACH + R + 1e-9
     assert not len(guards.memory.phantoms(pose, RANGE_MEMORY_S + 0.1))  # forgotten
     # a leg by a tracked person is theirs (the member guard's), not remembered
     guards = Guards(SHIELD, 0.55, 0.45, Frames())
