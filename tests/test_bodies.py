@@ -138,8 +138,8 @@ def test_movenet_finds_a_body_facing_the_robot_at_2_5_m_in_a_qvga_frame():
 def test_the_virtual_pepper_shows_bodies_and_names_movenet_for_them(tmp_path):
     pytest.importorskip("qi")
     from ssbl_pb.bench.deploy import virtual_pepper
-    from ssbl_pb.deploy.__main__ import detector_for
     from ssbl_pb.deploy.naoqi import NaoqiRobot
+    from ssbl_pb.deploy.perceive import detector_for
 
     # seed 35: the group in view from the start
     with virtual_pepper(tmp_path / "vp.jsonl", 35, "default", "--appearance", "body") as (_, url):
@@ -148,3 +148,36 @@ def test_the_virtual_pepper_shows_bodies_and_names_movenet_for_them(tmp_path):
             assert robot.identity["detector"] == "movenet" and detector_for("auto", robot) == "movenet"
         finally:
             robot.close()
+
+
+def test_the_lockstep_robot_draws_bodies_when_asked_and_movenet_ranges_them():
+    """``SimRobot(appearance="body")`` (the bench's lockstep runs) renders the members as bodies in its own frames,
+    names MoveNet for them as the virtual Pepper does, and deploy's MoveNet chain places each member seen whole
+    near where they stand; with box proxies it names the colour detector."""
+    pytest.importorskip("ai_edge_litert")
+    from ssbl_pb.deploy.perceive import detector_for, make_detector
+    from ssbl_pb.deploy.robot import relative
+    from ssbl_pb.virtual.robot import SimRobot
+
+    robot = SimRobot("default", 41, appearance="body")
+    try:
+        assert detector_for("auto", robot) == "movenet" and robot.world.human_ids[0] in robot.world._bodies
+        w = robot.world
+        (x, y, _), (cx, cy) = w.robot_pose, w.group.centre
+        w.base.pose = np.array([x, y, math.atan2(cy - y, cx - x)])  # turned to the group: both members in view
+        w.invalidate()
+        img = robot.render().image
+        detect, torso = make_detector("movenet")
+        boxes = detect(img)
+        xy = detect.ground(sim_camera(RobotParams(), *robot.image_size))
+        truth = np.array([relative(robot.world.robot_pose, [*m, 0.0])[:2] for m in robot.world.group.pos])
+    finally:
+        robot.close()
+    assert not torso and len(boxes) == len(truth) == 2
+    err = np.hypot(*(xy[:, None] - truth[None]).transpose(2, 0, 1)).min(axis=1)  # each found person to a member
+    assert err.max() < 0.7, (xy, truth)
+    proxies = SimRobot("default", 35)
+    try:
+        assert detector_for("auto", proxies) == "colour"
+    finally:
+        proxies.close()

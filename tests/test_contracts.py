@@ -193,6 +193,7 @@ CASES = [
     C("render_episode.py", "--policy", "sffm", "--appearance", "mesh", "--out", "{out}/x.mp4",
       expect="argument --appearance"),
     C("-m ssbl_pb.virtual.pepper", "--appearance", "mesh", "--log", "{out}", expect="argument --appearance"),
+    C("bench_deploy.py", "--appearance", "mesh", "--out", "{out}", expect="argument --appearance"),
     C("evaluate.py", "--policy", "sffm", "--perception", "maybe", "--out", "{out}", expect="argument --perception"),
     C("train_pb.py", "--set", "env.perception.miss_prob=2", "--out", "{out}", expect="perception.miss_prob"),
     # a calibration file's own checks name the file

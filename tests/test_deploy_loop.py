@@ -273,7 +273,7 @@ def test_a_learned_policy_runs_only_at_its_training_rate():
 def test_auto_detector_follows_what_the_robot_says_it_is():
     from types import SimpleNamespace
 
-    from ssbl_pb.deploy.__main__ import detector_for
+    from ssbl_pb.deploy.perceive import detector_for
 
     assert detector_for("auto", SimpleNamespace(identity={"detector": "colour"})) == "colour"  # the virtual Pepper
     assert detector_for("auto", SimpleNamespace(identity=None)) == "movenet"  # a real Pepper

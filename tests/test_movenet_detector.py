@@ -152,8 +152,7 @@ def test_the_pipeline_runs_movenet_as_its_detector():
 def test_deploy_runs_movenet_on_rgb_frames_and_picks_it_on_a_real_robot():
     from types import SimpleNamespace
 
-    from ssbl_pb.deploy.__main__ import detector_for
-    from ssbl_pb.deploy.perceive import DETECTORS, make_detector
+    from ssbl_pb.deploy.perceive import DETECTORS, detector_for, make_detector
 
     assert "movenet" in DETECTORS and detector_for("auto", SimpleNamespace(identity=None)) == "movenet"
     detect, torso = make_detector("movenet")

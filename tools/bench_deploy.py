@@ -5,6 +5,10 @@ timings and a soak. Writes OUT.json and OUT.md (the docs/benchmarks.md section) 
     python tools/bench_deploy.py                                   # 20 runs, all faults, a 600 s soak (~25 min)
     python tools/bench_deploy.py --runs 3 --faults sigint --soak 60 --out results/bench_deploy_quick
     python tools/bench_deploy.py --scenario mixed --runs 10 --faults none --soak 0 --lockstep --out /tmp/bd
+    python tools/bench_deploy.py --scenario mixed --runs 5 --faults none --soak 0 --lockstep --appearance body
+
+The virtual Pepper's people are box proxies (the colour detector's chain) unless ``--appearance body`` draws them
+as bodies, which deploy's ``--detector auto`` then finds with MoveNet (over qi and in lockstep alike).
 
 Every approach is also scored for perception against the virtual Pepper's ground truth, tick by tick
 (``ssbl_pb/bench/perception_errors.py``): member position and velocity errors against distance, members
@@ -39,6 +43,7 @@ from ssbl_pb.deploy.perceive import DETECTORS
 from ssbl_pb.env.rooms.scenarios import ScenarioMix
 from ssbl_pb.errors import UserError
 from ssbl_pb.files import check_output_path, write_json, write_text
+from ssbl_pb.params import APPEARANCES
 
 ROOT = Path(__file__).resolve().parents[1]
 MARKER = ".bench_deploy"  # in OUT/: the entries this tool wrote there, one name a line after the header
@@ -87,7 +92,11 @@ def main(argv: list[str] | None = None) -> int:
                     help="run each walker fault N times, on its seed and the N-1 after it (default 1)")
     ap.add_argument("--soak", type=float_in(0.0, 86400.0), default=600.0, help="soak seconds (0: none)")
     ap.add_argument("--detector", choices=("auto", *DETECTORS), default="auto",
-                    help="deploy's --detector (default auto: the one the virtual Pepper names)")
+                    help="deploy's --detector (default auto: the one the virtual Pepper names for its people's look: "
+                    "movenet for bodies, colour for box proxies)")
+    ap.add_argument("--appearance", choices=APPEARANCES, default="proxy", help="how the virtual Pepper's people "
+                    "look, over qi and in lockstep: proxy (boxes, the colour detector's chain; default) or body "
+                    "(made from a body model, for MoveNet)")
     ap.add_argument("--no-map", action="store_true", help="run deploy without the room's map (default: with it, "
                     "--map and --start-pose as a user who mapped the room; without it the policy cannot see walls)")
     ap.add_argument("--lockstep", action="store_true", help="approaches in this process on a simulated clock "
@@ -120,13 +129,15 @@ def main(argv: list[str] | None = None) -> int:
     logs.mkdir(parents=True, exist_ok=True)
     (logs / MARKER).write_text(HEADER)
     res = {"environment": bench.environment(), "scenario": args.scenario, "policy": args.policy, "groups": args.groups,
-           "lockstep": args.lockstep, "detector": args.detector, "map": not args.no_map, "approaches": [], "faults": []}
+           "lockstep": args.lockstep, "detector": args.detector, "appearance": args.appearance,
+           "map": not args.no_map, "approaches": [], "faults": []}
     approach = bench.lockstep_approach if args.lockstep else bench.run_approach
     with progress_bar(args.runs, "approaches", "run") as bar:
         for i in range(args.runs):
             folder = _record(logs, f"run{i:02d}")
             res["approaches"].append(approach(folder, args.seed + i, args.policy, args.scenario, groups=args.groups,
-                                              detector=args.detector, room_map=not args.no_map))
+                                              detector=args.detector, room_map=not args.no_map,
+                                              appearance=args.appearance))
             bar(1)
     if args.runs:
         per_run, pooled = bench.perception_report([logs / f"run{i:02d}" for i in range(args.runs)], args.policy, figure)

@@ -33,11 +33,11 @@ from ..core.task import TaskParams
 from ..deploy.frames import Frames, load_room
 from ..deploy.log import LOG, SUMMARY, RunLog, write_run, write_summary
 from ..deploy.loop import DeployLoop, DeployParams, Setup
-from ..deploy.perceive import Perception
+from ..deploy.perceive import Perception, detector_for
 from ..deploy.policy import load_policy
 from ..params import RobotParams, SocialParams
 from ..virtual.pepper import load_log, state_row, write_room_map
-from ..virtual.robot import SimClock, SimRobot
+from ..virtual.robot import DETECTOR, SimClock, SimRobot
 from ..virtual.walkers import make_walker
 from .perception_errors import analyse_folder, markdown_table, plot, pool, summarise
 
@@ -155,17 +155,18 @@ def _map_flags(proc: subprocess.Popen, timeout: float = 60.0) -> tuple[str, ...]
 
 def run_approach(folder: Path, seed: int, policy: str = "vector", scenario: str = "default",
                  duration: float = 90.0, groups: str | None = None, detector: str = "auto",
-                 room_map: bool = True, walker: str | None = None) -> dict[str, Any]:
+                 room_map: bool = True, walker: str | None = None, appearance: str = "proxy") -> dict[str, Any]:
     """One approach against a fresh virtual Pepper: the deploy summary plus the ground-truth score. ``groups``:
-    the group model of both (default: each one's own, the policy's); ``detector``: deploy's ``--detector``;
-    ``room_map``: deploy gets the room's map (``--map``, ``--start-pose``), as a user who mapped the room runs it;
-    ``walker``: the virtual Pepper's ``--walker``."""
+    the group model of both (default: each one's own, the policy's); ``detector``: deploy's ``--detector``
+    (``auto``: the one the virtual Pepper names for its people's look); ``room_map``: deploy gets the room's map
+    (``--map``, ``--start-pose``), as a user who mapped the room runs it; ``walker``: the virtual Pepper's
+    ``--walker``; ``appearance``: its ``--appearance`` (box proxies by default: the colour chain)."""
     folder.mkdir(parents=True, exist_ok=True)
     vp_log = folder / "virtual_pepper.jsonl"
     flag = () if groups is None else ("--groups", groups)
     written = ("--write-map", str(folder / "map")) if room_map else ()
     scripted = () if walker is None else ("--walker", walker)
-    with virtual_pepper(vp_log, seed, scenario, *flag, *written, *scripted) as (vp, url):
+    with virtual_pepper(vp_log, seed, scenario, *flag, *written, *scripted, "--appearance", appearance) as (vp, url):
         on_map = _map_flags(vp) if room_map else ()
         proc = start_deploy(url, folder / "deploy", policy, "--duration", str(duration), "--detector", detector,
                             *flag, *on_map)
@@ -177,13 +178,14 @@ def run_approach(folder: Path, seed: int, policy: str = "vector", scenario: str 
 
 def lockstep_approach(folder: Path, seed: int, policy: Any = "vector", scenario: str = "default",
                       duration: float = 90.0, groups: str | None = None, fps: float = 15.0,
-                      detector: str = "auto", room_map: bool = True, walker: str | None = None) -> dict[str, Any]:
+                      detector: str = "auto", room_map: bool = True, walker: str | None = None,
+                      appearance: str = "proxy") -> dict[str, Any]:
     """One approach in this process, deterministic (no qi): deploy's loop on a ``SimRobot`` in lockstep
     (``SimClock``, the camera at ``fps``, perception inline), writing the two logs ``run_approach`` leaves
     (``folder/deploy/log.jsonl``, ``folder/virtual_pepper.jsonl``); ``wall`` in both is the simulated time, and
     each tick's ground truth is logged at its tick's time. ``policy``: a spec as deploy's ``--policy`` or a
-    policy object (``predict``); ``room_map`` and ``walker`` as ``run_approach``. Returns the outcome and the
-    ground-truth score."""
+    policy object (``predict``); ``detector``, ``room_map``, ``walker`` and ``appearance`` as ``run_approach``.
+    Returns the outcome and the ground-truth score."""
     spec = isinstance(policy, str)
     groups = groups or (policy_groups(policy) if spec else "calibrated")
     robot_params, social, task, params = RobotParams(), SocialParams(), TaskParams(), DeployParams(
@@ -193,7 +195,7 @@ def lockstep_approach(folder: Path, seed: int, policy: Any = "vector", scenario:
     (folder / "deploy").mkdir(parents=True, exist_ok=True)
     (folder / "deploy" / LOG).unlink(missing_ok=True)  # RunLog appends
     vp_log = folder / "virtual_pepper.jsonl"
-    robot = SimRobot(scenario, seed, groups=groups)
+    robot = SimRobot(scenario, seed, groups=groups, appearance=appearance)
     if walker is not None:
         robot.add_walker(make_walker(walker))
     clock = SimClock(robot, fps)
@@ -212,7 +214,7 @@ def lockstep_approach(folder: Path, seed: int, policy: Any = "vector", scenario:
                 fh.write(json.dumps(state_row(robot, robot.t)) + "\n")
 
         log = Log(folder / "deploy")
-        perception = Perception(robot, clock.now, "colour" if detector == "auto" else detector, robot_params,
+        perception = Perception(robot, clock.now, detector_for(detector, robot), robot_params,
                                 social=social, threaded=False)
         loop = DeployLoop(Setup(robot, pol, perception, frames, robot_params, social, task, groups,
                                 bool(seen.get("waypoints", False)), bool(seen.get("waypoints_near_group", False))),
@@ -225,7 +227,8 @@ def lockstep_approach(folder: Path, seed: int, policy: Any = "vector", scenario:
     summary = log.summary(outcome, loop.exit_code, message, {})
     write_summary(folder / "deploy", summary)
     write_run(folder / "deploy", {"policy": policy if spec else type(policy).__name__, "groups": groups,
-                                  "lockstep": True, **frames.info()})
+                                  "lockstep": True, "detector": detector_for(detector, robot),
+                                  "appearance": appearance, **frames.info()})
     return {"seed": seed, **summary, **truth_score(vp_log, folder / "deploy", task)}
 
 
@@ -272,8 +275,13 @@ def markdown(res: dict[str, Any]) -> str:
         shielded = sum(r.get("shield_interventions") or 0 for r in runs)
         ranged = sum(r.get("range_ticks") or 0 for r in runs)
         range_guarded = sum(r.get("range_guard_interventions") or 0 for r in runs)
+        look, detector = res.get("appearance") or "proxy", res.get("detector") or "auto"
+        if detector == "auto":
+
+            detector = f"auto: {DETECTOR[look]}"
         out += [f"**Approaches** ({len(runs)} seeded runs, seeds {runs[0]['seed']}-{runs[-1]['seed']}, scenario "
-                f"`{res['scenario']}`, {res.get('groups') or 'calibrated'} groups, policy `{res['policy']}`"
+                f"`{res['scenario']}`, {res.get('groups') or 'calibrated'} groups, policy `{res['policy']}`, people "
+                f"drawn as {look}, detector `{detector}`"
                 f"{'; lockstep, in process: tick times are not measured' if res.get('lockstep') else ''}): "
                 f"success by the simulator's own rule and ground truth in **{ok}/{len(runs)}** (deploy claimed "
                 f"{claimed}); intimate-zone entries: **{intimate}**; "

@@ -43,7 +43,7 @@ from .frames import Frames, load_room
 from .log import LOG, RunLog, write_run, write_summary
 from .loop import DeployLoop, DeployParams, Setup, status_printer
 from .naoqi import NaoqiRobot, check_watchdog, robot_url
-from .perceive import DETECTORS, Perception
+from .perceive import DETECTORS, Perception, detector_for
 from .plot import draw
 from .policy import BASELINES, load_policy
 
@@ -147,16 +147,6 @@ def _rate(spec: str, rate: float | None) -> float:
         raise UserError(f"--rate {rate:g}: the policy {spec!r} was trained at {trained:g} Hz (its action smoothing "
                         f"and shield assume that period); leave --rate out or give {trained:g}")
     return rate
-
-
-def detector_for(name: str, robot: Any) -> str:
-    """``--detector auto``: on a virtual Pepper the detector it names over qi (MoveNet for its bodies, colour for its
-    box proxies), MoveNet on a real one (the detector that meets the PETS targets with the feet in view and hidden,
-    docs/tracking.md)."""
-    if name != "auto":
-        return name
-    identity = getattr(robot, "identity", None)
-    return str(identity.get("detector", "colour")) if identity else "movenet"
 
 
 def _warm_up(policy: Any) -> None:

@@ -163,6 +163,16 @@ def pose_at(history: collections.deque, t: float) -> np.ndarray:
     return items[-1][1]
 
 
+def detector_for(name: str, robot: Any) -> str:
+    """``--detector auto``: on a virtual Pepper the detector it names over qi (MoveNet for its bodies, colour for its
+    box proxies), MoveNet on a real one (the detector that meets the PETS targets with the feet in view and hidden,
+    docs/tracking.md)."""
+    if name != "auto":
+        return name
+    identity = getattr(robot, "identity", None)
+    return str(identity.get("detector", "colour")) if identity else "movenet"
+
+
 @dataclasses.dataclass
 class Estimate:
     """Members (odometry frame) from the frame captured at local time ``capture``; ``detections`` in it."""

@@ -56,14 +56,13 @@ from ..deploy.robot import compose, relative
 from ..deploy.watchdog import host as host_watchdog
 from ..errors import UserError
 from ..files import check_output_path, write_yaml
-from ..params import APPEARANCES, HumansLook, WorldParams
+from ..params import APPEARANCES
 from .camera import Camera
 from .robot import SimRobot
 from .services import HANG_S, PROTECTION_CHAINS, Identity, make_services
 from .walkers import WALKERS, make_walker
 
 LOOPBACK = ("127.0.0.1", "localhost", "[::1]")
-DETECTOR = {"body": "movenet", "proxy": "colour"}  # the detector deploy's --detector auto picks for each look
 
 
 def check_listen(url: str, allow_remote: bool) -> str:
@@ -257,7 +256,7 @@ def main(argv: list[str] | None = None) -> int:
     groups = args.groups
     if groups is None:
         groups = policy_groups("vector")
-    robot = SimRobot(args.scenario, args.seed, groups=groups, world=WorldParams(humans=HumansLook(args.appearance)))
+    robot = SimRobot(args.scenario, args.seed, groups=groups, appearance=args.appearance)
     if args.walker is not None:
         robot.add_walker(make_walker(args.walker))
     session = qi.Session()
@@ -278,7 +277,7 @@ def main(argv: list[str] | None = None) -> int:
     vp.hang_stops = args.hang_stops
     for name, service in zip(("ALMotion", "ALVideoDevice", "ALMemory"), make_services(vp), strict=True):
         session.registerService(name, service)
-    session.registerService(IDENTITY, Identity({"detector": DETECTOR[args.appearance], "scenario": args.scenario,
+    session.registerService(IDENTITY, Identity({**robot.identity, "scenario": args.scenario,
                                                 "seed": str(args.seed), "groups": groups}, vp))
     watching = None if args.no_watchdog else host_watchdog(session, say=vp.watchdog_line)[1]
     signal.signal(signal.SIGUSR1, lambda *_: setattr(vp, "frozen", not vp.frozen))

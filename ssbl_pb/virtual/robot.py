@@ -31,8 +31,10 @@ from ..deploy.robot import Frame, Odometry, RangeScan, clamp_command, relative
 from ..env.gymenv.approach import ApproachGroupEnv
 from ..env.view.bullet import pybullet as p
 from ..env.view.world import World
-from ..params import RobotParams, WorldParams
+from ..params import HumansLook, RobotParams, WorldParams
 from .walkers import Walker
+
+DETECTOR = {"body": "movenet", "proxy": "colour"}  # the detector deploy's --detector auto picks for each look
 
 
 def exit_distance(mount: Mount, angle: float, half_length: float, half_width: float) -> float:
@@ -119,11 +121,19 @@ class SimRobot:
     """
 
     def __init__(self, scenario: str = "default", seed: int = 0, limits: RobotParams | None = None,
-                 image_size: tuple[int, int] = (320, 240), sim_dt: float = 0.02, **env_kwargs: Any) -> None:
+                 image_size: tuple[int, int] = (320, 240), sim_dt: float = 0.02, appearance: str | None = None,
+                 **env_kwargs: Any) -> None:
         """``limits``: the base's limits (the robot's clamp; default Pepper's NAOqi defaults); ``sim_dt``: the
-        world's integration step (s); ``env_kwargs``: the env's ``world``/``robot``/``social`` parameters."""
+        world's integration step (s); ``appearance``: how the people look in its frames (``humans.appearance``:
+        "body" or "proxy"; default the ``world``'s); ``env_kwargs``: the env's ``world``/``robot``/``social``
+        parameters."""
         world = env_kwargs.pop("world", None) or WorldParams()
-        world = dataclasses.replace(world, dt=sim_dt) if isinstance(world, WorldParams) else {**world, "dt": sim_dt}
+        if isinstance(world, WorldParams):
+            world = dataclasses.replace(world, dt=sim_dt)
+            if appearance is not None:
+                world = dataclasses.replace(world, humans=HumansLook(appearance))
+        else:
+            world = {**world, "dt": sim_dt, **({} if appearance is None else {"humans": {"appearance": appearance}})}
         self.env = ApproachGroupEnv(scenario, world=world, **env_kwargs)
         self.info = self.env.reset(seed=seed)[1]
         self.world = self.env.world
@@ -139,6 +149,12 @@ class SimRobot:
         self.closed = False
         self.sensors: RangeSensors | None = None  # cast from the first read on (``memory_values``)
         self.walkers: list[Walker] = []
+
+    @property
+    def identity(self) -> dict[str, str]:
+        """What the virtual Pepper says of itself over qi (``SSBLVirtualPepper``): the detector for its people's
+        look (deploy's ``--detector auto``, ``deploy.perceive.detector_for``)."""
+        return {"detector": DETECTOR[self.world.params.humans.appearance]}
 
     # -- simulation side -------------------------------------------------------------------------------------
     def advance(self, seconds: float) -> None:
