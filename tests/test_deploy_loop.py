@@ -67,6 +67,7 @@ def test_joins_the_group_and_logs_a_dynamics_log(tmp_path, groups):
     # circle on a detected pair; docs/benchmarks.md "Deploy against the virtual Pepper"), so deploy may stop past 0.3
     assert math.dist(truth["pose"][:2], truth["slot"]) < (0.3 if groups == "calibrated" else 0.4)
     assert loop.group.paper == (groups == "paper")  # deploy models the groups the env spawned
+    assert not loop.group.robust  # the colour detector's chest-marker facing: rays where they cross
     assert robot.world.group.keep == (0.0 if groups == "paper" else loop.group.keep)
     assert robot._cmd.tolist() == [0.0, 0.0, 0.0] and robot.closed
     rows = read_log(tmp_path)

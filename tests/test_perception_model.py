@@ -365,3 +365,39 @@ def test_the_engine_lets_the_policy_drive_while_no_look_is_due():
     before = sim.pose[0].copy()
     env.step(np.array([1.0, 0.0]))
     assert np.hypot(*(sim.pose[0, :2] - before[:2])) > 0.01  # moving toward the group: no look
+
+
+def test_robust_facing_centre_weighs_rays_against_the_centroid_and_discounts_a_ray_that_misses():
+    from scipy.optimize import brentq
+
+    from ssbl_pb.perception.groups.estimate import CENTROID_STD_M, facing_centre, robust_facing_centre
+
+    # two rays from (-1, 0) and (1, 0) meet at (0, 2); a third from (0, 3) points down the y axis (no pull in y);
+    # the centroid is (0, 1). By symmetry x = 0; y balances the two rays (normal distance |2 - y| / sqrt(5), std
+    # d * 0.1 with d = sqrt(1 + y^2)) against the centroid (std CENTROID_STD_M): a fixed point solved by hand
+    members = np.array([[-1.0, 0.0], [1.0, 0.0], [0.0, 3.0]])
+    facing = np.array([math.atan2(2.0, 1.0), math.atan2(2.0, -1.0), -math.pi / 2])
+    std = np.full(3, 0.1)
+
+    def balance(y: float) -> float:
+        w = 1.0 / ((1.0 + y * y) * 0.01)
+        return 2.0 * w * (y - 2.0) / 5.0 + (y - 1.0) / CENTROID_STD_M ** 2
+
+    y = brentq(balance, 1.0, 2.0)
+    assert robust_facing_centre(members, facing, std) == pytest.approx([0.0, y], abs=1e-5)
+    assert 1.3 < y < 1.7  # between the rays' crossing and the centroid
+    assert robust_facing_centre(members[:2], facing[:2], std[:2]) is None  # a pair: facing_centre's case
+    assert robust_facing_centre(members, np.array([facing[0], np.nan, np.nan]), std) is None  # one known
+
+    # four members around (0, 0) facing it within 5 deg, one of them turned 80 deg (a keypoint facing gone wrong):
+    # the plain crossing follows the wrong ray; the robust one discounts it
+    rng = np.random.default_rng(3)
+    angles = np.radians([0.0, 90.0, 180.0, 270.0])
+    members = 0.8 * np.column_stack([np.cos(angles), np.sin(angles)])
+    facing = angles + math.pi + np.radians(rng.uniform(-5.0, 5.0, 4))
+    facing[1] += math.radians(80.0)
+    std = np.full(4, math.radians(15.0))
+    plain = facing_centre(members, facing, std, reach=1.0)
+    robust = robust_facing_centre(members, facing, std)
+    assert plain is not None and np.hypot(*plain) > 0.2
+    assert np.hypot(*robust) < 0.05

@@ -143,7 +143,9 @@ class DeployLoop:
         self.looks = Looks(self.p.confirm_s)  # looks at members not seen lately: before a claim, when stalled
         self.group = GroupModel(setup.social, slot_keep(setup.social, setup.robot_params.reach,
                                                         setup.task.intimate_zone, setup.task.route_margin),
-                                paper=setup.groups == "paper")
+                                paper=setup.groups == "paper",
+                                # keypoint facings (MoveNet) may be far off; the colour detector's chest marker is not
+                                robust=setup.groups != "paper" and not getattr(setup.perception, "torso", True))
         setup.perception.group_model = self.group  # the tracker records rests by its joining weight
         self._last_status, self._ticks_since = -math.inf, 0
 

@@ -128,6 +128,48 @@ def facing_centre(members: np.ndarray, facing: np.ndarray, std: np.ndarray, reac
     return pts.mean(axis=0) + h * mean
 
 
+FACING_OUTLIER = math.radians(45)  # rad: a ray missing the estimate by more is an outlier (a facing turned back)
+OUTLIER_WEIGHT = 0.02  # an outlier ray's share of its weight: kept, so an estimate can come back to it
+CENTROID_STD_M = 0.2  # m: how far a conversation's centre lies from its members' centroid (calibrated groups:
+#   0.09-0.27 m at the median per formation, ``calib.groups`` on shared/data/fformations)
+RAY_MIN_M, RAY_MIN_STD = 0.3, 0.05  # m, rad: floors of a ray's length and facing error in its weight
+
+
+def robust_facing_centre(members: np.ndarray, facing: np.ndarray, std: np.ndarray, iterations: int = 20
+                         ) -> np.ndarray | None:
+    """The o-space centre of three or more members from their facing rays and their centroid together, robust to
+    a facing that is wrong (MoveNet's keypoints turn a person seen from the side or behind by up to 180 deg).
+
+    Iteratively reweighted least squares over each ray's normal distance (its std the ray's length times its
+    facing std, floored at ``RAY_MIN_M`` and ``RAY_MIN_STD``) and the distance to the members' centroid (std
+    ``CENTROID_STD_M``: the calibrated model's centre is the centroid, ``group_circle``); a ray that misses the
+    estimate by more than ``FACING_OUTLIER`` keeps ``OUTLIER_WEIGHT`` of its weight. None for fewer than three
+    members or two known facings (``group_circle`` then)."""
+    pts = np.asarray(members, dtype=float).reshape(-1, 2)
+    f, sd = np.asarray(facing, dtype=float).ravel(), np.asarray(std, dtype=float).ravel()
+    known = np.isfinite(f) & np.isfinite(sd) & (sd > 0)
+    if len(pts) < 3 or known.sum() < 2:
+        return None
+    centroid = pts.mean(axis=0)
+    p, sd = pts[known], np.maximum(sd[known], RAY_MIN_STD)
+    u = np.column_stack([np.cos(f[known]), np.sin(f[known])])
+    proj = np.eye(2)[None] - u[:, :, None] * u[:, None, :]  # onto each ray's normal
+    prior = 1.0 / CENTROID_STD_M ** 2
+    c = centroid
+    for _ in range(iterations):
+        to_c = c - p
+        d = np.hypot(*to_c.T)
+        w = 1.0 / (np.maximum(d, RAY_MIN_M) * sd) ** 2
+        cos_miss = (to_c * u).sum(axis=1) / np.maximum(d, 1e-9)
+        w = np.where(cos_miss < math.cos(FACING_OUTLIER), OUTLIER_WEIGHT * w, w)
+        a = (w[:, None, None] * proj).sum(axis=0) + prior * np.eye(2)
+        b = (w[:, None, None] * proj @ p[:, :, None]).sum(axis=0).ravel() + prior * centroid
+        c, last = np.linalg.solve(a, b), c
+        if np.hypot(*(c - last)) < 1e-6:
+            break
+    return c
+
+
 def group_circle(members: np.ndarray, robot_xy: np.ndarray, social: SocialParams, paper: bool = False
                  ) -> tuple[np.ndarray, float]:
     """Conversation centre (2,) and o-space radius (m) of members (n >= 2, (n, 2)); see the module docstring."""
@@ -182,8 +224,10 @@ class GroupModel:
     groups model).
     """
 
-    def __init__(self, social: SocialParams, keep: float, paper: bool = False, smoothing: float = 0.3) -> None:
+    def __init__(self, social: SocialParams, keep: float, paper: bool = False, smoothing: float = 0.3,
+                 robust: bool = False) -> None:
         self.social, self.keep, self.paper, self.smoothing = social, keep, paper, smoothing
+        self.robust = robust  # three or more members: ``robust_facing_centre`` (facings that may be far off)
         self.centre0: np.ndarray | None = None
         self.n = 0
         self.weight = 0.0  # the joining weight of the last update (read by ``GroupTracker`` to record rests)
@@ -215,8 +259,12 @@ class GroupModel:
         members = np.asarray(members, dtype=float).reshape(-1, 2)
         rest = members if rest is None else np.asarray(rest, dtype=float).reshape(-1, 2)
         n = len(members)
-        met = None if facing is None else facing_centre(members, facing, facing_std,
-                                                         self.social.ospace_radius_for(max(n, 2)))
+        if facing is None:
+            met = None
+        elif self.robust and n >= 3:
+            met = robust_facing_centre(members, facing, facing_std)
+        else:
+            met = facing_centre(members, facing, facing_std, self.social.ospace_radius_for(max(n, 2)))
         measured = met if met is not None else group_circle(members, robot_xy, self.social, self.paper)[0]
         if self.centre0 is None or n != self.n:
             self.centre0, self.n = measured, n
