@@ -272,8 +272,11 @@ class DeployLoop:
             if look is not None:  # a claim it cannot back yet ("confirm"), or stalled away from its place ("look")
                 state, cmd = look, self._turn_to(pos[k], odo.pose)
         scan = s.robot.ranges() if hasattr(s.robot, "ranges") else None
+        scan_pose = None if scan is None else pose_at(s.perception.odometry, scan.stamp)
+        if scan is not None:  # the lasers' returns range the detector's people (the sonars' do not: no bearing)
+            s.perception.ranges(scan.points[:len(scan.points) - scan.sonars], scan_pose)
         cmd, guarded = self.guards(cmd, scan, members, pos, odo.pose, age, now, info.get("slot_distance_m", math.inf),
-                                   None if scan is None else pose_at(s.perception.odometry, scan.stamp))
+                                   scan_pose)
         t_send = self.now()
         sent = s.robot.send(clamp_command(cmd, self.limits))
         t_sent = self.now()

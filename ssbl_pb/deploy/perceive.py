@@ -25,10 +25,19 @@ from ..perception.camera import PinholeCamera, sim_camera
 from ..perception.detection.detectors import ColourDetector, HogDetector, HogParams
 from ..perception.detection.facing import Facing, facing_yaw
 from ..perception.detection.ground import ProxyGeometry, boxes_to_ground
+from ..perception.detection.laser_range import LEG_DEPTH_M, laser_ranged
 from ..perception.detection.learned import SsdDetector
 from ..perception.detection.movenet import MoveNetFacing
 from ..perception.detection.proxy_facing import estimate_facing
-from ..perception.groups.estimate import MIN_VISIBLE, TORSO_HALF, TORSO_HEIGHT, TRACKER, GroupTracker, Member
+from ..perception.groups.estimate import (
+    MIN_VISIBLE,
+    TORSO_HALF,
+    TORSO_HEIGHT,
+    TRACKER,
+    TRACKER_KEYPOINTS,
+    GroupTracker,
+    Member,
+)
 from ..perception.tracking.tracker import TrackerParams
 from ..urdf import HUMAN_COLOURS
 from .robot import Frame, Robot
@@ -198,6 +207,11 @@ class Perception:
         self.social = social or SocialParams()
         self.centre0: np.ndarray | None = None  # set by the loop: the group's centre before joining (odometry)
         self.group_model: Any = None  # set by the loop: its ``group.GroupModel`` (its joining weight marks rests)
+        identity = getattr(robot, "identity", None) or {}
+        # from a laser's return to the person's centre: a real Pepper's lasers hit feet and shins; the virtual
+        # Pepper says what its lasers hit
+        self.laser_depth = float(identity.get("person_laser_depth_m", LEG_DEPTH_M))
+        self.scan: np.ndarray | None = None  # the lasers' last returns, odometry frame (``ranges``; None: none)
         self.odometry: collections.deque = collections.deque(maxlen=200)  # (local time, pose), from the loop
         self.offset = math.inf
         self.newest: Frame | None = None
@@ -210,6 +224,14 @@ class Perception:
         self._new = threading.Condition(self._lock)
         self._stop = threading.Event()
         self._threads: list[threading.Thread] = []
+
+    def ranges(self, points: np.ndarray, pose: np.ndarray) -> None:
+        """The lasers' returns (robot frame at odometry ``pose``; sonar echoes left out), from the control loop:
+        the detector's people are ranged by them (``laser_ranged``), where it tells no torso."""
+        c, s = math.cos(pose[2]), math.sin(pose[2])
+        pts = np.asarray(points, dtype=float).reshape(-1, 2) @ np.array([[c, s], [-s, c]]) + pose[:2]
+        with self._lock:
+            self.scan = pts
 
     # -- the two jobs ----------------------------------------------------------------------------------------
     def grab(self) -> bool:
@@ -236,7 +258,7 @@ class Perception:
         h, w = frame.image.shape[:2]
         if self._group is None or self._group.camera.width != w:
             cam = self.calibrated.scaled(w, h) if self.calibrated is not None else sim_camera(self.robot_params, w, h)
-            params = self.tracker_params or TRACKER
+            params = self.tracker_params or (TRACKER if self.torso else TRACKER_KEYPOINTS)
             self._group = GroupTracker(cam, params, social=self.social, model=self.group_model)
         boxes = self.detect(frame.image)
         # each person's facing, where the detector tells it (the virtual Pepper's colour detector, MoveNet's
@@ -258,6 +280,12 @@ class Perception:
             xy = boxes_to_ground(self._group.camera, boxes, ProxyGeometry(), torso=self.torso)
         found = np.isfinite(xy[:, 0])
         xy = xy[found]
+        with self._lock:
+            scan = self.scan
+        if not self.torso and scan is not None:  # to the robot frame at capture
+            c, sn = math.cos(pose[2]), math.sin(pose[2])
+            lasers = (scan - pose[:2]) @ np.array([[c, -sn], [sn, c]])
+            xy = laser_ranged(xy, lasers, self.laser_depth)[0]
         if self.torso and len(xy):
             centre = None
             if self.centre0 is not None:  # the group's centre in the robot frame at capture

@@ -1,0 +1,57 @@
+"""A detected person's range from the base's lasers: the camera gives the bearing well and the range coarsely
+(MoveNet's keypoints: 0.1-0.5 m off at 1-3 m, docs/tracking.md), the lasers the range to what they hit within a
+few centimetres but not whose it is. Pure geometry on robot-frame points.
+
+Each person's laser returns are those within their half-width of the camera's bearing (at the return's range) and
+within ``gate`` of the camera's range; the nearest of them is their near side, and the person's centre lies
+``depth`` behind it, at the mean bearing of their returns (those around the nearest, across their width: the
+camera's bearing of a person cut by the image's bottom is a few degrees off).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+# m: from the near side a base laser hits (0.03-0.09 m up: the feet and shins, ``deploy.ranges``) to a person's
+# centre: a shin's 0.05 m radius and the foot ahead of it; ours, from a 0.26 m foot and the ankle a quarter of it
+# from the heel. The virtual Pepper's lasers hit its people's 0.28 m collision cylinder and say so
+# (``SimRobot.identity``)
+LEG_DEPTH_M = 0.1
+HALF_WIDTH_M = 0.25  # m: half a person's width across the line of sight at the lasers' height (feet apart, the
+#   cylinder's 0.28 m less the bearing's error)
+BODY_DEPTH_M = 0.3  # m: returns this far behind a person's nearest are still theirs (a leg behind the other)
+GATE_MIN_M, GATE_REL = 0.5, 0.3  # a return counts within max(0.5 m, 30 % of the camera's range) of it: the
+#   keypoints' range is 0.5 m off at p90 at 1-2.5 m (docs/tracking.md)
+
+
+def laser_ranged(xy: np.ndarray, points: np.ndarray, depth: float = LEG_DEPTH_M) -> tuple[np.ndarray, np.ndarray]:
+    """People at robot-frame ``xy`` (n, 2; NaN unknown) ranged again by laser returns ``points`` (k, 2, robot
+    frame): each put ``depth`` behind its nearest return within its half-width and the gate, at its returns' mean
+    bearing (module docstring). Returns the positions (n, 2) and which were ranged by a laser (n,)."""
+    xy = np.asarray(xy, dtype=float).reshape(-1, 2).copy()
+    pts = np.asarray(points, dtype=float).reshape(-1, 2)
+    hit = np.zeros(len(xy), dtype=bool)
+    if not len(pts) or not len(xy):
+        return xy, hit
+    rho = np.hypot(pts[:, 0], pts[:, 1])
+    beta = np.arctan2(pts[:, 1], pts[:, 0])
+    for i, (x, y) in enumerate(xy):
+        if not (math.isfinite(x) and math.isfinite(y)):
+            continue
+        r, theta = math.hypot(x, y), math.atan2(y, x)
+        off = np.abs(np.remainder(beta - theta + math.pi, 2 * math.pi) - math.pi)
+        near = (off <= np.arctan2(HALF_WIDTH_M, np.maximum(rho, 0.1))) \
+            & (np.abs(rho + depth - r) <= max(GATE_MIN_M, GATE_REL * r))
+        if near.any():
+            k = int(np.flatnonzero(near)[np.argmin(rho[near])])
+            # the person's returns: around the nearest, across their width and no deeper than their body
+            own = (np.abs(np.remainder(beta - beta[k] + math.pi, 2 * math.pi) - math.pi)
+                   <= math.atan2(HALF_WIDTH_M, rho[k])) & (rho <= rho[k] + BODY_DEPTH_M)
+            theta = beta[k] + float(np.mean(np.remainder(beta[own] - beta[k] + math.pi, 2 * math.pi) - math.pi))
+            rng = float(rho[k]) + depth
+            xy[i] = rng * math.cos(theta), rng * math.sin(theta)
+            hit[i] = True
+    return xy, hit
+

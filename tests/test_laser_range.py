@@ -1,0 +1,31 @@
+"""Ranging detected people by the base's lasers (``perception.detection.laser_range``)."""
+
+import math
+
+import numpy as np
+import pytest
+
+from ssbl_pb.perception.detection.laser_range import LEG_DEPTH_M, laser_ranged
+
+
+def test_a_person_moves_along_the_bearing_to_the_depth_behind_the_nearest_return():
+    # the camera puts a person 2.4 m out at 30 deg; the lasers hit them at 2.0 m at 29 and 32 deg (both within
+    # their 0.25 m half-width of the nearest) and a wall 2.95 m away behind: the person's centre is 2.0 + depth out,
+    # at the two returns' mean bearing, 30.5 deg
+    ray = lambda deg, r: r * np.array([math.cos(math.radians(deg)), math.sin(math.radians(deg))])  # noqa: E731
+    points = np.array([ray(29.0, 2.0), ray(32.0, 2.05), ray(30.0, 2.95)])
+    xy, hit = laser_ranged(np.array([ray(30.0, 2.4), [np.nan, np.nan]]), points, depth=0.28)
+    assert hit.tolist() == [True, False]
+    assert xy[0].tolist() == pytest.approx(ray(30.5, 2.0 + 0.28).tolist())
+    assert np.isnan(xy[1]).all()
+
+
+def test_returns_off_the_bearing_or_outside_the_gate_leave_the_camera_range():
+    xy = np.array([[2.0, 0.0]])
+    beside = np.array([[1.8, 0.5]])  # 0.5 m to the side: another person
+    far_in_front = np.array([[0.8, 0.0]])  # 1.2 m nearer than the camera says: gate max(0.5, 0.6) m
+    for pts in (beside, far_in_front, np.zeros((0, 2))):
+        out, hit = laser_ranged(xy, pts)
+        assert not hit.any() and out.tolist() == xy.tolist()
+    out, hit = laser_ranged(xy, np.array([[1.6, 0.0]]))  # 0.3 m nearer, inside the gate
+    assert hit.all() and out[0].tolist() == pytest.approx([1.6 + LEG_DEPTH_M, 0.0])
