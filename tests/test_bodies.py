@@ -181,3 +181,46 @@ def test_the_lockstep_robot_draws_bodies_when_asked_and_movenet_ranges_them():
         assert detector_for("auto", proxies) == "colour"
     finally:
         proxies.close()
+
+
+def test_deploys_movenet_chain_ranges_members_within_the_lasers_reach_by_their_returns():
+    """Deploy's perception on the virtual Pepper's bodies (MoveNet): the members 1.5-3 m ahead, each placed by the
+    lasers' nearest return and the depth the virtual Pepper names (its people's 0.28 m cylinder), within 0.06 m of
+    where they stand; without the lasers' returns (keypoints only) farther off."""
+    pytest.importorskip("ai_edge_litert")
+    from ssbl_pb.deploy.perceive import Perception
+    from ssbl_pb.deploy.robot import relative
+    from ssbl_pb.perception.groups.estimate import TRACKER_KEYPOINTS
+    from ssbl_pb.virtual.robot import SimClock, SimRobot
+
+    robot = SimRobot("default", 41, appearance="body")
+    try:
+        w = robot.world
+        (cx, cy), (x, y, _) = w.group.centre, w.robot_pose
+        yaw = math.atan2(cy - y, cx - x)
+        w.base.pose = np.array([cx - 2.2 * math.cos(yaw), cy - 2.2 * math.sin(yaw), yaw])  # 2.2 m from the centre
+        w.invalidate()
+        clock = SimClock(robot)
+        errors = {}
+        for lasers in (True, False):
+            perception = Perception(robot, clock.now, "movenet", RobotParams(), threaded=False)
+            assert perception.laser_depth == pytest.approx(0.28) and not perception.torso
+            for _ in range(4):  # three hits confirm a keypoint track (``TRACKER_KEYPOINTS``)
+                clock.sleep(0.1)
+                robot.render()
+                odo = robot.odometry()
+                perception.odometry.append((odo.stamp, odo.pose))
+                if lasers:
+                    scan = robot.ranges()
+                    perception.ranges(scan.points[:len(scan.points) - scan.sonars], odo.pose)
+                perception.step()
+            est, _ = perception.snapshot()
+            start = robot.start_pose
+            truth = np.array([relative(start, [*m, 0.0])[:2] for m in w.group.pos])  # odometry frame
+            found = np.array([m.pos for m in est.members])
+            errors[lasers] = np.hypot(*(found[:, None] - truth[None]).transpose(2, 0, 1)).min(axis=0)
+        assert TRACKER_KEYPOINTS.birth_hits == 3
+    finally:
+        robot.close()
+    assert len(errors[True]) == 2 and errors[True].max() < 0.06, errors  # measured 0.02 and 0.04
+    assert errors[False].max() > 2 * errors[True].max(), errors  # measured 0.22 and 0.16

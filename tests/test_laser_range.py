@@ -29,3 +29,17 @@ def test_returns_off_the_bearing_or_outside_the_gate_leave_the_camera_range():
         assert not hit.any() and out.tolist() == xy.tolist()
     out, hit = laser_ranged(xy, np.array([[1.6, 0.0]]))  # 0.3 m nearer, inside the gate
     assert hit.all() and out[0].tolist() == pytest.approx([1.6 + LEG_DEPTH_M, 0.0])
+
+
+def test_deploy_takes_the_depth_a_virtual_pepper_names_and_a_real_pepper_s_feet_otherwise():
+    from types import SimpleNamespace
+
+    from ssbl_pb.deploy.perceive import Perception
+
+    real = Perception(SimpleNamespace(identity=None), lambda: 0.0, "colour", threaded=False)
+    virtual = Perception(SimpleNamespace(identity={"person_laser_depth_m": "0.28"}), lambda: 0.0, "colour",
+                         threaded=False)
+    assert real.laser_depth == LEG_DEPTH_M == 0.1 and virtual.laser_depth == 0.28
+    # the loop hands the lasers' robot-frame returns over at the odometry pose: stored in the odometry frame
+    real.ranges(np.array([[1.0, 0.0]]), np.array([2.0, 1.0, math.pi / 2]))
+    assert real.scan.tolist() == pytest.approx([[2.0, 2.0]])
