@@ -42,4 +42,4 @@ def test_deploy_takes_the_depth_a_virtual_pepper_names_and_a_real_pepper_s_feet_
     assert real.laser_depth == LEG_DEPTH_M == 0.1 and virtual.laser_depth == 0.28
     # the loop hands the lasers' robot-frame returns over at the odometry pose: stored in the odometry frame
     real.ranges(np.array([[1.0, 0.0]]), np.array([2.0, 1.0, math.pi / 2]))
-    assert real.scan.tolist() == pytest.approx([[2.0, 2.0]])
+    assert real.scan[0].tolist() == pytest.approx([2.0, 2.0])
