@@ -258,7 +258,8 @@ class Perception:
         h, w = frame.image.shape[:2]
         if self._group is None or self._group.camera.width != w:
             cam = self.calibrated.scaled(w, h) if self.calibrated is not None else sim_camera(self.robot_params, w, h)
-            params = self.tracker_params or (TRACKER if self.torso else TRACKER_KEYPOINTS)
+            keypoints = isinstance(self.detect, MoveNetFacing)
+            params = self.tracker_params or (TRACKER_KEYPOINTS if keypoints else TRACKER)
             self._group = GroupTracker(cam, params, social=self.social, model=self.group_model)
         boxes = self.detect(frame.image)
         # each person's facing, where the detector tells it (the virtual Pepper's colour detector, MoveNet's
