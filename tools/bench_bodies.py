@@ -2,10 +2,10 @@
 """How often MoveNet (deploy's detector for real people) finds the simulator's person bodies in the virtual
 Pepper's camera frames (``ssbl_pb/bench/body_detection.py``): each shipped body alone at 1-5 m seen from the
 front, the side and the back, and the members of the env's groups (also drawn as box proxies, for comparison),
-at 320x240 and 640x480. Writes OUT.json (every
-sample) and OUT.md (recall tables) and prints the Markdown.
+at 320x240 and 640x480; and the facing and range deploy's MoveNet chain gives each body alone (against its true
+yaw and distance). Writes OUT.json (every sample) and OUT.md (the tables) and prints the Markdown.
 
-    python tools/bench_bodies.py                            # 10 bodies x 7 distances x 3 views, 20 groups (~3 min)
+    python tools/bench_bodies.py                            # 10 bodies x 7 distances x 3 views, 20 groups (~4 min)
     python tools/bench_bodies.py --groups 0 --out /tmp/bodies
 """
 
@@ -31,6 +31,7 @@ def main(argv: list[str] | None = None) -> int:
     for suffix in (".json", ".md"):
         check_output_path(args.out.with_suffix(suffix), is_dir=False)
     from ssbl_pb.bench import body_detection as bd  # lazy: the renderer and MoveNet (~1.7 s), not for --help
+    from ssbl_pb.bench import body_pose  # lazy: as above
 
     detect = bd.movenet_detector()  # raises naming the install command when MoveNet is missing
     single = bd.single(detect)
@@ -38,9 +39,11 @@ def main(argv: list[str] | None = None) -> int:
              ] if args.groups else []  # the box proxies in the same scenes, for comparison
     command = "python tools/bench_bodies.py " + " ".join(shlex.quote(a) for a in (sys.argv[1:] if argv is None
                                                                                  else argv))
-    text = bd.markdown(single, group) + f"\n`{command.strip()}`\n"
+    pose = body_pose.placed()
+    text = bd.markdown(single, group) + "\n" + body_pose.markdown(pose) + f"\n`{command.strip()}`\n"
     write_json(args.out.with_suffix(".json"), {"command": command.strip(), "thresholds": list(bd.THRESHOLDS),
-                                               "match_iou": bd.MATCH_IOU, "single": single, "group": group})
+                                               "match_iou": bd.MATCH_IOU, "single": single, "group": group,
+                                               "pose": pose})
     write_text(args.out.with_suffix(".md"), text)
     print(text)
     return 0
