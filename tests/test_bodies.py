@@ -224,3 +224,14 @@ def test_deploys_movenet_chain_ranges_members_within_the_lasers_reach_by_their_r
         robot.close()
     assert len(errors[True]) == 2 and errors[True].max() < 0.06, errors  # measured 0.02 and 0.04
     assert errors[False].max() > 2 * errors[True].max(), errors  # measured 0.22 and 0.16
+
+
+def test_the_body_pose_table_gives_median_facing_error_its_share_within_45_deg_and_median_range_error():
+    from ssbl_pb.bench.body_pose import markdown
+
+    rows = [{"body": b, "distance": 2.0, "view": v, "facing_error_deg": f, "range_error": e}
+            for v in ("front", "side", "back")
+            for b, (f, e) in enumerate([(10.0, 0.1), (-170.0, 0.3), (20.0, math.nan)])]
+    text = markdown(rows)
+    # |10|, |-170|, |20| -> median 20 deg, 2 of 3 within 45 deg; range errors 0.1 and 0.3 -> median +0.20 m
+    assert "| front | 20 deg, 67%; +0.20 m |" in text and "| back | 20 deg, 67%; +0.20 m |" in text
