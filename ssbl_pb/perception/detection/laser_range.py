@@ -1,5 +1,5 @@
 """A detected person's range from the base's lasers: the camera gives the bearing well and the range coarsely
-(MoveNet's keypoints: 0.1-0.5 m off at 1-3 m, docs/tracking.md), the lasers the range to what they hit within a
+(MoveNet's keypoints: 0.1-0.6 m too far at 1-3 m, docs/tracking.md), the lasers the range to what they hit within a
 few centimetres but not whose it is. Pure geometry on robot-frame points.
 
 Each person's laser returns are those within their half-width of the camera's bearing (at the return's range) and
@@ -23,7 +23,7 @@ HALF_WIDTH_M = 0.25  # m: half a person's width across the line of sight at the 
 #   cylinder's 0.28 m less the bearing's error)
 BODY_DEPTH_M = 0.3  # m: returns this far behind a person's nearest are still theirs (a leg behind the other)
 GATE_MIN_M, GATE_REL = 0.5, 0.3  # a return counts within max(0.5 m, 30 % of the camera's range) of it: the
-#   keypoints' range is 0.5 m off at p90 at 1-2.5 m (docs/tracking.md)
+#   keypoints' range is up to 0.6 m off at the median at 1 m (docs/tracking.md)
 
 
 def laser_ranged(xy: np.ndarray, points: np.ndarray, depth: float = LEG_DEPTH_M) -> tuple[np.ndarray, np.ndarray]:

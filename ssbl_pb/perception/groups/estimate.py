@@ -36,7 +36,7 @@ TORSO_HALF = (0.13, 0.23)  # m: half-depth (along the facing) and half-width of 
 # the colour detector's ground error is ~0.05 m median (docs/benchmarks_tracking.md); people in a group stand or
 # step slowly, so a lower acceleration noise than the street-tracking default keeps coasting tracks in place
 TRACKER = TrackerParams(meas_std=0.1, birth_hits=2, accel_std=0.7)
-# people ranged from keypoints (MoveNet): 0.1-0.5 m off where no laser ranges them (docs/tracking.md), so a
+# people ranged from keypoints (MoveNet): 0.1-0.6 m off where no laser ranges them (docs/tracking.md), so a
 # detection's noise is larger, a conversing person's acceleration smaller (a range that jumps is not a step), a
 # track needs three hits, and a detection within 0.4 m of a track (closer than people in a group stand) starts none
 TRACKER_KEYPOINTS = TrackerParams(meas_std=0.25, birth_hits=3, accel_std=0.3, min_new_dist=0.4)
