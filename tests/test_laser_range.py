@@ -35,6 +35,7 @@ def test_deploy_takes_the_depth_a_virtual_pepper_names_and_a_real_pepper_s_feet_
     from types import SimpleNamespace
 
     from ssbl_pb.deploy.perceive import Perception
+    from ssbl_pb.errors import UserError
 
     real = Perception(SimpleNamespace(identity=None), lambda: 0.0, "colour", threaded=False)
     virtual = Perception(SimpleNamespace(identity={"person_laser_depth_m": "0.28"}), lambda: 0.0, "colour",
@@ -43,3 +44,6 @@ def test_deploy_takes_the_depth_a_virtual_pepper_names_and_a_real_pepper_s_feet_
     # the loop hands the lasers' robot-frame returns over at the odometry pose: stored in the odometry frame
     real.ranges(np.array([[1.0, 0.0]]), np.array([2.0, 1.0, math.pi / 2]))
     assert real.scan[0].tolist() == pytest.approx([2.0, 2.0])
+
+    with pytest.raises(UserError, match="person_laser_depth_m = 'far': expected metres in \\[0, 1\\]"):
+        Perception(SimpleNamespace(identity={"person_laser_depth_m": "far"}), lambda: 0.0, "colour", threaded=False)

@@ -182,6 +182,18 @@ def detector_for(name: str, robot: Any) -> str:
     return str(identity.get("detector", "colour")) if identity else "movenet"
 
 
+def _depth(value: object) -> float:
+    """The robot's ``person_laser_depth_m`` (m, 0-1), or a ``UserError`` naming it."""
+    try:
+        depth = float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        depth = math.nan
+    if not 0.0 <= depth <= 1.0:
+        raise UserError(f"robot identity: person_laser_depth_m = {value!r}: expected metres in [0, 1] (from a "
+                        f"laser's return to a person's centre)")
+    return depth
+
+
 @dataclasses.dataclass
 class Estimate:
     """Members (odometry frame) from the frame captured at local time ``capture``; ``detections`` in it."""
@@ -210,7 +222,7 @@ class Perception:
         identity = getattr(robot, "identity", None) or {}
         # from a laser's return to the person's centre: a real Pepper's lasers hit feet and shins; the virtual
         # Pepper says what its lasers hit
-        self.laser_depth = float(identity.get("person_laser_depth_m", LEG_DEPTH_M))
+        self.laser_depth = _depth(identity.get("person_laser_depth_m", LEG_DEPTH_M))
         self.scan: np.ndarray | None = None  # the lasers' last returns, odometry frame (``ranges``; None: none)
         self.odometry: collections.deque = collections.deque(maxlen=200)  # (local time, pose), from the loop
         self.offset = math.inf

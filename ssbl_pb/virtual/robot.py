@@ -35,9 +35,6 @@ from ..params import HumansLook, RobotParams, WorldParams
 from .walkers import Walker
 
 DETECTOR = {"body": "movenet", "proxy": "colour"}  # the detector deploy's --detector auto picks for each look
-# m: the people's collision cylinder (urdf/human.urdf), what the virtual lasers hit: from it to a person's centre
-# (``perception.detection.laser_range``; a real Pepper's lasers hit the feet and shins, 0.1 m from the centre)
-PERSON_RADIUS = 0.28
 
 
 def exit_distance(mount: Mount, angle: float, half_length: float, half_width: float) -> float:
@@ -158,7 +155,9 @@ class SimRobot:
         """What the virtual Pepper says of itself over qi (``SSBLVirtualPepper``): the detector for its people's
         look (deploy's ``--detector auto``, ``deploy.perceive.detector_for``)."""
         return {"detector": DETECTOR[self.world.params.humans.appearance],
-                "person_laser_depth_m": f"{PERSON_RADIUS:g}"}
+                # what the virtual lasers hit is the people's collision cylinder: from it to a person's centre
+                # (``perception.detection.laser_range``; a real Pepper's lasers hit feet and shins, 0.1 m)
+                "person_laser_depth_m": f"{self.world.social.human_radius:g}"}
 
     # -- simulation side -------------------------------------------------------------------------------------
     def advance(self, seconds: float) -> None:
