@@ -47,3 +47,14 @@ def test_deploy_takes_the_depth_a_virtual_pepper_names_and_a_real_pepper_s_feet_
 
     with pytest.raises(UserError, match="person_laser_depth_m = 'far': expected metres in \\[0, 1\\]"):
         Perception(SimpleNamespace(identity={"person_laser_depth_m": "far"}), lambda: 0.0, "colour", threaded=False)
+
+
+def test_movenet_boxes_near_the_image_side_are_cut_bodies():
+    from ssbl_pb.deploy.perceive import BODY_MARGIN, whole_people
+
+    # 150 px tall: 1 + 0.07 * 150 = 11.5 px must stay clear of either side of a 320 px image
+    boxes = np.array([[11.0, 40, 50, 150], [12.0, 40, 50, 150], [258.0, 40, 50, 150], [259.0, 40, 50, 150]])
+    assert BODY_MARGIN == 0.07
+    assert whole_people(boxes, 320, BODY_MARGIN).tolist() == [False, True, True, False]
+    assert whole_people(boxes, 320).tolist() == [True, True, True, True]  # HOG's: only a box at the side is cut
+    assert whole_people(np.zeros((0, 5)), 320, BODY_MARGIN).shape == (0,)

@@ -96,6 +96,44 @@ def test_gating_rejects_far_detection():
     assert old.misses == 1 and np.hypot(*old.position) < 0.05
 
 
+def test_max_jump_keeps_a_young_track_from_a_far_detection():
+    """A two-hit track's velocity is unknown (init_vel_std 1 m/s), so after five misses its Mahalanobis gate spans
+    metres: a detection 1.5 m away still joins it, unless ``max_jump`` says a person cannot be there."""
+    wide = Tracker(TrackerParams(dt=DT, birth_hits=2, meas_std=0.25))
+    capped = Tracker(TrackerParams(dt=DT, birth_hits=2, meas_std=0.25, max_jump=1.0))
+    for trk in (wide, capped):
+        trk.update(np.array([[3.0, 0.0]]))
+        trk.update(np.array([[3.0, 0.0]]))
+        for _ in range(5):
+            trk.update(np.zeros((0, 2)))
+    assert [s.id for s in wide.update(np.array([[1.5, 0.0]]))] == [1]  # the far person taken for the near one
+    states = capped.update(np.array([[1.5, 0.0]]))
+    assert [(s.id, s.misses) for s in states] == [(1, 6)]  # coasting on; the detection starts a tentative track
+    assert len(capped.tracks) == 2 and np.hypot(*(capped.tracks[0].kf.x[:2] - [3.0, 0.0])) < 1e-9
+
+
+def test_max_speed_and_standing_coast():
+    """A range that jumps 0.6 m a frame reads as 6 m/s; ``max_speed`` clips it, and with ``coast`` off a missed
+    track stands where it was instead of moving on at its last velocity."""
+    p = TrackerParams(dt=DT, birth_hits=1, meas_std=0.1, max_speed=0.5, coast=False)
+    trk = Tracker(p)
+    for x in (3.0, 3.0, 3.0, 2.4):
+        states = trk.update(np.array([[x, 0.0]]))
+    assert math.isclose(float(np.hypot(*states[0].velocity)), 0.5, rel_tol=1e-9)
+    here = states[0].position.copy()
+    for _ in range(3):
+        states = trk.update(np.zeros((0, 2)))
+    assert np.hypot(*(states[0].position - here)) < 0.06  # one frame at <= 0.5 m/s before it was zeroed, then none
+    assert np.hypot(*states[0].velocity) == 0.0
+    free = Tracker(TrackerParams(dt=DT, birth_hits=1, meas_std=0.1))
+    for x in (3.0, 3.0, 3.0, 2.4):
+        free.update(np.array([[x, 0.0]]))
+    assert np.hypot(*free.states()[0].velocity) > 1.0
+    for _ in range(3):
+        coasted = free.update(np.zeros((0, 2)))
+    assert coasted[0].position[0] < states[0].position[0] - 0.3
+
+
 def test_ego_motion_compensation():
     """A standing person seen from a robot that drives and turns stays still in the odometry frame."""
     person = np.array([3.0, 1.0])
@@ -129,6 +167,10 @@ def test_bad_params_and_payloads():
         TrackerParams(birth_hits=0)
     with pytest.raises(ValueError, match="meas_std"):
         TrackerParams(meas_std=-1.0)
+    with pytest.raises(ValueError, match="max_jump"):
+        TrackerParams(max_jump=0.0)
+    with pytest.raises(ValueError, match="max_speed"):
+        TrackerParams(max_speed=-0.5)
     with pytest.raises(ValueError, match="payloads"):
         Tracker().update(np.zeros((2, 2)), payloads=[1])
 

@@ -43,6 +43,11 @@ from ..urdf import HUMAN_COLOURS
 from .robot import Frame, Robot
 
 DETECTORS = ("colour", "hog", "ssd", "movenet")
+# share of a MoveNet box's height (eyes to ankles, about 1.5 m) the body reaches beyond its keypoints at the side: an
+# arm and a shoulder's half-width, about 0.1 m. A box closer to the image's side is a cut body whose keypoints put it
+# off by up to half a body (at the edge of the view, a member 40 deg off the axis was placed 0.6-0.9 m off, onto
+# the neighbour's place, and the robot sidestepped into them)
+BODY_MARGIN = 0.07
 
 
 def torso_depth(xy: np.ndarray, centre: np.ndarray | None) -> np.ndarray:
@@ -129,6 +134,14 @@ def complete_cut_torsos(boxes: np.ndarray, width: int) -> tuple[np.ndarray, np.n
     b[grow & left, 0] = b[grow & left, 0] + b[grow & left, 2] - full[grow & left]
     b[grow, 2] = full[grow]
     return b, keep
+
+
+def whole_people(boxes: np.ndarray, width: int, margin: float = 0.0) -> np.ndarray:
+    """Which person boxes (``x, y, w, h``, ...) show the whole body across: more than a pixel plus ``margin`` times
+    their height clear of either side of an image ``width`` px wide (``BODY_MARGIN`` for MoveNet's keypoint boxes)."""
+    b = np.asarray(boxes, dtype=float).reshape(len(boxes), -1) if len(boxes) else np.zeros((0, 4))
+    clear = 1.0 + margin * b[:, 3]
+    return (b[:, 0] > clear) & (b[:, 0] + b[:, 2] < width - clear)
 
 
 def make_detector(name: str) -> tuple[Callable[[np.ndarray], np.ndarray], bool]:
@@ -279,9 +292,9 @@ class Perception:
         # a person cut by the image's side still hides part of whoever stands behind them
         seen = self.detect.facing(self._group.camera) if hasattr(self.detect, "facing") else None
         # a box cut by the image's side: a torso completed beyond the side (``complete_cut_torsos``), a whole person
-        # (HOG) is off by up to half a body and dropped
-        boxes, whole = complete_cut_torsos(boxes, w) if self.torso else (boxes, (boxes[:, 0] > 1)
-                                                                          & (boxes[:, 0] + boxes[:, 2] < w - 1))
+        # (HOG) is off by up to half a body and dropped, MoveNet's too near the side (``whole_people``)
+        margin = BODY_MARGIN if isinstance(self.detect, MoveNetFacing) else 0.0
+        boxes, whole = complete_cut_torsos(boxes, w) if self.torso else (boxes, whole_people(boxes, w, margin))
         boxes = boxes[whole]
         if self.torso:  # the torso's edges are the outer edges of the box's first and last rows, not their centres
             boxes = boxes.copy()  # (half a pixel: 0.1 m of range 5 m away; boxes_to_ground takes pixel centres)

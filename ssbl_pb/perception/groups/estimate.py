@@ -38,8 +38,14 @@ TORSO_HALF = (0.13, 0.23)  # m: half-depth (along the facing) and half-width of 
 TRACKER = TrackerParams(meas_std=0.1, birth_hits=2, accel_std=0.7)
 # people ranged from keypoints (MoveNet): 0.1-0.6 m off where no laser ranges them (docs/tracking.md), so a
 # detection's noise is larger, a conversing person's acceleration smaller (a range that jumps is not a step), a
-# track needs three hits, and a detection within 0.4 m of a track (closer than people in a group stand) starts none
-TRACKER_KEYPOINTS = TrackerParams(meas_std=0.25, birth_hits=3, accel_std=0.3, min_new_dist=0.4)
+# track needs three hits, and a detection within 0.4 m of a track (closer than people in a group stand) starts none.
+# A range that jumps (the keypoints' 0.5-1 m too far, then the lasers') read as 1-2.7 m/s toward the robot, and
+# tracks coasting on it, or taking a neighbour's detection 1.7 m away, stopped 10 of 20 `mixed` runs for a person
+# "too close" (lockstep, virtual Pepper's bodies): a conversing person steps at most 0.5 m/s here (ours; the
+# simulator's members at most SocialParams.max_speed 1.0, while the robot joins), nobody is 1 m from where they
+# were predicted, and a track not detected stands (as remembered members do, ``GroupTracker.hold``)
+TRACKER_KEYPOINTS = TrackerParams(meas_std=0.25, birth_hits=3, accel_std=0.3, min_new_dist=0.4, max_jump=1.0,
+                                  max_speed=0.5, coast=False)
 TORSO_HEIGHT = 0.60  # m: the proxy's torso box (urdf/human.urdf)
 # m/s a person out of view may walk: how fast a remembered member's uncertainty grows (``Member.reach``). Comfortable
 # walking is 1.27-1.46 m/s (Bohannon 1997, adults 20-79); ETH/UCY pedestrians moving faster than 0.3 m/s walk at a

@@ -39,6 +39,11 @@ class TrackerParams:
     max_misses: int = 10  # K: consecutive misses before a confirmed track is deleted
     tentative_misses: int = 1  # consecutive misses before a tentative track is deleted
     min_new_dist: float = 0.0  # m; a detection this close to an existing track starts no new one
+    max_jump: float = math.inf  # m; a detection farther than this from a track's prediction is not its (a young
+    #                            track's unknown velocity widens the Mahalanobis gate past where a person can be)
+    max_speed: float = math.inf  # m/s; a track's velocity is clipped to this (people in a conversation step slowly;
+    #                               a detection's range that jumps is not a walk)
+    coast: bool = True  # a missed track moves on at its velocity; False: it stands where it was (velocity zeroed)
     birth_score: float = -math.inf  # detections scoring below this only update existing tracks (second
     #                                 association pass, as in ByteTrack); they never start one
 
@@ -51,6 +56,9 @@ class TrackerParams:
             v = getattr(self, name)
             if not (isinstance(v, int) and v >= 1):
                 raise UserError(f"tracker.{name} = {v!r}: expected an integer >= 1")
+        for name in ("max_jump", "max_speed"):
+            if not getattr(self, name) > 0:
+                raise UserError(f"tracker.{name} = {getattr(self, name)!r}: expected > 0 (inf: no limit)")
         if not self.min_new_dist >= 0:
             raise UserError(f"tracker.min_new_dist = {self.min_new_dist!r}: expected >= 0")
 
@@ -158,6 +166,9 @@ class Tracker:
             tr.hits += 1
             tr.misses = 0
             tr.confirmed = tr.confirmed or tr.hits >= p.birth_hits
+            speed = math.hypot(tr.kf.x[2], tr.kf.x[3])
+            if speed > p.max_speed:
+                tr.kf.x[2:] *= p.max_speed / speed
             tr.payload = payloads[di] if payloads is not None else None
             matched_tracks.add(ti)
         keep = []
@@ -165,6 +176,8 @@ class Tracker:
             if ti not in matched_tracks:
                 tr.misses += 1
                 tr.payload = None
+                if not p.coast:
+                    tr.kf.x[2:] = 0.0
                 limit = p.max_misses if tr.confirmed else p.tentative_misses
                 if tr.misses >= limit:
                     continue
@@ -197,7 +210,8 @@ class Tracker:
               + s[..., 0, 0] * y[..., 1] ** 2) / det
         # confirmed tracks are preferred over tentative ones at equal distance
         penalty = np.array([0.0 if self.tracks[t].confirmed else 1.0 for t in tracks])[:, None]
-        cost = np.where(d2 <= self.params.gate, d2 + penalty, _BIG)
+        near = np.hypot(y[..., 0], y[..., 1]) <= self.params.max_jump
+        cost = np.where((d2 <= self.params.gate) & near, d2 + penalty, _BIG)
         rows, cols = linear_sum_assignment(cost)
         matches = [(tracks[r], dets[c]) for r, c in zip(rows, cols, strict=True) if cost[r, c] < _BIG]
         used = {d for _, d in matches}
