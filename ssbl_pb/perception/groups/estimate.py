@@ -353,7 +353,8 @@ class GroupTracker:
         barely move, and a model fed estimated rests and velocities drifts: on five-member groups that drift
         turned the widest gap, and the free slot with it. Tracks the tracker still coasts (a few frames) move on
         by its constant-velocity model: held as well, a member making room out of view was not followed and 1 of
-        20 runs entered the intimate zone (16/20 joined against 19/20)."""
+        20 runs entered the intimate zone (16/20 joined against 19/20). Keypoint tracks, whose velocity a range
+        that jumps makes up, stand instead (``TRACKER_KEYPOINTS``)."""
         for m in gone:
             m.vel = np.zeros(2)
             before = m.reach
