@@ -171,6 +171,8 @@ def test_bad_params_and_payloads():
         TrackerParams(max_jump=0.0)
     with pytest.raises(ValueError, match="max_speed"):
         TrackerParams(max_speed=-0.5)
+    with pytest.raises(ValueError, match="coast = 'no'"):
+        TrackerParams(coast="no")  # a YAML string is not a switch
     with pytest.raises(ValueError, match="payloads"):
         Tracker().update(np.zeros((2, 2)), payloads=[1])
 

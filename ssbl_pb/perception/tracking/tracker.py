@@ -59,6 +59,8 @@ class TrackerParams:
         for name in ("max_jump", "max_speed"):
             if not getattr(self, name) > 0:
                 raise UserError(f"tracker.{name} = {getattr(self, name)!r}: expected > 0 (inf: no limit)")
+        if not isinstance(self.coast, bool):
+            raise UserError(f"tracker.coast = {self.coast!r}: expected true or false")
         if not self.min_new_dist >= 0:
             raise UserError(f"tracker.min_new_dist = {self.min_new_dist!r}: expected >= 0")
 
