@@ -58,3 +58,19 @@ def test_movenet_boxes_near_the_image_side_are_cut_bodies():
     assert whole_people(boxes, 320, BODY_MARGIN).tolist() == [False, True, True, False]
     assert whole_people(boxes, 320).tolist() == [True, True, True, True]  # HOG's: only a box at the side is cut
     assert whole_people(np.zeros((0, 5)), 320, BODY_MARGIN).shape == (0,)
+
+
+def test_a_keypoint_range_too_far_takes_the_return_nearest_it_within_the_near_gate():
+    # MoveNet's keypoints put a person at 3.1 m who stands at 2.0 m: the return at 1.9 m is 1.2 m nearer, inside the
+    # near gate max(0.5, 0.45 * 3.1 = 1.40) m (beyond it only max(0.5, 0.3 * 3.1 = 0.93) m counts)
+    out, hit = laser_ranged(np.array([[3.1, 0.0]]), np.array([[1.9, 0.0]]))
+    assert hit.all() and out[0].tolist() == pytest.approx([1.9 + LEG_DEPTH_M, 0.0])
+    out, hit = laser_ranged(np.array([[3.1, 0.0]]), np.array([[1.6, 0.0]]))  # 1.5 m nearer: outside it
+    assert not hit.any()
+    out, hit = laser_ranged(np.array([[2.0, 0.0]]), np.array([[3.0, 0.0]]))  # 0.9 m beyond: outside max(0.5, 0.6)
+    assert not hit.any()
+    # someone in front (legs at 1.7 m) and the person behind them (2.9 and 3.0 m, two legs), the camera at 3.3 m:
+    # the return nearest the camera's range is the person's, their near side the nearest of their own returns
+    pts = np.array([[1.7, 0.02], [2.9, 0.0], [3.0, 0.05]])
+    out, hit = laser_ranged(np.array([[3.3, 0.0]]), pts)
+    assert hit.all() and math.hypot(*out[0]) == pytest.approx(2.9 + LEG_DEPTH_M)

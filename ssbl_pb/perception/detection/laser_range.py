@@ -3,9 +3,11 @@
 few centimetres but not whose it is. Pure geometry on robot-frame points.
 
 Each person's laser returns are those within their half-width of the camera's bearing (at the return's range) and
-within ``gate`` of the camera's range; the nearest of them is their near side, and the person's centre lies
-``depth`` behind it, at the mean bearing of their returns (those around the nearest, across their width: the
-camera's bearing of a person cut by the image's bottom is a few degrees off).
+within the gate of the camera's range (wider on the near side: the keypoints' range runs too far); the one nearest
+the camera's range is theirs (a nearer one may be someone in front of them), the nearest return up to a body's
+depth in front of it their near side, and the person's centre lies ``depth`` behind that, at the mean bearing of
+their returns (those around the nearest, across their width: the camera's bearing of a person cut by the image's
+bottom is a few degrees off).
 """
 
 from __future__ import annotations
@@ -22,14 +24,18 @@ LEG_DEPTH_M = 0.1
 HALF_WIDTH_M = 0.25  # m: half a person's width across the line of sight at the lasers' height (feet apart, the
 #   cylinder's 0.28 m less the bearing's error)
 BODY_DEPTH_M = 0.3  # m: returns this far behind a person's nearest are still theirs (a leg behind the other)
-GATE_MIN_M, GATE_REL = 0.5, 0.3  # a return counts within max(0.5 m, 30 % of the camera's range) of it: the
+GATE_MIN_M, GATE_REL = 0.5, 0.3  # a return counts within max(0.5 m, 30 % of the camera's range) beyond it: the
 #   keypoints' range is up to 0.6 m off at the median at 1 m (docs/tracking.md)
+GATE_NEAR_REL = 0.45  # and within 45 % of it nearer: the keypoints' range runs too far, by up to 1.1 m at 2-3 m
+#   (virtual Pepper, lockstep `mixed`: a person 2.0 m away ranged at 3.1 m from their keypoints stayed a phantom
+#   1.1 m behind a member for 60 s, and the robot never reached its place)
 
 
 def laser_ranged(xy: np.ndarray, points: np.ndarray, depth: float = LEG_DEPTH_M) -> tuple[np.ndarray, np.ndarray]:
     """People at robot-frame ``xy`` (n, 2; NaN unknown) ranged again by laser returns ``points`` (k, 2, robot
-    frame): each put ``depth`` behind its nearest return within its half-width and the gate, at its returns' mean
-    bearing (module docstring). Returns the positions (n, 2) and which were ranged by a laser (n,)."""
+    frame): each put ``depth`` behind its near side (the return within its half-width and the gates nearest its range,
+    and the nearest a body's depth in front of that), at its returns' mean bearing (module docstring). Returns the
+    positions (n, 2) and which were ranged by a laser (n,)."""
     xy = np.asarray(xy, dtype=float).reshape(-1, 2).copy()
     pts = np.asarray(points, dtype=float).reshape(-1, 2)
     hit = np.zeros(len(xy), dtype=bool)
@@ -42,10 +48,15 @@ def laser_ranged(xy: np.ndarray, points: np.ndarray, depth: float = LEG_DEPTH_M)
             continue
         r, theta = math.hypot(x, y), math.atan2(y, x)
         off = np.abs(np.remainder(beta - theta + math.pi, 2 * math.pi) - math.pi)
+        gap = rho + depth - r
         near = (off <= np.arctan2(HALF_WIDTH_M, np.maximum(rho, 0.1))) \
-            & (np.abs(rho + depth - r) <= max(GATE_MIN_M, GATE_REL * r))
+            & (gap <= max(GATE_MIN_M, GATE_REL * r)) & (-gap <= max(GATE_MIN_M, GATE_NEAR_REL * r))
         if near.any():
-            k = int(np.flatnonzero(near)[np.argmin(rho[near])])
+            # the return nearest the camera's range is this person's (a nearer one may be someone in front),
+            # their near side the nearest return at most a body's depth in front of it
+            k0 = int(np.flatnonzero(near)[np.argmin(np.abs(gap[near]))])
+            body = near & (rho >= rho[k0] - BODY_DEPTH_M)
+            k = int(np.flatnonzero(body)[np.argmin(rho[body])])
             # the person's returns: around the nearest, across their width and no deeper than their body
             own = (np.abs(np.remainder(beta - beta[k] + math.pi, 2 * math.pi) - math.pi)
                    <= math.atan2(HALF_WIDTH_M, rho[k])) & (rho <= rho[k] + BODY_DEPTH_M)
