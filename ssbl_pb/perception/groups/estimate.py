@@ -61,6 +61,7 @@ class GroupParams:
 
     forget_frames: int = 5  # frames a remembered member's place is in clear view with nobody there
     same_person_m: float = 0.6  # a new track this close to a remembered member replaces it
+    took_over_m: float = 0.3  # a track this close to where a member in the image stood took over its place
     max_range_m: float = 6.0  # people farther away are not expected to be detected
     person_halfwidth_m: float = 0.3  # a person's half-width across the line of sight: the torso's 0.23 m
     #   (urdf/human.urdf) plus 0.07 m for the estimate's error. Hides what lies behind it, and a person is
@@ -455,12 +456,14 @@ class GroupTracker:
             in_image = self.visible(local, np.zeros((0, 2)))
             for m, vis, shown in zip(gone, in_view, in_image, strict=True):
                 m.unseen_in_view = m.unseen_in_view + 1 if vis else 0
-                # someone within same_person_m is m again, unless m is out of the image and they were reported
-                # while m was still detected: then they are a neighbour (5 members stand 0.45-0.5 m apart), and
-                # deleting m dropped a member out of view, its gap joining the next. In the image, a member
-                # hidden behind someone who took over its place (an id that jumped across) is deleted as before
-                near = [o.pos for o in seen.values() if shown or o.born > m.last_seen]
-                dup = bool(near) and float(np.hypot(*(np.array(near) - m.pos).T).min()) < self.p.same_person_m
+                # someone reported since m was last detected, within same_person_m, is m again; someone reported
+                # while m was still detected is a neighbour (5 members stand 0.45-0.5 m apart: deleting m dropped a
+                # member, its gap joining the next, 5 times in one lockstep run), unless m is in the image and they
+                # stand where m was (``took_over_m``: an id that jumped across onto m's place)
+                d = np.array([float(np.hypot(*(o.pos - m.pos))) for o in seen.values()])
+                young = np.array([o.born > m.last_seen for o in seen.values()], dtype=bool)
+                dup = bool(len(d)) and bool(((d < self.p.same_person_m) & young).any()
+                                            or (shown and (d < self.p.took_over_m).any()))
                 if dup or m.unseen_in_view >= self.p.forget_frames:
                     del self.members[m.id]
         self.members.update(seen)
