@@ -69,8 +69,9 @@ def test_a_keypoint_range_too_far_takes_the_return_nearest_it_within_the_near_ga
     assert not hit.any()
     out, hit = laser_ranged(np.array([[2.0, 0.0]]), np.array([[3.0, 0.0]]))  # 0.9 m beyond: outside max(0.5, 0.6)
     assert not hit.any()
-    # someone in front (legs at 1.7 m) and the person behind them (2.9 and 3.0 m, two legs), the camera at 3.3 m:
-    # the return nearest the camera's range is the person's, their near side the nearest of their own returns
-    pts = np.array([[1.7, 0.02], [2.9, 0.0], [3.0, 0.05]])
+    # someone in front (legs at 1.9 m, inside the near gate of 1.49 m) and the person behind them (2.9 and 3.0 m,
+    # two legs), the camera at 3.3 m: the return nearest the camera's range is the person's (not the nearest
+    # return), their near side the nearest of their own returns
+    pts = np.array([[1.9, 0.02], [2.9, 0.0], [3.0, 0.05]])
     out, hit = laser_ranged(np.array([[3.3, 0.0]]), pts)
     assert hit.all() and math.hypot(*out[0]) == pytest.approx(2.9 + LEG_DEPTH_M)
