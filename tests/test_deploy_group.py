@@ -14,7 +14,7 @@ from ssbl_pb.core.layouts import free_layout, paper_layout, slot_keep
 from ssbl_pb.core.task import TaskParams
 from ssbl_pb.params import RobotParams, SocialParams
 from ssbl_pb.perception.camera import sim_camera
-from ssbl_pb.perception.groups.estimate import GroupModel, GroupTracker, group_circle
+from ssbl_pb.perception.groups.estimate import GroupModel, GroupParams, GroupTracker, group_circle
 from ssbl_pb.perception.tracking.tracker import TrackerParams
 
 SOCIAL = SocialParams()
@@ -102,6 +102,16 @@ def test_a_person_cut_by_the_side_of_the_image_is_not_expected_to_be_detected():
     assert not gt.visible(at(1.1, -19.0), np.zeros((0, 2)))[0]
     assert gt.visible(at(3.0, 10.0), np.zeros((0, 2)))[0] and gt.visible(at(1.1, 0.0), np.zeros((0, 2)))[0]
     assert not gt.visible(at(7.0, 0.0), np.zeros((0, 2)))[0]  # beyond max_range_m
+
+
+def test_with_an_edge_margin_a_body_near_the_side_of_the_image_is_not_expected_to_be_detected():
+    # perceive drops MoveNet's boxes within BODY_MARGIN of the image's side (0.1 m at the person): the memory must not
+    # expect a detection there either, or it forgets a member standing 1.5 m away, 14 deg off the axis, in 5 frames
+    cam = sim_camera(RobotParams(), 640, 480)
+    at = lambda rng, deg: rng * np.array([[math.cos(math.radians(deg)), math.sin(math.radians(deg))]])  # noqa: E731
+    plain, edged = GroupTracker(cam), GroupTracker(cam, params=GroupParams(edge_margin_m=0.1))
+    assert plain.visible(at(1.5, 14.0), np.zeros((0, 2)))[0] and not edged.visible(at(1.5, 14.0), np.zeros((0, 2)))[0]
+    assert edged.visible(at(1.5, 12.0), np.zeros((0, 2)))[0]
 
 
 def test_members_out_of_view_stay_where_last_estimated_while_the_robot_joins():

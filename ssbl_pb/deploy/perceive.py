@@ -35,6 +35,7 @@ from ..perception.groups.estimate import (
     TORSO_HEIGHT,
     TRACKER,
     TRACKER_KEYPOINTS,
+    GroupParams,
     GroupTracker,
     Member,
 )
@@ -48,6 +49,8 @@ DETECTORS = ("colour", "hog", "ssd", "movenet")
 # off by up to half a body (at the edge of the view, a member 40 deg off the axis was placed 0.6-0.9 m off, onto
 # the neighbour's place, and the robot sidestepped into them)
 BODY_MARGIN = 0.07
+EYES_TO_ANKLES_M = 1.45  # m: the span of an adult's keypoints, eyes to ankles (stature 1.70 m): what a box's height
+#   shows of a whole body, so ``BODY_MARGIN`` of it is 0.1 m at the person's range
 
 
 def torso_depth(xy: np.ndarray, centre: np.ndarray | None) -> np.ndarray:
@@ -285,7 +288,9 @@ class Perception:
             cam = self.calibrated.scaled(w, h) if self.calibrated is not None else sim_camera(self.robot_params, w, h)
             keypoints = isinstance(self.detect, MoveNetFacing)
             params = self.tracker_params or (TRACKER_KEYPOINTS if keypoints else TRACKER)
-            self._group = GroupTracker(cam, params, social=self.social, model=self.group_model)
+            # the group memory expects a person detected where perceive keeps their box (``whole_people``)
+            group = GroupParams(edge_margin_m=BODY_MARGIN * EYES_TO_ANKLES_M if keypoints else 0.0)
+            self._group = GroupTracker(cam, params, group, social=self.social, model=self.group_model)
         boxes = self.detect(frame.image)
         # each person's facing, where the detector tells it (the virtual Pepper's colour detector, MoveNet's
         # keypoints), from every box:

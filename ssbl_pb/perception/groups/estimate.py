@@ -67,6 +67,8 @@ class GroupParams:
     #   (urdf/human.urdf) plus 0.07 m for the estimate's error. Hides what lies behind it, and a person is
     #   expected to be detected only when both sides project inside the image (``perceive`` drops boxes cut by
     #   the image's side: close to the group, a member 20 deg off the axis is cut and goes undetected)
+    edge_margin_m: float = 0.0  # m a person's side must also clear the image's side to be expected detected: what
+    #   ``perceive`` asks of a box before it keeps it (MoveNet's: ``BODY_MARGIN`` of the body's height, 0.1 m)
     facing_turn_std: float = 0.3  # rad/s: how fast a conversing person's facing may change (the facing filter's
     #   process noise; people in a group turn their body slowly, their head faster: ours)
 
@@ -331,7 +333,8 @@ class GroupTracker:
         rng = np.hypot(xy[:, 0], xy[:, 1])
         across = np.column_stack([-xy[:, 1], xy[:, 0]]) / np.maximum(rng, 1e-6)[:, None] * self.p.person_halfwidth_m
         ok = (rng <= self.p.max_range_m) & (xy[:, 0] > 0)
-        for side in (xy - across, xy + across):  # both sides of the body inside the image, as perceive keeps boxes
+        edge = across * (1.0 + self.p.edge_margin_m / self.p.person_halfwidth_m)
+        for side in (xy - edge, xy + edge):  # both sides of the body inside the image, as perceive keeps boxes
             u = self.camera.robot_to_pixel(np.column_stack([side, np.full(len(xy), BODY_HEIGHT)]))[:, 0]
             ok &= np.isfinite(u) & (u > 1) & (u < self.camera.width - 1) & (side[:, 0] > 0)
         if len(seen_robot):
