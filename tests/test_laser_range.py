@@ -23,7 +23,7 @@ def test_a_person_moves_along_the_bearing_to_the_depth_behind_the_nearest_return
 def test_returns_off_the_bearing_or_outside_the_gate_leave_the_camera_range():
     xy = np.array([[2.0, 0.0]])
     beside = np.array([[1.8, 0.5]])  # 0.5 m to the side: another person
-    far_in_front = np.array([[0.8, 0.0]])  # 1.2 m nearer than the camera says: gate max(0.5, 0.6) m
+    far_in_front = np.array([[0.5, 0.0]])  # 1.4 m nearer (with the depth): near gate max(0.5, 0.65 * 2.0) m
     for pts in (beside, far_in_front, np.zeros((0, 2))):
         out, hit = laser_ranged(xy, pts)
         assert not hit.any() and out.tolist() == xy.tolist()
@@ -61,15 +61,17 @@ def test_movenet_boxes_near_the_image_side_are_cut_bodies():
 
 
 def test_a_keypoint_range_too_far_takes_the_return_nearest_it_within_the_near_gate():
-    # MoveNet's keypoints put a person at 3.1 m who stands at 2.0 m: the return at 1.9 m is 1.2 m nearer, inside the
-    # near gate max(0.5, 0.45 * 3.1 = 1.40) m (beyond it only max(0.5, 0.3 * 3.1 = 0.93) m counts)
+    # MoveNet's keypoints put a person at 3.1 m who stands at 2.0 m: the return at 1.9 m is 1.1 m nearer (with the
+    # depth), inside the near gate max(0.5, 0.65 * 3.1 = 2.02) m (beyond it only max(0.5, 0.3 * 3.1 = 0.93) m counts)
     out, hit = laser_ranged(np.array([[3.1, 0.0]]), np.array([[1.9, 0.0]]))
     assert hit.all() and out[0].tolist() == pytest.approx([1.9 + LEG_DEPTH_M, 0.0])
-    out, hit = laser_ranged(np.array([[3.1, 0.0]]), np.array([[1.6, 0.0]]))  # 1.5 m nearer: outside it
+    out, hit = laser_ranged(np.array([[3.1, 0.0]]), np.array([[1.3, 0.0]]))  # 1.7 m nearer: inside it too
+    assert hit.all() and out[0].tolist() == pytest.approx([1.3 + LEG_DEPTH_M, 0.0])
+    out, hit = laser_ranged(np.array([[3.1, 0.0]]), np.array([[0.9, 0.0]]))  # 2.1 m nearer: outside it
     assert not hit.any()
     out, hit = laser_ranged(np.array([[2.0, 0.0]]), np.array([[3.0, 0.0]]))  # 0.9 m beyond: outside max(0.5, 0.6)
     assert not hit.any()
-    # someone in front (legs at 1.9 m, inside the near gate of 1.49 m) and the person behind them (2.9 and 3.0 m,
+    # someone in front (legs at 1.9 m, inside the near gate of 2.15 m) and the person behind them (2.9 and 3.0 m,
     # two legs), the camera at 3.3 m: the return nearest the camera's range is the person's (not the nearest
     # return), their near side the nearest of their own returns
     pts = np.array([[1.9, 0.02], [2.9, 0.0], [3.0, 0.05]])

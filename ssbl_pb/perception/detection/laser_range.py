@@ -26,9 +26,11 @@ HALF_WIDTH_M = 0.25  # m: half a person's width across the line of sight at the 
 BODY_DEPTH_M = 0.3  # m: returns this far behind a person's nearest are still theirs (a leg behind the other)
 GATE_MIN_M, GATE_REL = 0.5, 0.3  # a return counts within max(0.5 m, 30 % of the camera's range) beyond it: the
 #   keypoints' range is up to 0.6 m off at the median at 1 m (docs/tracking.md)
-GATE_NEAR_REL = 0.45  # and within 45 % of it nearer: the keypoints' range runs too far, by up to 1.1 m at 2-3 m
-#   (virtual Pepper, lockstep `mixed`: a person 2.0 m away ranged at 3.1 m from their keypoints stayed a phantom
-#   1.1 m behind a member for 60 s, and the robot never reached its place)
+GATE_NEAR_REL = 0.65  # and within 65 % of it nearer: the keypoints' range runs too far, by up to 1.1 m at 2-3 m,
+#   and 1.5-1.9 m for a body cut by the image or hidden behind someone (virtual Pepper, lockstep: a member 1.6 m away
+#   ranged at 3.1 m, and one 1.7 m away behind another at 1.15 m ranged at 3.0 m, stood as phantoms 1.3-1.5 m behind
+#   the members for a minute). A nearer return that is someone in front puts the person onto them, where the tracker
+#   starts no second track (``TRACKER_KEYPOINTS.min_new_dist``), not 1.5 m behind them (docs/deploy.md)
 
 
 def laser_ranged(xy: np.ndarray, points: np.ndarray, depth: float = LEG_DEPTH_M) -> tuple[np.ndarray, np.ndarray]:
