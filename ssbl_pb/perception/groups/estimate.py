@@ -331,9 +331,9 @@ class GroupTracker:
         (``person_halfwidth_m`` either side), and not hidden behind a nearer seen person (``seen_robot``, (m, 2))."""
         xy = np.asarray(xy_robot, dtype=float).reshape(-1, 2)
         rng = np.hypot(xy[:, 0], xy[:, 1])
-        across = np.column_stack([-xy[:, 1], xy[:, 0]]) / np.maximum(rng, 1e-6)[:, None] * self.p.person_halfwidth_m
+        across = np.column_stack([-xy[:, 1], xy[:, 0]]) / np.maximum(rng, 1e-6)[:, None]  # unit, across the sight line
+        edge = across * (self.p.person_halfwidth_m + self.p.edge_margin_m)
         ok = (rng <= self.p.max_range_m) & (xy[:, 0] > 0)
-        edge = across * (1.0 + self.p.edge_margin_m / self.p.person_halfwidth_m)
         for side in (xy - edge, xy + edge):  # both sides of the body inside the image, as perceive keeps boxes
             u = self.camera.robot_to_pixel(np.column_stack([side, np.full(len(xy), BODY_HEIGHT)]))[:, 0]
             ok &= np.isfinite(u) & (u > 1) & (u < self.camera.width - 1) & (side[:, 0] > 0)
