@@ -4,7 +4,7 @@
 A tick row holds ``t`` (s since start), ``state``, the odometry pose ``odom_x/odom_y/odom_yaw`` and the command
 sent ``cmd_vx/cmd_vy/cmd_wz`` under the column names ``tools/identify_dynamics.py`` reads (the log is a
 dynamics log as it stands), the measured body velocity ``vel``, the room- and map-frame poses, the policy's
-command before the clamp ``cmd_policy``, the tracked humans (odometry frame, with covariance), the group
+command before the clamp ``cmd_policy``, the tracked humans (odometry frame, with covariance and facing), the group
 estimate, ``estimate_age_ms``, ``tick_ms`` (tick start to command sent), ``late``, NAOqi events, and on policy
 ticks ``shield``: what the policy's safety shield changed (the action before and after it, the rules that acted,
 ``cmd_before`` the body command it replaced), null where it changed nothing; ``ranges``, how many range returns

@@ -201,7 +201,7 @@ class SimRobot:
             self._frame = frame
 
     def truth(self) -> dict[str, Any]:
-        """Ground truth for logs and tests: room-frame poses, members (positions, velocities m/s), the group's
+        """Ground truth for logs and tests: room-frame poses, members (positions, velocities m/s, yaws rad), the group's
         centre, o-space radius (m) and free slot, clearances."""
         with self._lock:
             w, g = self.world, self.world.group
@@ -209,6 +209,7 @@ class SimRobot:
             strangers = min((walker.clearance(w) for walker in self.walkers), default=math.inf)
             out = {"t": self.t, "pose": w.robot_pose.tolist(), "vel": w.base.body_velocity.tolist(),
                    "cmd": self._cmd.tolist(), "members": g.pos.tolist(), "member_vel": g.vel.tolist(),
+                   "member_yaw": g.yaw.tolist(),
                    "centre": g.centre.tolist(), "radius": g.radius,
                    "slot": g.free_slot(w.robot_pose[:2]).tolist(), "clearance": float(min(clear.min(), strangers)),
                    "collision": bool(w.in_contact(clear)) or strangers <= 0.0}
