@@ -80,13 +80,13 @@ def test_a_network_policy_gives_the_same_bytes_with_any_number_of_workers(tmp_pa
 def test_the_summary_records_whether_the_observation_model_was_on(tmp_path):
     from test_contracts import run_in_process
 
-    for flag in ("on", "off"):
+    for flag, says in (("on", "on (movenet)"), ("colour", "on (colour)"), ("off", "off")):
         out = tmp_path / flag
         res = run_in_process(ROOT / "tools" / "evaluate.py", ["--policy", "sffm", "--episodes", "2", "--paths", "0",
                                                              "--workers", "1", "--perception", flag, "--out", str(out)])
         assert res.returncode == 0, res.stderr
-        assert json.loads((out / "summary.json").read_text())["perception"] == flag
-        assert res.stdout.startswith(f"perception {flag}  success "), res.stdout
+        assert json.loads((out / "summary.json").read_text())["perception"] == says
+        assert res.stdout.startswith(f"perception {says}  success "), res.stdout
 
 
 def run_cli(*args):

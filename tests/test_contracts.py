@@ -189,6 +189,9 @@ CASES = [
     C("make_bodies.py", "--out", "{file}/bodies", expect="is a file"),
     C("bench_bodies.py", "--groups", "-1", "--out", "{out}", expect="argument --groups"),
     C("bench_bodies.py", "--out", "{file}/bodies", expect="is a file"),
+    # the observation model measured from deploy runs
+    C("fit_observation.py", "{tmp}", "--out", "{out}", expect="expected a run folder"),
+    C("fit_observation.py", "{tmp}", "--detector", "hog", "--out", "{out}", expect="argument --detector"),
     C("demo.py", "--appearance", "mesh", "--out", "{out}", expect="argument --appearance"),
     C("render_episode.py", "--policy", "sffm", "--appearance", "mesh", "--out", "{out}/x.mp4",
       expect="argument --appearance"),
@@ -202,7 +205,8 @@ CASES = [
     C("train_pb.py", "--config", "tests/config_specs/bad_lr.yaml", "--out", "{out}",
       expect="bad_lr.yaml: ppo.learning_rate = -1"),
     C("train_pb.py", "--config", "tests/config_specs/perception_word.yaml", "--out", "{out}",
-      expect="perception_word.yaml: env.perception = 'on': expected false, true or a mapping of ['range_std_m'"),
+      expect="perception_word.yaml: env.perception = 'on': expected false, true, one of ['movenet', 'colour'] or a "
+             "mapping of ['detector'"),
     C("evaluate.py", "--policy", "sffm", "--camera-yaml", "tests/camera_specs/negative_height.yaml", "--out", "{out}",
       expect="negative_height.yaml: camera pepper_camera_top: camera_height=-1.15 must be > 0"),
     C("evaluate.py", "--policy", "sffm", "--room-yaml", "tests/room_specs/tiny.yaml", "--out", "{out}",

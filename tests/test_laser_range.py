@@ -50,7 +50,7 @@ def test_deploy_takes_the_depth_a_virtual_pepper_names_and_a_real_pepper_s_feet_
 
 
 def test_movenet_boxes_near_the_image_side_are_cut_bodies():
-    from ssbl_pb.deploy.perceive import BODY_MARGIN, whole_people
+    from ssbl_pb.deploy.perceive import BODY_MARGIN, whole_people  # BODY_MARGIN: keypoint_range's
 
     # 150 px tall: 1 + 0.07 * 150 = 11.5 px must stay clear of either side of a 320 px image
     boxes = np.array([[11.0, 40, 50, 150], [12.0, 40, 50, 150], [258.0, 40, 50, 150], [259.0, 40, 50, 150]])

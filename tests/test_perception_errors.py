@@ -15,11 +15,11 @@ from ssbl_pb.bench.perception_errors import (
     markdown_table,
     match_ticks,
     observation,
-    plot,
     pool,
     summarise,
     view_class,
 )
+from ssbl_pb.bench.perception_errors_plot import plot
 from ssbl_pb.deploy.frames import transform_points
 from ssbl_pb.deploy.robot import compose
 from ssbl_pb.params import RobotParams
@@ -223,3 +223,20 @@ def test_observations_rebuilt_from_the_log_are_the_ones_the_policy_saw(tmp_path)
     assert r["ticks"] == len(read_log(tmp_path / "deploy"))  # each tick has its truth, logged at its time
     clear = np.array(s.view) == 0  # in clear view (the other member of this pair is half hidden behind it)
     assert np.nanmedian(np.array(s.pos_err)[clear]) < 0.1 and r["ids_per_member"]["max"] == 1
+
+
+def test_each_member_tick_keeps_its_tracks_range_bearing_and_facing_error_for_the_observation_model():
+    from ssbl_pb.bench.perception_errors import Samples  # noqa: F401 (the fields under test)
+
+    # a member 2 m ahead facing the robot (yaw pi in the odometry frame) tracked at 2.1 m, 0.1 m to the left,
+    # with its facing 10 deg off; a second member 3 m ahead with its back to the robot, 1 m to the right, untracked
+    rows = [tick(1.0, [(1, 2.1, 0.1)])]
+    rows[0]["humans"][0]["facing"] = math.pi - math.radians(10.0)
+    st = state(1.0, [[2.0, 0.0], [3.0, -1.0]])
+    st["member_yaw"] = [math.pi + float(START[2]), 0.0 + float(START[2])]  # the room frame
+    s = analyse(rows, {"start_pose": START.tolist()}, [st])
+    assert s.range_err[0] == pytest.approx(math.hypot(2.1, 0.1) - 2.0)
+    assert s.bearing_err[0] == pytest.approx(math.degrees(math.atan2(0.1, 2.1)))
+    assert s.facing_err[0] == pytest.approx(-10.0) and s.front == [True, False]
+    assert math.isnan(s.range_err[1]) and math.isnan(s.facing_err[1])
+    assert s.hidden == [0.0, 0.0] and s.in_image[0] == 1.0 and 0.0 < s.in_image[1] <= 1.0

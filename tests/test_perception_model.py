@@ -13,7 +13,7 @@ from ssbl_pb.env.gymenv.approach import ApproachGroupEnv
 from ssbl_pb.params import ConfigError, RobotParams, SocialParams
 from ssbl_pb.perception.groups.observation_model import CopyPerception, PerceptionParams, detect
 
-EXACT = PerceptionParams(range_std_m=0.0, range_std_per_m=0.0, bearing_std_deg=0.0, miss_prob=0.0)
+EXACT = PerceptionParams(range_std_m=0.0, range_std_per_m=0.0, bearing_std_deg=0.0, miss_prob=0.0, laser_std_m=0.0)
 
 
 def _copy(params: PerceptionParams = EXACT) -> CopyPerception:
@@ -23,13 +23,51 @@ def _copy(params: PerceptionParams = EXACT) -> CopyPerception:
 
 
 def test_range_noise_grows_with_distance_as_configured():
-    params = PerceptionParams(range_std_m=0.0, range_std_per_m=0.1, bearing_std_deg=0.0, miss_prob=0.0)
+    params = PerceptionParams(range_std_m=0.0, range_std_per_m=0.1, bearing_std_deg=0.0, miss_prob=0.0,
+                              laser_reach_m=0.0)  # no lasers: the colour chain
     rng = np.random.default_rng(0)
     xy = np.array([[1.0, 0.0], [0.0, 4.0]])
     seen = np.array([detect(xy, np.ones(2, bool), params, rng)[0] for _ in range(4000)])
     ranges = np.hypot(seen[..., 0], seen[..., 1])
     assert ranges[:, 0].std() == pytest.approx(0.1, rel=0.05) and ranges[:, 1].std() == pytest.approx(0.4, rel=0.05)
     assert np.allclose(np.arctan2(seen[:, 1, 1], seen[:, 1, 0]), math.pi / 2)  # no bearing noise asked for
+
+
+def test_within_the_lasers_reach_the_range_noise_is_the_lasers_and_beyond_it_the_keypoints():
+    params = PerceptionParams(laser_reach_m=3.0, laser_std_m=0.02, range_std_m=0.0, range_std_per_m=0.1,
+                              bearing_std_deg=0.0, miss_prob=0.0)
+    rng = np.random.default_rng(1)
+    xy = np.array([[2.9, 0.0], [0.0, 4.0]])
+    seen = np.array([detect(xy, np.ones(2, bool), params, rng)[0] for _ in range(4000)])
+    ranges = np.hypot(seen[..., 0], seen[..., 1])
+    assert ranges[:, 0].std() == pytest.approx(0.02, rel=0.05) and ranges[:, 1].std() == pytest.approx(0.4, rel=0.05)
+
+
+def test_the_presets_are_movenets_chain_by_default_and_the_colour_detectors_on_request():
+    assert PerceptionParams.of(True) == PerceptionParams() == PerceptionParams.of("movenet")
+    movenet, colour = PerceptionParams(), PerceptionParams.of("colour")
+    assert movenet.keypoints and movenet.laser_reach_m == 3.0 and movenet.min_visible > colour.min_visible
+    assert not colour.keypoints and colour.laser_reach_m == 0.0 and colour.miss_prob == 0.03
+    changed = PerceptionParams.of({"preset": "colour", "miss_prob": 0.1})
+    assert changed.miss_prob == 0.1 and changed.range_std_per_m == colour.range_std_per_m
+    with pytest.raises(ConfigError, match="perception.detector"):
+        PerceptionParams.of({"detector": "hog"})
+    with pytest.raises(ConfigError, match="'hog': expected false, true, one of"):
+        PerceptionParams.of({"preset": "hog"})
+
+
+def test_movenets_chain_expects_a_person_only_clear_of_the_image_side_as_deploy_keeps_its_boxes():
+    colour, movenet = _copy(PerceptionParams.of("colour")), _copy(EXACT)
+    assert movenet.tracker.p.edge_margin_m == pytest.approx(0.07 * 1.45)  # BODY_MARGIN x eyes to ankles
+    assert movenet.tracker.tracker.params.birth_hits == 3 and movenet.model.robust  # TRACKER_KEYPOINTS, robust centre
+    # a person 2.5 m away, turned aside until the torso just fits in the image but its margin does not
+    bearings = np.radians(np.linspace(0.0, 28.0, 281))
+    xy = 2.5 * np.column_stack([np.cos(bearings), np.sin(bearings)])
+    whole = colour.detectable(xy)[1] >= 1.0
+    clear = movenet.detectable(xy)[1] >= movenet.params.min_visible
+    k = int(np.flatnonzero(whole & ~clear)[0])
+    assert colour.detectable(xy[k:k + 1])[0][0] and not movenet.detectable(xy[k:k + 1])[0][0]
+    assert movenet.detectable(xy[:1])[0][0]  # straight ahead: both
 
 
 def test_misses_happen_at_the_configured_rate_and_only_the_visible_are_detected():

@@ -31,8 +31,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--policies", default="sffm,straight,random")
     ap.add_argument("--scenarios", default=SCENARIOS, help="comma list of scenarios; SCENARIO:ROOM_YAML plays it "
                     "with that room YAML (e.g. default@map:results/rooms/lab.yaml)")
-    ap.add_argument("--perception", default="off", help="comma list of off (the true state) and on (the group as "
-                    "deploy's perception sees it: the observation model); default off")
+    ap.add_argument("--perception", default="off", help="comma list of off (the true state), on or movenet (the "
+                    "group as deploy's perception sees it: the observation model of a real Pepper's MoveNet chain) "
+                    "and colour (the model of the colour detector on box proxies); default off")
     ap.add_argument("--episodes", type=int_at_least(1), default=200, help="episodes per scenario (default 200)")
     ap.add_argument("--seed", type=int_at_least(0), default=500_000, help="first held-out seed")
     ap.add_argument("--out", type=Path, default=ROOT / "results" / "bench_policies",
@@ -41,15 +42,16 @@ def main(argv: list[str] | None = None) -> int:
 
     pols, scs = args.policies.split(","), args.scenarios.split(",")
     percs = args.perception.split(",")
-    bad = sorted(set(percs) - {"off", "on"})
+    bad = sorted(set(percs) - {"off", "on", "movenet", "colour"})
     if bad:
-        raise UserError(f"--perception {','.join(bad)}: expected a comma list of off, on")
+        raise UserError(f"--perception {','.join(bad)}: expected a comma list of off, on, movenet, colour")
     check_output_path(args.out.with_suffix(".json"), is_dir=False)
 
     def setup(pol: str, sc: str, perc: str) -> Setup:
         name, _, room = sc.partition(":")
         kwargs = (("room_yaml", room),) if room else ()
-        return Setup(pol, scenario=name, env_kwargs=kwargs + ((("perception", True),) if perc == "on" else ()))
+        model = True if perc == "on" else perc
+        return Setup(pol, scenario=name, env_kwargs=kwargs + ((("perception", model),) if perc != "off" else ()))
 
     for pol in pols:
         check_policy_spec(pol, "--policies")

@@ -36,10 +36,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--groups", choices=["calibrated", "paper"],
                     help="where members stand: as real groups do (calibrated, the default) or on the paper's 1.0 m "
                          "o-space circle (paper)")
-    ap.add_argument("--perception", choices=["off", "on"], default="off",
+    ap.add_argument("--perception", choices=["off", "on", "movenet", "colour"], default="off",
                     help="the policy sees the true state (off, default) or the group as deploy's perception would "
-                         "see it through Pepper's camera (on: the observation model, "
-                         "ssbl_pb/perception/groups/observation_model.py)")
+                         "see it through Pepper's camera (the observation model, "
+                         "ssbl_pb/perception/groups/observation_model.py): on = movenet, a real Pepper's chain; "
+                         "colour, the virtual Pepper's colour detector on box proxies")
     ap.add_argument("--shield", choices=["auto", "on", "off"], default="auto",
                     help="a trained policy's safety shield: as trained (auto, default), or forced on/off")
     for name, what in (("camera", "tools/calibrate_camera.py"), ("robot", "tools/identify_dynamics.py"),
@@ -53,8 +54,8 @@ def main(argv: list[str] | None = None) -> int:
                   if (v := getattr(args, f"{k}_yaml")) is not None)
     if args.groups is not None:
         calib += (("groups", args.groups),)
-    if args.perception == "on":
-        calib += (("perception", True),)
+    if args.perception != "off":
+        calib += (("perception", True if args.perception == "on" else args.perception),)
     shield = {"auto": None, "on": True, "off": False}[args.shield]
     setup = Setup(args.policy, args.obs_mode, args.scenario, calib, shield)
     with progress_bar(args.episodes, f"evaluate {args.policy}") as bar:

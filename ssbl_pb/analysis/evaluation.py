@@ -77,9 +77,10 @@ def evaluate(setup: Setup, episodes: int, seed: int, out: Path, workers: int = 1
                            progress=progress)
     rows = [r.metrics for r in results]
     # the observation model on (the policy saw the group as deploy's perception would) or off (the true state)
-    perceived = PerceptionParams.of(dict(setup.env_kwargs).get("perception")) is not None
+    perceived = PerceptionParams.of(dict(setup.env_kwargs).get("perception"))
     summary = summarize(rows, {"policy": setup.policy, "obs_mode": setup.obs_mode, "scenario": setup.scenario,
-                               "perception": "on" if perceived else "off", "seed": seed})
+                               "perception": "off" if perceived is None else f"on ({perceived.detector})",
+                               "seed": seed})
     with output_dir(out) as out:
         stage = make_stage_dir(out, ".staging-")
         try:

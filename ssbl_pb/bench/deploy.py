@@ -39,7 +39,8 @@ from ..params import RobotParams, SocialParams
 from ..virtual.pepper import load_log, state_row, write_room_map
 from ..virtual.robot import DETECTOR, SimClock, SimRobot
 from ..virtual.walkers import make_walker
-from .perception_errors import analyse_folder, markdown_table, plot, pool, summarise
+from .perception_errors import analyse_folder, markdown_table, pool, summarise
+from .perception_errors_plot import plot
 
 
 def _module(name: str, *args: str) -> list[str]:

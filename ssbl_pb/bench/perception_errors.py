@@ -12,10 +12,11 @@ at the edge (its centre in view, its body's side not: deploy drops boxes cut by 
 line of sight to its centre passes within a body's half-width of a nearer member) or in view (not detected).
 
 What a run yields (``analyse``) is kept as samples, so runs pool (``pool``) before ``summarise`` turns them into
-the numbers the benchmark reports and ``plot`` into its figure. The policy's sensitivity to all of it is the
-difference between its network's deterministic actions on the perceived and on the true observation of the same
-tick (``observations``: both built as ``DeployLoop._act`` builds one, with ``observation.vector_observation``; the
-walls and scan of deploy's own frames for both, so only perception differs; no action filter, no shield).
+the numbers the benchmark reports and ``perception_errors_plot.plot`` into its figure. The policy's sensitivity
+to all of it is the difference between its network's deterministic actions on the perceived and on the true
+observation of the same tick (``observations``: both built as ``DeployLoop._act`` builds one, with
+``observation.vector_observation``; the walls and scan of deploy's own frames for both, so only perception
+differs; no action filter, no shield).
 """
 
 from __future__ import annotations
@@ -37,6 +38,9 @@ from ..deploy.frames import Frames, inverse, load_room, transform_points
 from ..deploy.log import RUN, read_log
 from ..deploy.robot import compose
 from ..params import RobotParams, SocialParams
+from ..perception.camera import sim_camera
+from ..perception.groups.estimate import BODY_HEIGHT, KEYPOINT_GROUP, TORSO_HALF
+from ..perception.groups.observation_model import IMAGE_SIZE, PerceptionParams, hidden_share, image_share
 from ..virtual.pepper import load_log
 
 VIEW_CLASSES = ("in_view", "edge", "occluded", "out_of_view")  # why a member may be missed, by the true geometry
@@ -54,6 +58,8 @@ class ErrorParams:
     camera_forward: float = RobotParams.camera_forward  # m the camera sits ahead of the base's centre
     body_halfwidth_m: float = 0.23  # the torso's half-width (urdf/human.urdf; what the colour detector sees)
     max_gap_s: float = 0.1  # a deploy tick with no virtual Pepper state this close in wall time is skipped
+    edge_margin_m: float = KEYPOINT_GROUP.edge_margin_m  # m beyond the torso that must be in the image too for
+    #   ``Samples.in_image`` to count it whole (MoveNet's chain, ``PerceptionParams.min_visible``; colour's: 0)
 
 
 @dataclasses.dataclass
@@ -83,6 +89,16 @@ class Samples:
     ids: list[list[list[int]]] = dataclasses.field(default_factory=list)
     switches: list[int] = dataclasses.field(default_factory=list)  # per run: changes of a member's assigned id
     shared_ids: list[int] = dataclasses.field(default_factory=list)  # per run: ids assigned to 2+ members
+    # per member-tick, for the observation model (``bench.observation_fit``): its assigned track's range (m) and
+    # bearing (deg) error, facing error (deg; NaN: no facing), whether its front is toward the robot (within
+    # ``PerceptionParams().facing_front_deg``), and the shares of its torso hidden behind nearer members and inside
+    # the image (``observation_model.hidden_share``, ``image_share``)
+    range_err: list[float] = dataclasses.field(default_factory=list)
+    bearing_err: list[float] = dataclasses.field(default_factory=list)
+    facing_err: list[float] = dataclasses.field(default_factory=list)
+    front: list[bool] = dataclasses.field(default_factory=list)
+    hidden: list[float] = dataclasses.field(default_factory=list)
+    in_image: list[float] = dataclasses.field(default_factory=list)
 
 
 def pool(parts: list[Samples]) -> Samples:
@@ -251,6 +267,7 @@ def analyse(rows: list[dict[str, Any]], start: dict[str, Any], states: list[dict
     owners: dict[int, set[int]] = {}
     switches = 0
     perceived, true = [], []
+    camera = sim_camera(robot, *IMAGE_SIZE)
     fr_p = fr_t = None
     if policy is not None and rows:
         fr_p = frames or Frames()
@@ -268,6 +285,9 @@ def analyse(rows: list[dict[str, Any]], start: dict[str, Any], states: list[dict
         tseen = np.array([bool(h.get("seen", True)) for h in humans], dtype=bool)
         primary, owner = assign(txy, members, p.gate_m)
         s.false_tracks.append(int((owner < 0).sum()))
+        _model_samples(s, pose, members, np.vstack([txy, [0.0, 0.0]])[primary], primary >= 0, camera, p, [
+            humans[k].get("facing") if k >= 0 else None for k in primary],
+            np.asarray(st.get("member_yaw") or np.full(len(members), np.nan), dtype=float) - start_pose[2])
         for j in range(len(members)):
             on = np.flatnonzero(owner == j)
             k = int(primary[j])
@@ -312,6 +332,27 @@ def analyse(rows: list[dict[str, Any]], start: dict[str, Any], states: list[dict
     s.switches.append(switches)
     s.shared_ids.append(sum(len(v) > 1 for v in owners.values()))
     return s
+
+
+def _model_samples(s: Samples, pose: np.ndarray, members: np.ndarray, tracks: np.ndarray, assigned: np.ndarray,
+                   camera: Any, p: ErrorParams, facing: list[float | None], yaw: np.ndarray) -> None:
+    """``Samples``' per member-tick fields for the observation model (odometry frame; ``tracks`` (n, 2) the
+    assigned tracks where ``assigned``, ``facing`` theirs (rad or None), ``yaw`` the members' true yaws)."""
+    x, y, th = (float(v) for v in pose[:3])
+    body, seen_at = rotate(-th, members - [x, y]), rotate(-th, tracks - [x, y])
+    r_true, r_seen = np.hypot(*body.T), np.hypot(*seen_at.T)
+    b_err = np.remainder(np.arctan2(seen_at[:, 1], seen_at[:, 0]) - np.arctan2(body[:, 1], body[:, 0]) + math.pi,
+                         2 * math.pi) - math.pi
+    f = np.array([np.nan if v is None else float(v) for v in facing])
+    toward = np.arctan2(y - members[:, 1], x - members[:, 0])  # from each member to the robot
+    s.range_err.extend(np.where(assigned, r_seen - r_true, np.nan).tolist())
+    s.bearing_err.extend(np.where(assigned, np.degrees(b_err), np.nan).tolist())
+    s.facing_err.extend(np.degrees(np.remainder(f - yaw + math.pi, 2 * math.pi) - math.pi).tolist())
+    s.front.extend((np.abs(np.remainder(yaw - toward + math.pi, 2 * math.pi) - math.pi)
+                    <= math.radians(PerceptionParams().facing_front_deg)).tolist())
+    s.hidden.extend(hidden_share(body, TORSO_HALF[1]).tolist())
+    half = 2.0 * sum(TORSO_HALF) / math.pi + p.edge_margin_m  # the torso's mean over facings, as the model's
+    s.in_image.extend(image_share(body, camera, half, BODY_HEIGHT, math.inf).tolist())
 
 
 def _copy_frames(fr: Frames) -> Frames:
@@ -429,50 +470,3 @@ def markdown_table(runs: list[dict[str, Any]], total: dict[str, Any]) -> str:
             f"{f(r['radius_error_m']['median'])} | {f(act['mean'], '.3f')} "
             f"({f(r['action_delta_still']['mean'], '.3f')}) |")
     return "\n".join(out) + "\n"
-
-
-def plot(s: Samples, path: Path, title: str = "") -> Path:
-    """The figure: seen tracks' position error against distance (median, p90, counts) and the miss rates against
-    |bearing|, binned."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    r = summarise(s)
-    fig, (a, b) = plt.subplots(1, 2, figsize=(11, 4.2))
-    for key, label, colour in (("position_error_by_distance", "detected", "C0"),
-                               ("remembered_error_by_distance", "not detected now (coasting, remembered)", "C1")):
-        bins = [x for x in r[key] if x["n"]]
-        mid = [0.5 * (x["lo"] + (x["hi"] if x["hi"] is not None else x["lo"] + 2.0)) for x in bins]
-        a.plot(mid, [x["median"] for x in bins], "o-", color=colour, label=f"{label}: median")
-        a.plot(mid, [x["p90"] for x in bins], "v--", color=colour, alpha=0.6, label=f"{label}: p90")
-        for xm, x in zip(mid, bins, strict=True):
-            a.annotate(str(x["n"]), (xm, x["p90"]), textcoords="offset points", xytext=(0, 4), ha="center",
-                       fontsize=7, color=colour)
-    a.set_xlabel("true distance from the robot (m)")
-    a.set_ylabel("position error (m)")
-    a.set_title("member position error (counts: member-ticks)")
-    a.legend(fontsize=7, loc="upper left")
-    a.grid(alpha=0.3)
-    bins = [x for x in r["by_bearing"] if x["n"]]
-    mid = [0.5 * (x["lo"] + x["hi"]) for x in bins]
-    b.plot(mid, [x["missed_rate"] for x in bins], "o-", label="missed (no track)")
-    b.plot(mid, [x["unseen_rate"] for x in bins], "s--", label="not detected this frame")
-    for xm, x in zip(mid, bins, strict=True):
-        b.annotate(str(x["n"]), (xm, x["unseen_rate"]), textcoords="offset points", xytext=(0, 4), ha="center",
-                   fontsize=7)
-    b.axvline(0.5 * ErrorParams().hfov_deg, color="grey", ls=":", label="half the camera's FOV")
-    b.set_xlabel("|true bearing| from the robot (deg)")
-    b.set_ylabel("rate")
-    b.set_ylim(-0.02, 1.05)
-    b.set_title("members missed against bearing")
-    b.legend(fontsize=7)
-    b.grid(alpha=0.3)
-    if title:
-        fig.suptitle(title, fontsize=9)
-    fig.tight_layout()
-    path = Path(path)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path

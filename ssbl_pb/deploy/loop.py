@@ -290,7 +290,8 @@ class DeployLoop:
                 "vel": odo.velocity, "room_pose": fr.room_pose(odo.pose), "map_pose": fr.map_pose(odo.pose),
                 "cmd_policy": cmd, "humans": [{"id": m.id, "x": float(q[0]), "y": float(q[1]), "vx": float(m.vel[0]),
                                                "vy": float(m.vel[1]), "cov": m.cov, "seen": m.seen,
-                                               "facing": m.facing, "facing_std": m.facing_std if math.isfinite(m.facing_std) else None}
+                                               "facing": m.facing,
+                                               "facing_std": m.facing_std if math.isfinite(m.facing_std) else None}
                                               for m, q in zip(members, pos, strict=True)],
                 **{k: v for k, v in info.items() if k != "success"}, "detections": detections,
                 "min_clearance_m": float(clearance.min()) if len(clearance) else None,

@@ -25,11 +25,13 @@ from ..perception.camera import PinholeCamera, sim_camera
 from ..perception.detection.detectors import ColourDetector, HogDetector, HogParams
 from ..perception.detection.facing import Facing, facing_yaw
 from ..perception.detection.ground import ProxyGeometry, boxes_to_ground
+from ..perception.detection.keypoint_range import BODY_MARGIN
 from ..perception.detection.laser_range import LEG_DEPTH_M, laser_ranged
 from ..perception.detection.learned import SsdDetector
 from ..perception.detection.movenet import MoveNetFacing
 from ..perception.detection.proxy_facing import estimate_facing
 from ..perception.groups.estimate import (
+    KEYPOINT_GROUP,
     MIN_VISIBLE,
     TORSO_HALF,
     TORSO_HEIGHT,
@@ -44,13 +46,6 @@ from ..urdf import HUMAN_COLOURS
 from .robot import Frame, Robot
 
 DETECTORS = ("colour", "hog", "ssd", "movenet")
-# share of a MoveNet box's height (eyes to ankles, about 1.5 m) the body reaches beyond its keypoints at the side: an
-# arm and a shoulder's half-width, about 0.1 m. A box closer to the image's side is a cut body whose keypoints put it
-# off by up to half a body (at the edge of the view, a member 40 deg off the axis was placed 0.6-0.9 m off, onto
-# the neighbour's place, and the robot sidestepped into them)
-BODY_MARGIN = 0.07
-EYES_TO_ANKLES_M = 1.45  # m: the span of an adult's keypoints, eyes to ankles (stature 1.70 m): what a box's height
-#   shows of a whole body, so ``BODY_MARGIN`` of it is 0.1 m at the person's range
 
 
 def torso_depth(xy: np.ndarray, centre: np.ndarray | None) -> np.ndarray:
@@ -288,8 +283,7 @@ class Perception:
             cam = self.calibrated.scaled(w, h) if self.calibrated is not None else sim_camera(self.robot_params, w, h)
             keypoints = isinstance(self.detect, MoveNetFacing)
             params = self.tracker_params or (TRACKER_KEYPOINTS if keypoints else TRACKER)
-            # the group memory expects a person detected where perceive keeps their box (``whole_people``)
-            group = GroupParams(edge_margin_m=BODY_MARGIN * EYES_TO_ANKLES_M if keypoints else 0.0)
+            group = KEYPOINT_GROUP if keypoints else GroupParams()
             self._group = GroupTracker(cam, params, group, social=self.social, model=self.group_model)
         boxes = self.detect(frame.image)
         # each person's facing, where the detector tells it (the virtual Pepper's colour detector, MoveNet's

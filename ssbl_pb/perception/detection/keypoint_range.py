@@ -16,6 +16,14 @@ import numpy as np
 
 from .keypoints import GROUPS, L_SHOULDER, R_SHOULDER, BodyParams, local_projection, project, seen, template
 
+# share of a MoveNet box's height (eyes to ankles, about 1.5 m) the body reaches beyond its keypoints at the side: an
+# arm and a shoulder's half-width, about 0.1 m. A box closer to the image's side is a cut body whose keypoints put it
+# off by up to half a body (at the edge of the view, a member 40 deg off the axis was placed 0.6-0.9 m off, onto
+# the neighbour's place, and the robot sidestepped into them)
+BODY_MARGIN = 0.07
+EYES_TO_ANKLES_M = 1.45  # m: the span of an adult's keypoints, eyes to ankles (stature 1.70 m): what a box's height
+#   shows of a whole body, so ``BODY_MARGIN`` of it is 0.1 m at the person's range
+
 
 def _part_rows(kp: np.ndarray, p: BodyParams) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Per person and group (head, shoulders, hips): the mean row of its keypoints seen (n, 3; NaN none), the mean

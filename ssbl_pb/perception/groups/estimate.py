@@ -28,6 +28,7 @@ from ...core.layouts import slot_keep
 from ...core.task import TaskParams
 from ...params import RobotParams, SocialParams
 from ..camera import PinholeCamera
+from ..detection.keypoint_range import BODY_MARGIN, EYES_TO_ANKLES_M
 from ..tracking.tracker import Tracker, TrackerParams
 
 BODY_HEIGHT = 1.14  # m: the point of a person checked against the view (torso middle, urdf/human.urdf)
@@ -71,6 +72,11 @@ class GroupParams:
     #   ``perceive`` asks of a box before it keeps it (MoveNet's: ``BODY_MARGIN`` of the body's height, 0.1 m)
     facing_turn_std: float = 0.3  # rad/s: how fast a conversing person's facing may change (the facing filter's
     #   process noise; people in a group turn their body slowly, their head faster: ours)
+
+
+# the group memory for MoveNet's people: a person is expected detected only where perceive keeps their box
+# (``deploy.perceive.whole_people``: ``BODY_MARGIN`` of the body's height clear of the image's side, 0.1 m)
+KEYPOINT_GROUP = GroupParams(edge_margin_m=BODY_MARGIN * EYES_TO_ANKLES_M)
 
 
 @dataclasses.dataclass

@@ -4,17 +4,18 @@ On the robot the policy does not read the true state: deploy's perception detect
 camera, projects them to the ground, tracks them (``perception.tracking.tracker``, ego-motion compensated), remembers
 the ones out of view where it last estimated them, and computes the group's centre, o-space radius and free
 slot from those estimates (``perception.groups.estimate``). This module runs that same pipeline from the simulator's
-state, with the camera replaced by a model of the detector: a member can be detected when it is in range with at least
-``group.MIN_VISIBLE`` of its torso's width inside the image (deploy completes torsos cut by the image's
-side, ``deploy.perceive.complete_cut_torsos``; such a detection gets ``partial_std_m`` more noise across the line
-of sight) and no more than ``hidden_fraction`` of it hidden behind nearer people; it is then missed with
-probability ``miss_prob`` and placed with range and bearing noise that grows with distance. Its facing (relative to
-its line of sight) is measured with ``facing_std_deg`` of noise when its front is toward the camera (within
-``facing_front_deg``: the virtual Pepper's people wear a marker on their chest), and with ``facing_back_std_deg``
-from further round (the torso's outline).
+state, with the camera replaced by a model of the detector's chain (``PerceptionParams``: by default a real
+Pepper's, MoveNet on people; ``preset("colour")`` the virtual Pepper's colour detector on box proxies): a member can
+be detected when it is in range with at least ``min_visible`` of its torso's width (MoveNet's: all of it and
+a margin, as deploy keeps its boxes; the colour detector's: ``group.MIN_VISIBLE``, deploy completes the cut torso,
+``deploy.perceive.complete_cut_torsos``, with ``partial_std_m`` more noise across the line of sight) inside the
+image and no more than ``hidden_fraction`` of it hidden behind nearer people; it is then missed with probability
+``miss_prob`` and placed with bearing noise and range noise (the lasers' within their reach, else growing with
+distance). Its facing (relative to its line of sight) is measured with ``facing_std_deg`` of noise when its front is
+toward the camera (within ``facing_front_deg``), and with ``facing_back_std_deg`` from further round.
 Everything after the detections is deploy's code itself: ``GroupTracker.update`` (the Kalman tracker with deploy's
-settings, ``group.TRACKER``, and its memory of people out of view) and ``GroupModel.update`` (centre,
-radius, joining weight, free slot), called as ``deploy.loop.DeployLoop`` calls them.
+settings for the chain, ``group.TRACKER`` or ``TRACKER_KEYPOINTS``, and its memory of people out of view) and
+``GroupModel.update`` (centre, radius, joining weight, free slot), called as ``deploy.loop.DeployLoop`` calls them.
 
 While fewer than two people are known, deploy does not run the policy: it turns in place to find the group, and
 after a full turn with one person in sight steps sideways for another line of sight (``DeployLoop._search``).
@@ -38,30 +39,54 @@ import numpy as np
 from ...core.humans import MAX_HUMANS, N_SCALARS, RADIUS
 from ...params import ConfigError, RobotParams, SocialParams, _check, from_dict
 from ..camera import sim_camera
-from .estimate import BODY_HEIGHT, MIN_VISIBLE, TORSO_HALF, TRACKER, GroupModel, GroupTracker, member_arrays
+from .estimate import (
+    BODY_HEIGHT,
+    KEYPOINT_GROUP,
+    MIN_VISIBLE,
+    TORSO_HALF,
+    TRACKER,
+    TRACKER_KEYPOINTS,
+    GroupModel,
+    GroupParams,
+    GroupTracker,
+    member_arrays,
+)
 from .looks import CONFIRM_S, Looks, claim_rule
 
 # QVGA, the resolution deploy subscribes (``deploy.naoqi.NaoqiParams.resolution``)
 IMAGE_SIZE = (320, 240)
 
 
+DETECTORS = ("movenet", "colour")  # the chains modelled: a real Pepper's (MoveNet on people), the virtual Pepper's
+#   colour detector on box proxies
+
+
 @dataclasses.dataclass(frozen=True)
 class PerceptionParams:
-    """The detector's model (ours; docs/benchmarks.md, "Deploy against the virtual Pepper", says where each
-    number comes from) and the search turn (``deploy.loop.DeployParams.search_turn``)."""
+    """The detector's model and the search turn (``deploy.loop.DeployParams.search_turn``). The defaults are the
+    chain a real Pepper runs, MoveNet's (``detector: movenet``), measured against the virtual Pepper's bodies;
+    ``preset("colour")`` gives the colour detector's on box proxies. docs/benchmarks.md, "The observation model",
+    says where each number comes from (``tools/fit_observation.py`` measures them)."""
 
-    # the colour detector against the virtual Pepper (tools/bench_deploy.py --lockstep, mixed, 10 runs): detected
-    # members' position error median 0.035 m at 1-2 m, 0.045 m at 2-3 m, 0.05 m at 3-4 m, 0.11 m at 4-6 m; a
-    # Gaussian's median radial error is 1.18 sigma, so sigma ~0.03 m at 1.5 m to ~0.07 m at 5 m:
-    range_std_m: float = 0.01  # m: range noise of a detection at the robot ...
-    range_std_per_m: float = 0.012  # ... growing by this per metre of distance
-    bearing_std_deg: float = 0.5  # deg: bearing noise (a box's column error; 0.026 m across at 3 m)
-    miss_prob: float = 0.03  # a person deploy expects to see is not detected (measured: 3.2 % of frames)
-    # share of a torso's width that may be hidden behind nearer people with the person still detected: of the
-    # members whose line of sight passes within a torso's half-width of a nearer one, 56 % were detected
-    hidden_fraction: float = 0.75
+    # deploy's tracker, group memory and centre for this chain: keypoint tracks (``estimate.TRACKER_KEYPOINTS``), a
+    # memory that expects a person only where perceive keeps the box (``KEYPOINT_GROUP``) and the centre robust to a
+    # facing far off (``robust_facing_centre``), as ``deploy.perceive`` and ``deploy.loop`` choose them for MoveNet
+    detector: str = "movenet"
+    # MoveNet on bodies (tools/fit_observation.py on 20 lockstep mixed runs, docs/benchmarks.md "The observation
+    # model"): within the lasers' reach (3 m: naoqi_driver's range, ``deploy.ranges.RangeParams.laser_max``) the
+    # lasers range people (robust std 2-14 mm), beyond it the keypoints (0.10-0.17 m at 3-6 m, 4.4 % of the range)
+    laser_reach_m: float = 3.0  # m: people nearer are ranged with ``laser_std_m`` (0: no lasers, the colour chain)
+    laser_std_m: float = 0.005  # m
+    range_std_m: float = 0.0  # m: range noise of a detection beyond the lasers' reach ...
+    range_std_per_m: float = 0.044  # ... growing by this per metre of distance
+    bearing_std_deg: float = 0.9  # deg: bearing noise
+    miss_prob: float = 0.07  # a person in plain sight (whole in the image, nobody in front) is not detected
+    min_visible: float = 0.95  # share of the torso's width plus the chain's edge margin inside the image for a
+    #   detection (perceive drops MoveNet's cut boxes; the colour chain completes cut torsos from a third)
+    hidden_fraction: float = 0.75  # share of a torso's width that may be hidden behind nearer people with the person
+    #   still detected (the share detected falls below half of plain sight's beyond it)
     partial_std_m: float = 0.04  # m across the line of sight for a torso completed beyond the image's side (its
-    #   apparent width taken as the mean over facings: off by at most 0.07 m)
+    #   apparent width taken as the mean over facings: off by at most 0.07 m; the colour chain)
     facing_std_deg: float = 10.0  # deg: facing noise of a person whose front the camera sees ...
     facing_front_deg: float = 80.0  # ... within this angle of looking at the robot; from further round ...
     facing_back_std_deg: float = 30.0  # ... with this (inf: unknown)
@@ -74,7 +99,11 @@ class PerceptionParams:
     confirm_s: float = CONFIRM_S  # s: a claim is backed by members seen this long before it (Looks.confirm_s)
 
     def __post_init__(self) -> None:
-        for name in ("range_std_m", "range_std_per_m", "bearing_std_deg", "facing_std_deg", "partial_std_m"):
+        _check(self.detector in DETECTORS, "perception", "detector", self.detector, f"one of {list(DETECTORS)}")
+        _check(isinstance(self.min_visible, int | float) and 0 < self.min_visible <= 1, "perception",
+               "min_visible", self.min_visible, "a share in (0, 1]")
+        for name in ("range_std_m", "range_std_per_m", "bearing_std_deg", "facing_std_deg", "partial_std_m",
+                     "laser_reach_m", "laser_std_m"):
             v = getattr(self, name)
             _check(isinstance(v, int | float) and math.isfinite(v) and v >= 0, "perception", name, v,
                    "a finite number >= 0")
@@ -99,20 +128,50 @@ class PerceptionParams:
         _check(isinstance(self.confirm_s, int | float) and self.confirm_s > 0, "perception", "confirm_s",
                self.confirm_s, "seconds > 0")
 
+    @property
+    def keypoints(self) -> bool:
+        """The chain ranges and faces people from keypoints (MoveNet)."""
+        return self.detector == "movenet"
+
+    @classmethod
+    def preset(cls, name: str) -> PerceptionParams:
+        """The model of a detector's chain: ``movenet`` (the defaults) or ``colour``."""
+        if name not in DETECTORS:
+            fields = [f.name for f in dataclasses.fields(cls)]
+            raise ConfigError(f"perception = {name!r}: expected false, true, one of {list(DETECTORS)} or a mapping "
+                              f"of {fields}")
+        return cls(**COLOUR) if name == "colour" else cls()
+
     @classmethod
     def of(cls, value: Any) -> PerceptionParams | None:
-        """The env's ``perception`` argument: None/False (off: the true state), True (these defaults), a dict of
-        fields or an instance."""
+        """The env's ``perception`` argument: None/False (off: the true state), True (these defaults), a preset's
+        name (``movenet``, ``colour``), a dict of fields (``preset``: the name whose values it changes) or an
+        instance."""
         if value is None or value is False:
             return None
         if value is True:
             return cls()
         if isinstance(value, cls):
             return value
+        if isinstance(value, str):
+            return cls.preset(value)
         if isinstance(value, dict):
-            return from_dict(cls, value, "perception")
+            fields = dict(value)
+            base = cls.preset(str(fields.pop("preset", "movenet")))
+            return from_dict(cls, {**dataclasses.asdict(base), **fields}, "perception")
         fields = [f.name for f in dataclasses.fields(cls)]
-        raise ConfigError(f"perception = {value!r}: expected false, true or a mapping of {fields}")
+        raise ConfigError(f"perception = {value!r}: expected false, true, one of {list(DETECTORS)} or a mapping of "
+                          f"{fields}")
+
+
+# the colour detector against the virtual Pepper's box proxies (tools/bench_deploy.py --lockstep, mixed, 10 runs):
+# detected members' position error median 0.035 m at 1-2 m, 0.045 m at 2-3 m, 0.05 m at 3-4 m, 0.11 m at 4-6 m; a
+# Gaussian's median radial error is 1.18 sigma, so sigma ~0.03 m at 1.5 m to ~0.07 m at 5 m; misses 3.2 % of
+# frames; of the members whose line of sight passes within a torso's half-width of a nearer one, 56 % detected; the
+# facing from the chest marker (front) and the torso's outline (back)
+COLOUR = {"detector": "colour", "laser_reach_m": 0.0, "range_std_m": 0.01, "range_std_per_m": 0.012,
+          "bearing_std_deg": 0.5, "miss_prob": 0.03, "min_visible": MIN_VISIBLE, "hidden_fraction": 0.75,
+          "facing_std_deg": 10.0, "facing_back_std_deg": 30.0}
 
 
 def hidden_share(xy: np.ndarray, halfwidth: float) -> np.ndarray:
@@ -151,7 +210,8 @@ def detect(xy: np.ndarray, visible: np.ndarray, params: PerceptionParams, rng: n
            facing: np.ndarray | None = None, partial: np.ndarray | None = None
            ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Detections of the robot-frame positions ``xy`` (n, 2) that are ``visible``: each missed with probability
-    ``miss_prob``, the rest moved by range noise ``range_std_m + range_std_per_m * r`` and bearing noise
+    ``miss_prob``, the rest moved by range noise ``laser_std_m`` within ``laser_reach_m``, else ``range_std_m +
+    range_std_per_m * r``, and bearing noise
     ``bearing_std_deg`` (Gaussian). ``facing`` (n,): each person's true facing relative to their line of sight
     (rad, 0: looking at the robot), measured with ``facing_std_deg`` within ``facing_front_deg`` of 0, else with
     ``facing_back_std_deg`` (NaN where that is inf). ``partial`` (n,): completed beyond the image's side, with
@@ -167,7 +227,8 @@ def detect(xy: np.ndarray, visible: np.ndarray, params: PerceptionParams, rng: n
     r = np.hypot(xy[:, 0], xy[:, 1])
     b = np.arctan2(xy[:, 1], xy[:, 0])
     across = 0.0 if partial is None else np.where(partial, params.partial_std_m, 0.0) / np.maximum(r, 0.1)
-    r = np.maximum(r + (params.range_std_m + params.range_std_per_m * r) * z_range, 0.05)
+    sd_range = np.where(r < params.laser_reach_m, params.laser_std_m, params.range_std_m + params.range_std_per_m * r)
+    r = np.maximum(r + sd_range * z_range, 0.05)
     b = b + math.radians(params.bearing_std_deg) * z_bearing + across * z_across
     phi = np.full(n, np.nan) if facing is None else np.asarray(facing, dtype=float)
     front = np.abs(np.remainder(phi + math.pi, 2 * math.pi) - math.pi) <= math.radians(params.facing_front_deg)
@@ -197,10 +258,13 @@ class CopyPerception:
                  params: PerceptionParams) -> None:
         self.torso_halfwidth = TORSO_HALF[1]
         self.apparent_halfwidth = 2.0 * sum(TORSO_HALF) / math.pi  # the mean over facings
-        self.body_height, self.min_visible = BODY_HEIGHT, MIN_VISIBLE  # deploy's: the torso's middle, cut boxes
+        self.body_height = BODY_HEIGHT  # deploy's: the torso's middle
         self.params, self.paper = params, paper
-        self.model = GroupModel(social, keep, paper=paper)
-        self.tracker = GroupTracker(sim_camera(robot, *IMAGE_SIZE), TRACKER, social=social, model=self.model)
+        keypoints = params.keypoints  # deploy's tracker, memory and centre for the chain (``deploy.perceive``)
+        self.model = GroupModel(social, keep, paper=paper, robust=keypoints and not paper)
+        self.tracker = GroupTracker(sim_camera(robot, *IMAGE_SIZE), TRACKER_KEYPOINTS if keypoints else TRACKER,
+                                    KEYPOINT_GROUP if keypoints else GroupParams(), social=social, model=self.model)
+        self.margin = self.tracker.p.edge_margin_m  # m beyond the torso that must be in the image too
         self.rng = np.random.default_rng()
         self.approaching = False
         self.search_side = 0.0
@@ -222,6 +286,14 @@ class CopyPerception:
         self.turned, self.last_yaw, self.sidestep_left, self.sidesteps = 0.0, None, 0, 0
         self.looks, self.t = Looks(self.params.confirm_s), 0.0
 
+    def detectable(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Which robot-frame people (n, 2) the detector can find (enough of the torso, plus the chain's edge margin,
+        inside the image, not too much hidden behind nearer people), and the share of each inside the image."""
+        share = image_share(xy, self.tracker.camera, self.apparent_halfwidth + self.margin, self.body_height,
+                            self.tracker.p.max_range_m)
+        hidden = hidden_share(xy, self.torso_halfwidth)
+        return (share >= self.params.min_visible - 1e-9) & (hidden <= self.params.hidden_fraction), share
+
     def frame(self, pose: np.ndarray, members: np.ndarray, dt: float, yaw: np.ndarray | None = None) -> None:
         """One camera frame at the robot's ``pose`` (room frame, used as the odometry frame) with the true
         ``members`` (n, 2) facing ``yaw`` (n,; None: facing unknown): detect, track, and, with two or more people
@@ -230,9 +302,7 @@ class CopyPerception:
         c, s = math.cos(pose[2]), math.sin(pose[2])
         rel = np.asarray(members, dtype=float).reshape(-1, 2) - pose[:2]
         xy = np.column_stack([c * rel[:, 0] + s * rel[:, 1], -s * rel[:, 0] + c * rel[:, 1]])
-        share = image_share(xy, self.tracker.camera, self.apparent_halfwidth, self.body_height,
-                            self.tracker.p.max_range_m)
-        can = (share >= self.min_visible) & (hidden_share(xy, self.torso_halfwidth) <= self.params.hidden_fraction)
+        can, share = self.detectable(xy)
         phi = None
         if yaw is not None:  # facing relative to the line of sight: 0 when looking at the robot
             phi = np.asarray(yaw, dtype=float) - np.arctan2(-rel[:, 1], -rel[:, 0])
