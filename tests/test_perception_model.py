@@ -13,7 +13,8 @@ from ssbl_pb.env.gymenv.approach import ApproachGroupEnv
 from ssbl_pb.params import ConfigError, RobotParams, SocialParams
 from ssbl_pb.perception.groups.observation_model import CopyPerception, PerceptionParams, detect
 
-EXACT = PerceptionParams(range_std_m=0.0, range_std_per_m=0.0, bearing_std_deg=0.0, miss_prob=0.0, laser_std_m=0.0)
+EXACT = PerceptionParams(range_std_m=0.0, range_std_per_m=0.0, bearing_std_deg=0.0, miss_prob=0.0, laser_std_m=0.0,
+                         facing_flip_prob=0.0)
 
 
 def _copy(params: PerceptionParams = EXACT) -> CopyPerception:
@@ -181,6 +182,17 @@ def test_facing_is_measured_from_the_front_finely_and_from_behind_coarsely():
     unknown = dataclasses.replace(params, facing_back_std_deg=math.inf)
     _, f, sd = detect(xy[1:2], np.array([True]), unknown, rng, phi[1:2])
     assert np.isnan(f).all() and np.isinf(sd).all()  # from behind, unknown: not measured
+
+
+def test_a_share_of_facings_comes_out_turned_by_half_a_turn_as_keypoints_mistake_front_for_back():
+    params = dataclasses.replace(EXACT, facing_std_deg=1.0, facing_back_std_deg=1.0, facing_flip_prob=0.2)
+    rng = np.random.default_rng(3)
+    xy, phi = np.array([[2.0, 0.0]]), np.array([0.3])
+    facing = np.array([detect(xy, np.array([True]), params, rng, phi)[1][0] for _ in range(4000)])
+    flipped = np.abs(np.remainder(facing - phi[0] + math.pi, 2 * math.pi) - math.pi) > math.pi / 2
+    assert flipped.mean() == pytest.approx(0.2, abs=0.02)
+    with pytest.raises(ConfigError, match="perception.facing_flip_prob"):
+        PerceptionParams(facing_flip_prob=1.0)
 
 
 def test_facing_rays_that_cross_fix_the_centre_and_facing_each_other_do_not():

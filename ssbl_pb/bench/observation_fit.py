@@ -13,12 +13,12 @@ detected in that frame unless said otherwise:
 - ``bearing_std_deg``: the robust std of the bearing error;
 - ``miss_prob``: of the member-ticks in plain sight (the whole torso in the image, nothing in front of it), the
   share not detected;
-- ``min_visible``: the smallest share of the torso inside the image from which on the share detected (nothing in
-  front) stays at least half that in plain sight (deploy drops MoveNet boxes cut by the image's side);
-- ``hidden_fraction``: likewise, the largest share hidden behind nearer members up to which it stays so;
-- ``facing_std_deg``, ``facing_back_std_deg``: the robust std of the facing error of members whose front is toward
-  the robot (within ``facing_front_deg``) and of the others; ``facing_flipped`` (reported): the share more than
-  90 deg off.
+- ``min_visible``: the share of the torso inside the image (nothing in front) at which the share detected falls to
+  half that in plain sight (deploy drops MoveNet boxes cut by the image's side; interpolated between bins);
+- ``hidden_fraction``: likewise, the share hidden behind nearer members (the whole torso in the image);
+- ``facing_std_deg``, ``facing_back_std_deg``: the robust std of the facing error (within 90 deg) of members whose
+  front is toward the robot (within ``facing_front_deg``) and of the others; ``facing_flip_prob``: the share more
+  than 90 deg off.
 """
 
 from __future__ import annotations
@@ -55,23 +55,23 @@ def seen_by_bin(share: np.ndarray, seen: np.ndarray, edges: tuple[float, ...]) -
 
 
 def threshold(bins: list[dict[str, Any]], floor: float, rising: bool) -> float:
-    """Where the detected share crosses ``floor``: with ``rising`` (more is better: the image share) the lower edge
-    of the lowest bin from which every counted bin on is at least ``floor``; else (the hidden share) the upper edge
-    of the last counted bin before the first one below it (0 when the first is)."""
+    """Where the detected share crosses ``floor``, between the middles of the two counted bins either side of it
+    (linearly): with ``rising`` (more is better: the image share) going down from the top bin, else (the hidden
+    share) going up from the first. With no bin below ``floor``, the end of the range; with the first one below,
+    its edge."""
     counted = [b for b in bins if b["n"] >= MIN_TICKS]
     if rising:
-        edge = counted[-1]["lo"] if counted else 1.0
-        for b in reversed(counted):
-            if b["seen_rate"] < floor:
-                break
-            edge = b["lo"]
-        return float(min(edge, 1.0))
-    edge = 0.0
-    for b in counted:
-        if b["seen_rate"] < floor:
-            break
-        edge = b["hi"]
-    return float(min(edge, 1.0))
+        counted = counted[::-1]
+    for k, b in enumerate(counted):
+        if b["seen_rate"] >= floor:
+            continue
+        if k == 0:
+            return float(b["hi"] if rising else b["lo"])
+        a = counted[k - 1]
+        mid_a, mid_b = 0.5 * (a["lo"] + a["hi"]), 0.5 * (b["lo"] + b["hi"])
+        x = mid_a + (a["seen_rate"] - floor) / (a["seen_rate"] - b["seen_rate"]) * (mid_b - mid_a)
+        return float(min(max(x, 0.0), 1.0))
+    return 0.0 if rising else 1.0
 
 
 def fit(s: Samples, base: PerceptionParams | None = None) -> dict[str, Any]:
@@ -98,6 +98,8 @@ def fit(s: Samples, base: PerceptionParams | None = None) -> dict[str, Any]:
     image_bins = seen_by_bin(in_image[hidden <= 0.0], seen[hidden <= 0.0], IMAGE_BINS)
     hidden_bins = seen_by_bin(hidden[in_image >= 1.0], seen[in_image >= 1.0], HIDDEN_BINS)
     has_facing = detected & np.isfinite(facing_err)
+    flipped = np.abs(facing_err[has_facing]) > 90.0
+    unflipped = has_facing & (np.abs(np.nan_to_num(facing_err, nan=180.0)) <= 90.0)  # the flips are their own field
     fields = {
         "detector": base.detector, "laser_reach_m": reach, "laser_std_m": round(robust_std(range_err[near]), 3),
         "range_std_m": 0.0,
@@ -105,18 +107,17 @@ def fit(s: Samples, base: PerceptionParams | None = None) -> dict[str, Any]:
         "bearing_std_deg": round(robust_std(bearing_err[detected]), 2),
         "miss_prob": round(miss, 3), "min_visible": round(threshold(image_bins, floor, rising=True), 2),
         "hidden_fraction": round(threshold(hidden_bins, floor, rising=False), 2),
-        "facing_std_deg": round(robust_std(facing_err[has_facing & front]), 1),
+        "facing_std_deg": round(robust_std(facing_err[unflipped & front]), 1),
         "facing_front_deg": base.facing_front_deg,
-        "facing_back_std_deg": round(robust_std(facing_err[has_facing & ~front]), 1),
+        "facing_back_std_deg": round(robust_std(facing_err[unflipped & ~front]), 1),
+        "facing_flip_prob": round(float(flipped.mean()), 3) if len(flipped) else 0.0,
     }
-    flipped = np.abs(facing_err[has_facing]) > 90.0
     evidence = {
         "member_ticks": len(seen), "detected": int(detected.sum()), "plain_sight": int(plain.sum()),
         "range_by_distance": by_distance, "range_bias_m": float(np.median(range_err[detected]))
         if detected.any() else None, "seen_by_image_share": image_bins, "seen_by_hidden_share": hidden_bins,
         "facing_ticks": {"front": int((has_facing & front).sum()), "back": int((has_facing & ~front).sum())},
         "facing_known": float(has_facing.sum() / detected.sum()) if detected.any() else None,
-        "facing_flipped": float(flipped.mean()) if len(flipped) else None,
         "facing_abs_median_deg": {k: float(np.median(np.abs(facing_err[has_facing & m]))) if (has_facing & m).any()
                                   else None for k, m in (("front", front), ("back", ~front))},
     }
@@ -130,9 +131,7 @@ def markdown(result: dict[str, Any], current: dict[str, Any]) -> str:
         out.append(f"| `{k}` | {v if isinstance(v, str) else format(v, 'g')} | {current.get(k, '-')} |")
     e = result["evidence"]
     bias = "-" if e["range_bias_m"] is None else f"{e['range_bias_m']:+.3f} m"
-    flipped = "-" if e["facing_flipped"] is None else f"{e['facing_flipped']:.1%}"
     out.append("")
     out.append(f"{e['detected']} detected of {e['member_ticks']} member-ticks ({e['plain_sight']} in plain sight); "
-               f"median range error {bias}; facing known on {e['facing_known'] or 0:.0%} of detected member-ticks, "
-               f"{flipped} of them more than 90 deg off.")
+               f"median range error {bias}; facing known on {e['facing_known'] or 0:.0%} of detected member-ticks.")
     return "\n".join(out) + "\n"

@@ -72,24 +72,28 @@ class PerceptionParams:
     # memory that expects a person only where perceive keeps the box (``KEYPOINT_GROUP``) and the centre robust to a
     # facing far off (``robust_facing_centre``), as ``deploy.perceive`` and ``deploy.loop`` choose them for MoveNet
     detector: str = "movenet"
-    # MoveNet on bodies (tools/fit_observation.py on 20 lockstep mixed runs, docs/benchmarks.md "The observation
-    # model"): within the lasers' reach (3 m: naoqi_driver's range, ``deploy.ranges.RangeParams.laser_max``) the
-    # lasers range people (robust std 2-14 mm), beyond it the keypoints (0.10-0.17 m at 3-6 m, 4.4 % of the range)
+    # MoveNet on bodies: ``tools/fit_observation.py`` on 40 lockstep runs (20 default, 20 mixed; docs/
+    # benchmarks_movenet.md, "The observation model"). Within the lasers' reach (3 m: naoqi_driver's range,
+    # ``deploy.ranges.RangeParams.laser_max``) the lasers range people (robust std 2-18 mm), beyond it the keypoints
+    # (0.09-0.20 m at 3-6 m, 4.5 % of the range)
     laser_reach_m: float = 3.0  # m: people nearer are ranged with ``laser_std_m`` (0: no lasers, the colour chain)
     laser_std_m: float = 0.005  # m
     range_std_m: float = 0.0  # m: range noise of a detection beyond the lasers' reach ...
-    range_std_per_m: float = 0.044  # ... growing by this per metre of distance
-    bearing_std_deg: float = 0.9  # deg: bearing noise
-    miss_prob: float = 0.07  # a person in plain sight (whole in the image, nobody in front) is not detected
-    min_visible: float = 0.95  # share of the torso's width plus the chain's edge margin inside the image for a
-    #   detection (perceive drops MoveNet's cut boxes; the colour chain completes cut torsos from a third)
-    hidden_fraction: float = 0.75  # share of a torso's width that may be hidden behind nearer people with the person
-    #   still detected (the share detected falls below half of plain sight's beyond it)
+    range_std_per_m: float = 0.045  # ... growing by this per metre of distance
+    bearing_std_deg: float = 0.8  # deg: bearing noise
+    miss_prob: float = 0.06  # a person in plain sight (whole in the image, nobody in front) is not detected
+    min_visible: float = 0.89  # share of the torso's width plus the chain's edge margin inside the image at which
+    #   half as many are detected as in plain sight (perceive drops MoveNet's cut boxes; the colour chain completes
+    #   cut torsos from a third)
+    hidden_fraction: float = 0.61  # share of a torso's width hidden behind nearer people at which half as many are
+    #   detected as in plain sight
     partial_std_m: float = 0.04  # m across the line of sight for a torso completed beyond the image's side (its
     #   apparent width taken as the mean over facings: off by at most 0.07 m; the colour chain)
-    facing_std_deg: float = 10.0  # deg: facing noise of a person whose front the camera sees ...
+    facing_std_deg: float = 10.5  # deg: facing noise of a person whose front the camera sees ...
     facing_front_deg: float = 80.0  # ... within this angle of looking at the robot; from further round ...
-    facing_back_std_deg: float = 30.0  # ... with this (inf: unknown)
+    facing_back_std_deg: float = 12.5  # ... with this (inf: unknown)
+    facing_flip_prob: float = 0.11  # a measured facing turned by 180 deg (keypoints that mistake front for back;
+    #   deploy's facing filter keeps such a mode for a while: 9 % of front views, 14 % of back views)
     search_turn: float = 0.5  # rad/s in place while fewer than two people are known (half NAOqi's default; deploy
     #   takes these search values as its own defaults, DeployParams)
     sidestep_s: float = 3.0  # s sideways after a full turn with one person known ... (DeployParams.sidestep_s)
@@ -107,8 +111,9 @@ class PerceptionParams:
             v = getattr(self, name)
             _check(isinstance(v, int | float) and math.isfinite(v) and v >= 0, "perception", name, v,
                    "a finite number >= 0")
-        _check(isinstance(self.miss_prob, int | float) and 0 <= self.miss_prob < 1, "perception", "miss_prob",
-               self.miss_prob, "a probability in [0, 1)")
+        for name in ("miss_prob", "facing_flip_prob"):
+            v = getattr(self, name)
+            _check(isinstance(v, int | float) and 0 <= v < 1, "perception", name, v, "a probability in [0, 1)")
         _check(isinstance(self.facing_back_std_deg, int | float) and self.facing_back_std_deg >= 0, "perception",
                "facing_back_std_deg", self.facing_back_std_deg, "a number >= 0 (inf: unknown)")
         _check(isinstance(self.facing_front_deg, int | float) and 0 <= self.facing_front_deg <= 180, "perception",
@@ -171,7 +176,7 @@ class PerceptionParams:
 # facing from the chest marker (front) and the torso's outline (back)
 COLOUR = {"detector": "colour", "laser_reach_m": 0.0, "range_std_m": 0.01, "range_std_per_m": 0.012,
           "bearing_std_deg": 0.5, "miss_prob": 0.03, "min_visible": MIN_VISIBLE, "hidden_fraction": 0.75,
-          "facing_std_deg": 10.0, "facing_back_std_deg": 30.0}
+          "facing_std_deg": 10.0, "facing_back_std_deg": 30.0, "facing_flip_prob": 0.0}
 
 
 def hidden_share(xy: np.ndarray, halfwidth: float) -> np.ndarray:
@@ -214,7 +219,8 @@ def detect(xy: np.ndarray, visible: np.ndarray, params: PerceptionParams, rng: n
     range_std_per_m * r``, and bearing noise
     ``bearing_std_deg`` (Gaussian). ``facing`` (n,): each person's true facing relative to their line of sight
     (rad, 0: looking at the robot), measured with ``facing_std_deg`` within ``facing_front_deg`` of 0, else with
-    ``facing_back_std_deg`` (NaN where that is inf). ``partial`` (n,): completed beyond the image's side, with
+    ``facing_back_std_deg`` (NaN where that is inf), turned by 180 deg with probability ``facing_flip_prob``.
+    ``partial`` (n,): completed beyond the image's side, with
     ``partial_std_m`` more noise across the line of sight.
     Returns the detections (k, 2), their measured facing (k,) and its std (k,) (NaN/inf: unknown). Draws the same
     numbers whatever is visible (one miss, range, bearing and facing draw per person), so one person's visibility
@@ -235,6 +241,8 @@ def detect(xy: np.ndarray, visible: np.ndarray, params: PerceptionParams, rng: n
     sd = np.where(front, max(math.radians(params.facing_std_deg), 1e-3),
                   max(math.radians(params.facing_back_std_deg), 1e-3))
     known = np.isfinite(phi) & np.isfinite(sd)
+    if params.facing_flip_prob > 0:  # drawn only then: the colour chain's draws stay as they were
+        phi = phi + math.pi * (rng.random(n) < params.facing_flip_prob)
     measured = np.where(known, phi + np.where(known, sd, 0.0) * z_facing, np.nan)
     std = np.where(known, sd, np.inf)
     keep = np.asarray(visible, dtype=bool) & ~miss
