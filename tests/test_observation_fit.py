@@ -43,8 +43,12 @@ def test_fit_recovers_the_noise_misses_and_visibility_it_was_drawn_with():
                 range_err=np.where(seen, sd * rng.standard_normal(n), np.nan).tolist(),
                 bearing_err=np.where(seen, 1.0 * rng.standard_normal(n), np.nan).tolist(),
                 facing_err=np.where(front, 10.0, 30.0) * rng.standard_normal(n) + 180.0 * (rng.random(n) < 0.05),
-                front=front.tolist(), hidden=hidden.tolist(), in_image=in_image.tolist())
-    f = fit(s)["fields"]
+                front=front.tolist(), hidden=hidden.tolist(), in_image=in_image.tolist(),
+                tracks=[1] * (n - 100) + [2] * 100, false_tracks=[0, 1, 0, 1])
+    result = fit(s)
+    f = result["fields"]
+    assert result["evidence"]["duplicated"] == pytest.approx(100 / n) and result["evidence"][
+        "false_tracks_per_tick"] == 0.5
     assert f["laser_std_m"] == pytest.approx(0.01, rel=0.05)
     assert f["range_std_per_m"] == pytest.approx(0.05, rel=0.05) and f["range_std_m"] == 0.0
     assert f["bearing_std_deg"] == pytest.approx(1.0, rel=0.05)

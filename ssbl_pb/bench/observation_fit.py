@@ -19,6 +19,8 @@ detected in that frame unless said otherwise:
 - ``facing_std_deg``, ``facing_back_std_deg``: the robust std of the facing error (within 90 deg) of members whose
   front is toward the robot (within ``facing_front_deg``) and of the others; ``facing_flip_prob``: the share more
   than 90 deg off.
+
+Reported, not modelled: the share of member-ticks tracked twice and false tracks per tick.
 """
 
 from __future__ import annotations
@@ -118,6 +120,10 @@ def fit(s: Samples, base: PerceptionParams | None = None) -> dict[str, Any]:
         if detected.any() else None, "seen_by_image_share": image_bins, "seen_by_hidden_share": hidden_bins,
         "facing_ticks": {"front": int((has_facing & front).sum()), "back": int((has_facing & ~front).sum())},
         "facing_known": float(has_facing.sum() / detected.sum()) if detected.any() else None,
+        # not modelled (the model's detections are one per person, nothing else): deploy's duplicates and false
+        # tracks, per member-tick and per tick
+        "duplicated": float(np.mean(np.asarray(s.tracks) > 1)) if s.tracks else None,
+        "false_tracks_per_tick": float(np.mean(s.false_tracks)) if s.false_tracks else None,
         "facing_abs_median_deg": {k: float(np.median(np.abs(facing_err[has_facing & m]))) if (has_facing & m).any()
                                   else None for k, m in (("front", front), ("back", ~front))},
     }
@@ -133,5 +139,7 @@ def markdown(result: dict[str, Any], current: dict[str, Any]) -> str:
     bias = "-" if e["range_bias_m"] is None else f"{e['range_bias_m']:+.3f} m"
     out.append("")
     out.append(f"{e['detected']} detected of {e['member_ticks']} member-ticks ({e['plain_sight']} in plain sight); "
-               f"median range error {bias}; facing known on {e['facing_known'] or 0:.0%} of detected member-ticks.")
+               f"median range error {bias}; facing known on {e['facing_known'] or 0:.0%} of detected member-ticks; "
+               f"not modelled: {e['duplicated'] or 0:.1%} of member-ticks tracked twice, "
+               f"{e['false_tracks_per_tick'] or 0:.3f} false tracks a tick.")
     return "\n".join(out) + "\n"
