@@ -22,8 +22,9 @@ after a full turn with one person in sight steps sideways for another line of si
 ``PerceivedGroups.steer`` gives the engine the same, and deploy's looks (``looks.Looks``, the same code): at the
 place it estimates, before it would claim success, it turns in place toward each member not seen lately, and
 after standing away from that place for a while toward the one seen longest ago. Not modelled: deploy's docking
-the last centimetres, its 0.5 s settle at the start, its clearance from members out of view
-(``DeployLoop._guard_unseen``) and the estimate's latency (one frame, ~60 ms).
+the last centimetres, its 0.5 s settle at the start, its guards after the policy's shield (``deploy.guards``:
+the clearance from members out of view and the lasers' range guard), duplicate and false tracks, and the
+estimate's latency (one frame, ~60 ms).
 Seeded per copy, apart from the env's own generator, so an episode's start is the same with the model on or off.
 """
 
