@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ssbl_pb.bench.observation_fit import fit, robust_std, threshold
+from ssbl_pb.bench.observation_fit import fit, plot, robust_std, threshold
 from ssbl_pb.bench.perception_errors import Samples
 from ssbl_pb.errors import UserError
 
@@ -29,7 +29,7 @@ def test_the_threshold_is_where_the_detected_share_falls_below_the_floor():
     assert threshold(bins[-1:], 0.45, rising=True) == 0.0 and threshold(falling[:1], 0.95, rising=False) == 0.0
 
 
-def test_fit_recovers_the_noise_misses_and_visibility_it_was_drawn_with():
+def test_fit_recovers_the_noise_misses_and_visibility_it_was_drawn_with(tmp_path):
     rng = np.random.default_rng(0)
     n = 20000
     r = rng.uniform(1.0, 6.0, n)
@@ -47,6 +47,7 @@ def test_fit_recovers_the_noise_misses_and_visibility_it_was_drawn_with():
                 tracks=[1] * (n - 100) + [2] * 100, false_tracks=[0, 1, 0, 1])
     result = fit(s)
     f = result["fields"]
+    assert plot(result, tmp_path / "fit.png").stat().st_size > 10_000
     assert result["evidence"]["duplicated"] == pytest.approx(100 / n) and result["evidence"][
         "false_tracks_per_tick"] == 0.5
     assert f["laser_std_m"] == pytest.approx(0.01, rel=0.05)

@@ -2,8 +2,9 @@
 """The observation model's numbers measured from deploy runs against the virtual Pepper
 (``ssbl_pb/bench/observation_fit.py``): range and bearing noise, misses, how much of a person must be in the image
 and may hide behind others, facing noise; beside the model's values now. Reads the run folders
-``tools/bench_deploy.py --out DIR`` writes (``DIR/runNN``; give DIR or single run folders). Writes OUT.json and
-OUT.md and prints the Markdown.
+``tools/bench_deploy.py --out DIR`` writes (``DIR/runNN``; give DIR or single run folders). Writes OUT.json,
+OUT.md and OUT.png (range noise against distance, detected share against the share in the image and hidden) and
+prints the Markdown.
 
     python tools/bench_deploy.py --scenario mixed --runs 10 --lockstep --appearance body --detector movenet \\
         --faults none --soak 0 --out results/bench_deploy_movenet
@@ -44,15 +45,15 @@ def main(argv: list[str] | None = None) -> int:
     ap = ArgumentParser(description=__doc__)
     ap.add_argument("runs", type=Path, nargs="+", help="bench_deploy output folders or single run folders")
     ap.add_argument("--out", type=Path, default=ROOT / "results" / "observation_fit",
-                    help="results stem: OUT.json and OUT.md (default results/observation_fit)")
+                    help="results stem: OUT.json, OUT.md and OUT.png (default results/observation_fit)")
     ap.add_argument("--detector", choices=["movenet", "colour"], default="movenet",
                     help="the chain the runs used (bench_deploy's --detector; default movenet): the model it is "
                          "measured for")
     args = ap.parse_args(argv)
     folders = run_folders(args.runs)
-    for suffix in (".json", ".md"):
+    for suffix in (".json", ".md", ".png"):
         check_output_path(args.out.with_suffix(suffix), is_dir=False)
-    from ssbl_pb.bench.observation_fit import fit, markdown  # lazy: scipy and the camera model, not for --help
+    from ssbl_pb.bench.observation_fit import fit, markdown, plot  # lazy: scipy and the camera model, not for --help
     from ssbl_pb.bench.perception_errors import ErrorParams, analyse_folder, pool
     from ssbl_pb.perception.groups.observation_model import PerceptionParams
 
@@ -70,6 +71,7 @@ def main(argv: list[str] | None = None) -> int:
     text = f"Command: `{command}` ({len(folders)} runs)\n\n" + markdown(result, current)
     write_json(args.out.with_suffix(".json"), {**result, "runs": [str(f) for f in folders], "command": command})
     write_text(args.out.with_suffix(".md"), text)
+    plot(result, args.out.with_suffix(".png"), f"{len(folders)} runs, {args.detector}")
     print(text)
     return 0
 

@@ -143,3 +143,44 @@ def markdown(result: dict[str, Any], current: dict[str, Any]) -> str:
                f"not modelled: {e['duplicated'] or 0:.1%} of member-ticks tracked twice, "
                f"{e['false_tracks_per_tick'] or 0:.3f} false tracks a tick.")
     return "\n".join(out) + "\n"
+
+
+def plot(result: dict[str, Any], path: Any, title: str = "") -> Any:
+    """The figure: the range error's robust std per distance bin with the fitted model, and the share detected
+    against the torso's share in the image and the share hidden, with the fitted thresholds."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    f, e = result["fields"], result["evidence"]
+    fig, (a, b) = plt.subplots(1, 2, figsize=(11, 4.2))
+    bins = e["range_by_distance"]
+    mid = [0.5 * (x["lo"] + (x["hi"] if x["hi"] is not None else x["lo"] + 2.0)) for x in bins]
+    a.plot(mid, [x["std_m"] for x in bins], "o", label="measured (robust std per bin)")
+    r = np.linspace(0.5, 6.0, 111)
+    model = np.where(r < f["laser_reach_m"], f["laser_std_m"], f["range_std_m"] + f["range_std_per_m"] * r)
+    a.plot(r, model, "-", label="model")
+    a.set_xlabel("true distance from the robot (m)")
+    a.set_ylabel("range error std (m)")
+    a.set_title("range noise of detected members")
+    a.legend(fontsize=7)
+    a.grid(alpha=0.3)
+    for key, label, edge, colour in (("seen_by_image_share", "torso share in the image", f["min_visible"], "C0"),
+                                     ("seen_by_hidden_share", "torso share hidden", f["hidden_fraction"], "C1")):
+        rows = [x for x in e[key] if x["n"] >= MIN_TICKS]
+        b.plot([min(0.5 * (x["lo"] + x["hi"]), 1.0) for x in rows], [x["seen_rate"] for x in rows], "o-",
+               color=colour, label=label)
+        b.axvline(edge, color=colour, ls=":", alpha=0.8)
+    b.set_xlabel("share of the torso")
+    b.set_ylabel("share detected")
+    b.set_ylim(-0.02, 1.05)
+    b.set_title(f"share detected (dotted: the model's thresholds; {f['miss_prob']:.0%} missed in plain sight)", fontsize=9)
+    b.legend(fontsize=7)
+    b.grid(alpha=0.3)
+    if title:
+        fig.suptitle(title, fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
