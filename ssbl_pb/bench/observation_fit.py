@@ -175,7 +175,8 @@ def plot(result: dict[str, Any], path: Any, title: str = "") -> Any:
     b.set_xlabel("share of the torso")
     b.set_ylabel("share detected")
     b.set_ylim(-0.02, 1.05)
-    b.set_title(f"share detected (dotted: the model's thresholds; {f['miss_prob']:.0%} missed in plain sight)", fontsize=9)
+    b.set_title(f"share detected (dotted: the model's thresholds; {f['miss_prob']:.0%} missed in plain sight)",
+                fontsize=9)
     b.legend(fontsize=7)
     b.grid(alpha=0.3)
     if title:
