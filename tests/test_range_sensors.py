@@ -10,11 +10,12 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from ssbl_pb.core.range_sensors import LASERS, RANGES, SONARS
 from ssbl_pb.core.shield import ShieldParams, brake_returns
 from ssbl_pb.core.task import TaskParams
 from ssbl_pb.deploy.frames import Frames
 from ssbl_pb.deploy.guards import UNSEEN_FAR, UNSEEN_MARGIN, UNSEEN_NEAR, guard_unseen, unseen_margin
-from ssbl_pb.deploy.ranges import KEYS, LASER_KEY, LASERS, RANGES, SONAR_KEY, SONARS, scan_points
+from ssbl_pb.deploy.ranges import KEYS, LASER_KEY, SONAR_KEY, scan_points
 from ssbl_pb.params import RobotParams, SocialParams
 from ssbl_pb.perception.camera import sim_camera
 from ssbl_pb.perception.groups.estimate import WALK_SPEED, GroupTracker
@@ -199,8 +200,8 @@ def test_the_clearance_kept_from_members_out_of_view_grows_by_their_reach_capped
 
 
 def test_someone_seen_walking_into_a_blind_sector_is_braked_for_where_they_could_stand():
+    from ssbl_pb.core.range_sensors import in_laser_fields
     from ssbl_pb.deploy.guards import PHANTOM_REACH, RANGE_MEMORY_S, Guards
-    from ssbl_pb.deploy.ranges import in_laser_fields
     from ssbl_pb.deploy.robot import RangeScan
 
     guards = Guards(SHIELD, 0.55, 0.45, Frames())

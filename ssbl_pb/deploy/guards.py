@@ -14,11 +14,11 @@ from typing import Any
 
 import numpy as np
 
+from ..core.range_sensors import RANGES, in_laser_fields
 from ..core.shield import CLEARANCE_FAR, PLACE_NEAR, ShieldParams, brake_closing, brake_returns, footprint_clearance
 from ..env.rooms.obstacles import field_at
 from ..perception.groups.estimate import WALK_SPEED
 from .frames import Frames, inverse, transform_points
-from .ranges import RANGES, in_laser_fields
 from .robot import RangeScan
 
 # m: the most the clearance kept from a member out of view grows to (at ``WALK_SPEED``, in half a second). Ours:

@@ -21,10 +21,11 @@ from typing import Any
 
 import numpy as np
 
+from ..core.range_sensors import RANGES
 from ..errors import UserError
 from ..params import RobotParams
 from .faults import ConnectionLost, RobotNotResponding
-from .ranges import KEYS, RANGES, scan_points
+from .ranges import KEYS, scan_points
 from .robot import Frame, Odometry, RangeScan, clamp_command
 
 MOTION = ("move", "stopMove", "getRobotPosition", "getRobotVelocity")

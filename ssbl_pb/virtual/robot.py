@@ -14,19 +14,8 @@ from typing import Any
 
 import numpy as np
 
-from ..deploy.ranges import (
-    KEYS,
-    LASER_KEY,
-    LASERS,
-    RANGES,
-    SONAR_KEY,
-    SONARS,
-    Mount,
-    RangeParams,
-    scan_points,
-    segment_angles,
-    sonar_angles,
-)
+from ..core.range_sensors import LASERS, RANGES, SONARS, Mount, RangeParams, segment_angles, sonar_angles
+from ..deploy.ranges import KEYS, LASER_KEY, SONAR_KEY, scan_points
 from ..deploy.robot import Frame, Odometry, RangeScan, clamp_command, relative
 from ..env.gymenv.approach import ApproachGroupEnv
 from ..env.view.bullet import pybullet as p

@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from ..deploy.ranges import in_laser_fields
+from ..core.range_sensors import in_laser_fields
 from ..deploy.robot import relative
 from ..env.view.bullet import pybullet as p
 from ..env.view.world import World, box_circle_distance
