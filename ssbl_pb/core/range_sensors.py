@@ -18,6 +18,8 @@ import math
 
 import numpy as np
 
+from .shield import ShieldParams, brake_returns
+
 
 @dataclasses.dataclass(frozen=True)
 class Mount:
@@ -58,6 +60,12 @@ class RangeParams:
 
 RANGES = RangeParams()
 
+# m beyond the stop distance the range returns are braked for (0.5 m by default: the training shield's clearance,
+# 0.05 m inside the deploy shield's for tracked people). A body seen as points on its surface blocks sliding round
+# it at the clearance it is braked for (the points ahead on its arc close in), and tracked members are the shield's
+# to keep at 0.55 m
+RETURN_MARGIN = 0.05
+
 
 def segment_angles(p: RangeParams = RANGES) -> np.ndarray:
     """Each segment's centre angle in its laser's frame (rad, counter-clockwise), Seg01 (leftmost) first."""
@@ -79,3 +87,24 @@ def in_laser_fields(points: np.ndarray, p: RangeParams = RANGES) -> np.ndarray:
         off = np.abs(np.remainder(np.arctan2(d[:, 1], d[:, 0]) - m.yaw + math.pi, 2 * math.pi) - math.pi)
         out |= (off <= math.radians(p.laser_fov_deg) / 2) & (np.hypot(d[:, 0], d[:, 1]) < p.laser_max)
     return out
+
+
+def lasers_see_body(centres: np.ndarray, radius: float, p: RangeParams = RANGES) -> np.ndarray:
+    """Which robot-frame body centres (k, 2) a laser sees: the body's middle or either side across the line of
+    sight (``radius`` off) inside a laser's field."""
+    c = np.asarray(centres, dtype=float).reshape(-1, 2)
+    u = c / np.maximum(np.hypot(c[:, 0], c[:, 1]), 1e-9)[:, None]
+    side = np.column_stack([-u[:, 1], u[:, 0]]) * radius
+    return in_laser_fields(c, p) | in_laser_fields(c + side, p) | in_laser_fields(c - side, p)
+
+
+def brake_for_bodies(velocity: np.ndarray, bodies: np.ndarray, clearance: float, shield: ShieldParams) -> np.ndarray:
+    """The body velocity (vx, vy) braked as deploy's range guard brakes for the lasers' returns
+    (``deploy.guards.guard_ranges``) for the people at robot-frame ``bodies`` (k, 2) that a laser sees
+    (``lasers_see_body``): their returns on the body's circle (``shield.human_radius``; the virtual Pepper's lasers hit
+    that cylinder), each closing speed cut to stop ``clearance`` from it (``shield.brake_returns``)."""
+    pts = np.asarray(bodies, dtype=float).reshape(-1, 2)
+    seen = lasers_see_body(pts, shield.human_radius)
+    if not seen.any():
+        return np.asarray(velocity, dtype=float)[:2].copy()
+    return brake_returns(velocity, pts[seen], clearance, shield, radius=shield.human_radius)

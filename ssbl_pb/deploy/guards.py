@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from ..core.range_sensors import RANGES, in_laser_fields
+from ..core.range_sensors import RANGES, RETURN_MARGIN, in_laser_fields, lasers_see_body
 from ..core.shield import CLEARANCE_FAR, PLACE_NEAR, ShieldParams, brake_closing, brake_returns, footprint_clearance
 from ..env.rooms.obstacles import field_at
 from ..perception.groups.estimate import WALK_SPEED
@@ -46,11 +46,6 @@ MEMORY_CELL = 0.2  # m: the newest remembered return per cell of this size (a le
 MEMORY_REACH = 3.0  # m from the robot's centre beyond which returns are not remembered (the lasers' range)
 PERSON_REACH = 0.6  # m from a tracked person within which a return is theirs (their body's 0.28 m and the remembered
 #   estimate's p90 error, 0.30 m, ``GroupTracker.hold``): not remembered, the member guard has them
-# m beyond the stop distance the range returns are braked for (0.5 m by default: the training shield's clearance,
-# 0.05 m inside the deploy shield's for tracked people). A body seen as points on its surface blocks sliding round
-# it at the clearance it is braked for (the points ahead on its arc close in), and tracked members are the shield's
-# to keep at 0.55 m
-RETURN_MARGIN = 0.05
 MAPPED = 0.15  # m: a return this close to the map's walls or obstacles is theirs (the map's cells are 0.05 m,
 #   localisation drifts by a few centimetres: ours)
 
@@ -132,8 +127,7 @@ class RangeMemory:
         # just beyond the footprint to the lasers' range and a body beyond
         bearing, dist = np.meshgrid(np.radians(np.arange(-180, 180, 3.0)), np.arange(0.5, RANGES.laser_max + 0.3, 0.05))
         c = np.column_stack([(dist * np.cos(bearing)).ravel(), (dist * np.sin(bearing)).ravel()])
-        side = np.column_stack([-np.sin(bearing).ravel(), np.cos(bearing).ravel()]) * human_radius
-        hidden = ~(in_laser_fields(c) | in_laser_fields(c + side) | in_laser_fields(c - side))
+        hidden = ~lasers_see_body(c, human_radius)
         self.hidden, self.bins = c[hidden], np.indices(bearing.shape)[1].ravel()[hidden]  # and each one's bearing
 
     def update(self, points: np.ndarray, near: np.ndarray, now: float, people: np.ndarray) -> None:

@@ -23,7 +23,9 @@ from ...core.actions import take_over
 from ...core.base import BaseArrays, BaseParams
 from ...core.humans import KEEP, MAX_HUMANS, RADIUS, GroupArrays, free_slot, sffm_params
 from ...core.layouts import GroupModel, member_keep_out, slot_keep
+from ...core.range_sensors import RETURN_MARGIN, brake_for_bodies, lasers_see_body
 from ...core.reward import TERMS, RewardWeights, weight_vector
+from ...core.shield import ShieldParams
 from ...core.task import TaskParams
 from ...errors import UserError
 from ...params import RobotParams, SocialParams, WorldParams, from_dict
@@ -92,6 +94,7 @@ class BatchedApproach:
         self._all = np.arange(num)
         self._init_rooms()
         self.perceived = self._perception(perception)
+        self._shield = ShieldParams.of(self)  # the robot's limits, for the range guard (``_range_guard``)
 
     def _perception(self, value: Any) -> Any:
         """The copies' perceived groups (``perception.groups.observation_model.PerceivedGroups``), or None for the true
@@ -288,6 +291,7 @@ class BatchedApproach:
             aim = self._turn_guard(aim)
             lost = ~self.perceived.known  # the action pipeline's last stage: deploy drives these itself (its
             a = take_over(a, lost | looking, search, self.robot_params.max_speed)  # search, or a look in place)
+            a = self._range_guard(a, aim)  # and deploy's guard for what the lasers see
             # searching is not approaching: its time is added to the episode, up to one episode more (deploy's
             # 60 s --duration is twice the simulated episode, for the search)
             more = lost & (self.search_steps < self.task.max_steps)
@@ -303,6 +307,27 @@ class BatchedApproach:
                 n = int(g.count[i])
                 self.perceived.frame(i, self.pose[i], g.pos[i, :n], g.yaw[i, :n], self.dt)
         return self.rewards.copy(), self.flags[:, kernels.TERMINATED].copy(), self.flags[:, kernels.TRUNCATED].copy()
+
+    def _range_guard(self, actions: np.ndarray, aim: np.ndarray) -> np.ndarray:
+        """``actions`` with deploy's range guard on each copy's body command (``range_sensors.brake_for_bodies``,
+        for ``RETURN_MARGIN`` beyond the intimate zone, as ``deploy.guards.Guards`` brakes): with the observation
+        model the policy and its shield see only the members perception found, the lasers see the others in their
+        fields. Not modelled: deploy's memory of returns in the lasers' blind sectors and the sonars."""
+        g, turn, top = self.groups_state, self._tp[kernels.TURN] > 0, self.robot_params.max_speed
+        out = np.array(actions, dtype=np.float64, copy=True)
+        for i in range(self.num):
+            n = int(g.count[i])
+            c, s = math.cos(self.pose[i, 2]), math.sin(self.pose[i, 2])
+            rel = g.pos[i, :n] - self.pose[i, :2]
+            bodies = np.column_stack([c * rel[:, 0] + s * rel[:, 1], -s * rel[:, 0] + c * rel[:, 1]])
+            if not n or not lasers_see_body(bodies, self._shield.human_radius).any():
+                continue
+            h = 0.0 if turn else kernels.heading_error(self.pose[i], aim[i])  # the action's frame -> the body's
+            rot = np.array([[math.cos(h), -math.sin(h)], [math.sin(h), math.cos(h)]])
+            v = rot @ np.clip(out[i, :2], -1.0, 1.0) * top
+            v = brake_for_bodies(v, bodies, self.task.intimate_zone + RETURN_MARGIN, self._shield)
+            out[i, :2] = rot.T @ v / top
+        return out
 
     TURN_CLEARANCE = 0.05  # m: a turn that would bring the footprint's corner nearer furniture than this is held
 
