@@ -329,3 +329,21 @@ def test_lockstep_members_carry_the_facing_the_colour_detector_reads():
     errors = [abs(math.remainder(m.facing - true_yaw[j], 2 * math.pi)) for m, j in zip(members, owner, strict=True)]
     assert all(e <= max(math.radians(5), 2.5 * m.facing_std) for e, m in zip(errors, members, strict=True)), errors
     assert min(m.facing_std for m in members) < math.radians(5)  # one of them shows its front: read finely
+
+
+def test_the_facing_filter_leaves_out_a_facing_turned_back_unless_it_comes_again_and_again():
+    gt = _tracker()
+    person = np.array([[2.0, 0.0]])  # straight ahead, looking at the robot: facing pi in the odometry frame
+    std = np.array([math.radians(10)])
+
+    def frame(phi: float) -> float:
+        members = gt.update(person, 0.1, np.zeros(3), np.array([phi]), std)
+        return members[0].facing if members and members[0].facing is not None else math.nan
+
+    for _ in range(5):
+        frame(0.0)
+    assert abs(math.remainder(frame(math.pi) - math.pi, 2 * math.pi)) < 1e-6  # one flip: left out
+    assert abs(math.remainder(frame(0.0) - math.pi, 2 * math.pi)) < 1e-6
+    facings = [frame(math.pi) for _ in range(GroupParams().facing_switch)]
+    assert abs(math.remainder(facings[-2] - math.pi, 2 * math.pi)) < 1e-6  # two in a row: still left out
+    assert abs(math.remainder(facings[-1], 2 * math.pi)) < 1e-6  # three: the person turned (or was flipped)
