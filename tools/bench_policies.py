@@ -10,15 +10,12 @@ Writes results/bench_policies.json and a Markdown table (results/bench_policies.
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 from typing import Any
 
-from ssbl_pb.agents.rollout import run_episodes
-from ssbl_pb.analysis.evaluation import Setup, check_policy_spec
-from ssbl_pb.analysis.report import summarize, write_json
-from ssbl_pb.cli import ArgumentParser, int_at_least, progress_bar, run
-from ssbl_pb.errors import UserError
+from ssbl_pb.analysis.report import write_json
+from ssbl_pb.bench.policies import bench_table, check_perceptions
+from ssbl_pb.cli import ArgumentParser, int_at_least, run
 from ssbl_pb.files import check_output_path, output_dir, write_text
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -40,37 +37,10 @@ def main(argv: list[str] | None = None) -> int:
                     help="results stem: OUT.json and OUT.md (default results/bench_policies)")
     args = ap.parse_args(argv)
 
-    pols, scs = args.policies.split(","), args.scenarios.split(",")
-    percs = args.perception.split(",")
-    bad = sorted(set(percs) - {"off", "on", "movenet", "colour"})
-    if bad:
-        raise UserError(f"--perception {','.join(bad)}: expected a comma list of off, on, movenet, colour")
+    pols, scs, percs = args.policies.split(","), args.scenarios.split(","), args.perception.split(",")
+    check_perceptions(percs)
     check_output_path(args.out.with_suffix(".json"), is_dir=False)
-
-    def setup(pol: str, sc: str, perc: str) -> Setup:
-        name, _, room = sc.partition(":")
-        kwargs = (("room_yaml", room),) if room else ()
-        model = True if perc == "on" else perc
-        return Setup(pol, scenario=name, env_kwargs=kwargs + ((("perception", model),) if perc != "off" else ()))
-
-    for pol in pols:
-        check_policy_spec(pol, "--policies")
-        for sc in scs:
-            setup(pol, sc, percs[-1])()[0].close()  # every pair is checked before the first episode
-    table: dict[str, dict[str, dict]] = {}
-    for pol in pols:
-        for perc in percs:
-            row = pol if percs == ["off"] else f"{pol} (perception {perc})"
-            for sc in scs:
-                with progress_bar(args.episodes, f"{row} {sc}") as bar:
-                    res = run_episodes(setup(pol, sc, perc), range(args.seed, args.seed + args.episodes),
-                                       os.cpu_count() or 1, progress=bar)
-                s = summarize([r.metrics for r in res])
-                table.setdefault(row, {})[sc] = {k: s[k] for k in (
-                    "success_rate", "collision_rate", "violation_rate", "personal_zone_time_s", "mean_jerk",
-                    "arrival_speed")}
-                table[row][sc]["obstacle_collision_rate"] = s["metrics"]["obstacle_collision"]["mean"]
-                table[row][sc]["success_ci"] = [s["metrics"]["success"]["ci_low"], s["metrics"]["success"]["ci_high"]]
+    table = bench_table(pols, scs, percs, args.episodes, args.seed)
     with output_dir(args.out.parent):
         write_results(args, table, scs, write_json, write_text)
     return 0

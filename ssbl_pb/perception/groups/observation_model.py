@@ -21,10 +21,11 @@ While fewer than two people are known, deploy does not run the policy: it turns 
 after a full turn with one person in sight steps sideways for another line of sight (``DeployLoop._search``).
 ``PerceivedGroups.steer`` gives the engine the same, and deploy's looks (``looks.Looks``, the same code): at the
 place it estimates, before it would claim success, it turns in place toward each member not seen lately, and
-after standing away from that place for a while toward the one seen longest ago. Not modelled: deploy's docking
-the last centimetres, its 0.5 s settle at the start, its guards after the policy's shield (``deploy.guards``:
-the clearance from members out of view and the lasers' range guard), duplicate and false tracks, and the
-estimate's latency (one frame, ~60 ms).
+after standing away from that place for a while toward the one seen longest ago. The engine also keeps deploy's
+range guard for the members the lasers see (``BatchedApproach._range_guard``). Not modelled: deploy's docking
+the last centimetres, its 0.5 s settle at the start, its other guards (``deploy.guards``: the clearance from
+members out of view, the memory of returns in the lasers' blind sectors, the sonars), duplicate and false tracks,
+and the estimate's latency (one frame, ~60 ms).
 Seeded per copy, apart from the env's own generator, so an episode's start is the same with the model on or off.
 """
 
