@@ -14,7 +14,13 @@ from ssbl_pb.core.layouts import free_layout, paper_layout, slot_keep
 from ssbl_pb.core.task import TaskParams
 from ssbl_pb.params import RobotParams, SocialParams
 from ssbl_pb.perception.camera import sim_camera
-from ssbl_pb.perception.groups.estimate import GroupModel, GroupParams, GroupTracker, group_circle
+from ssbl_pb.perception.groups.estimate import (
+    KEYPOINT_GROUP,
+    GroupModel,
+    GroupParams,
+    GroupTracker,
+    group_circle,
+)
 from ssbl_pb.perception.tracking.tracker import TrackerParams
 
 SOCIAL = SocialParams()
@@ -331,8 +337,9 @@ def test_lockstep_members_carry_the_facing_the_colour_detector_reads():
     assert min(m.facing_std for m in members) < math.radians(5)  # one of them shows its front: read finely
 
 
-def test_the_facing_filter_leaves_out_a_facing_turned_back_unless_it_comes_again_and_again():
-    gt = _tracker()
+def test_movenets_facing_filter_leaves_out_a_facing_turned_back_unless_it_comes_again_and_again():
+    cam = sim_camera(RobotParams(), 320, 240)
+    gt = GroupTracker(cam, TrackerParams(dt=0.1, birth_hits=2, meas_std=0.05), KEYPOINT_GROUP, social=SOCIAL)
     person = np.array([[2.0, 0.0]])  # straight ahead, looking at the robot: facing pi in the odometry frame
     std = np.array([math.radians(10)])
 
@@ -347,3 +354,7 @@ def test_the_facing_filter_leaves_out_a_facing_turned_back_unless_it_comes_again
     facings = [frame(math.pi) for _ in range(GroupParams().facing_switch)]
     assert abs(math.remainder(facings[-2] - math.pi, 2 * math.pi)) < 1e-6  # two in a row: still left out
     assert abs(math.remainder(facings[-1], 2 * math.pi)) < 1e-6  # three: the person turned (or was flipped)
+    gt = _tracker()  # the colour chain's filter takes every facing in
+    for _ in range(5):
+        frame(0.0)
+    assert abs(math.remainder(frame(math.pi) - math.pi, 2 * math.pi)) > math.radians(20)

@@ -72,18 +72,18 @@ class GroupParams:
     #   ``perceive`` asks of a box before it keeps it (MoveNet's: ``BODY_MARGIN`` of the body's height, 0.1 m)
     facing_turn_std: float = 0.3  # rad/s: how fast a conversing person's facing may change (the facing filter's
     #   process noise; people in a group turn their body slowly, their head faster: ours)
-    # a measured facing further than this from the filtered one is left out ... (ours: MoveNet's keypoints turn 9-14 %
-    # of views by 180 deg, docs/benchmarks_movenet.md; taken in, one pulled the facing 90 deg aside and the centre
-    # with it. Through the observation model the shipped policy joined 70.0 % of `mixed` so, 78.5 % with this gate,
-    # 81.5 % without flips. 60 deg: 5-6 sigma of MoveNet's facing noise, 2 of the colour chain's back views)
-    facing_gate_deg: float = 60.0
+    facing_gate_deg: float = 180.0  # deg: a measured facing further than this from the filtered one is left out ...
     facing_switch: int = 3  # ... unless this many in a row are: then the filter restarts from the newest (it held
     #   a flipped facing, or the person turned)
 
 
 # the group memory for MoveNet's people: a person is expected detected only where perceive keeps their box
 # (``deploy.perceive.whole_people``: ``BODY_MARGIN`` of the body's height clear of the image's side, 0.1 m)
-KEYPOINT_GROUP = GroupParams(edge_margin_m=BODY_MARGIN * EYES_TO_ANKLES_M)
+# and a facing turned back left out (ours: MoveNet's keypoints turn 9-14 % of views by 180 deg, docs/
+# benchmarks_movenet.md; taken in, one pulled the facing 90 deg aside and the centre with it. Through the observation
+# model the shipped policy joined 70.0 % of `mixed` so, 78.5 % with this gate, 81.5 % without flips. 60 deg: 5-6
+# sigma of MoveNet's facing noise; the colour chain turns none, and keeps every facing)
+KEYPOINT_GROUP = GroupParams(edge_margin_m=BODY_MARGIN * EYES_TO_ANKLES_M, facing_gate_deg=60.0)
 
 
 @dataclasses.dataclass
