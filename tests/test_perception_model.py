@@ -61,9 +61,10 @@ def test_movenets_chain_expects_a_person_only_clear_of_the_image_side_as_deploy_
     colour, movenet = _copy(PerceptionParams.of("colour")), _copy(EXACT)
     assert movenet.tracker.p.edge_margin_m == pytest.approx(0.07 * 1.45)  # BODY_MARGIN x eyes to ankles
     assert movenet.tracker.tracker.params.birth_hits == 3 and movenet.model.robust  # TRACKER_KEYPOINTS, robust centre
-    # a person 2.5 m away, turned aside until the torso just fits in the image but its margin does not
+    # a person 3.5 m away (beyond the lasers' reach), turned aside until the torso just fits in the image but its
+    # margin does not
     bearings = np.radians(np.linspace(0.0, 28.0, 281))
-    xy = 2.5 * np.column_stack([np.cos(bearings), np.sin(bearings)])
+    xy = 3.5 * np.column_stack([np.cos(bearings), np.sin(bearings)])
     whole = colour.detectable(xy)[1] >= 1.0
     clear = movenet.detectable(xy)[1] >= movenet.params.min_visible
     k = int(np.flatnonzero(whole & ~clear)[0])
@@ -451,3 +452,23 @@ def test_robust_facing_centre_weighs_rays_against_the_centroid_and_discounts_a_r
     robust = robust_facing_centre(members, facing, std)
     assert plain is not None and np.hypot(*plain) > 0.2
     assert np.hypot(*robust) < 0.05
+
+
+def test_within_the_lasers_reach_a_person_the_image_cuts_is_found_without_a_facing_as_a_laser_places_them():
+    movenet = _copy(dataclasses.replace(EXACT, partial_std_m=0.0))
+    bearings = np.radians(np.linspace(0.0, 40.0, 401))
+    for dist, placed in ((2.0, True), (3.5, False)):  # within the lasers' 3 m, and beyond
+        xy = dist * np.column_stack([np.cos(bearings), np.sin(bearings)])
+        can, share, cut = movenet.detectable(xy)
+        between = (share >= EXACT.cut_share) & (share < EXACT.min_visible)
+        assert between.any()
+        assert (can[between] == placed).all() and (cut[between] == placed).all(), dist
+        assert not can[share < EXACT.cut_share].any() and not cut[share >= EXACT.min_visible].any()
+    side = xy[np.flatnonzero(between)[0]] * 2.0 / 3.5  # 2 m away, cut by the image's side
+    for _ in range(4):  # the tracker confirms a track on its third hit
+        movenet.frame(np.zeros(3), np.array([[2.0, 0.0], side]), 0.1,
+                      yaw=np.array([math.pi, math.atan2(side[1], side[0]) + math.pi]))  # both facing the robot
+    ahead, cut_one = sorted(movenet.members, key=lambda m: m.pos[1])
+    assert ahead.facing is not None and cut_one.facing is None
+    assert cut_one.pos == pytest.approx(side, abs=1e-3)
+    assert _copy(PerceptionParams.of("colour")).params.cut_share == 0  # the colour chain completes cut torsos

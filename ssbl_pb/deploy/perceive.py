@@ -291,9 +291,13 @@ class Perception:
         # a person cut by the image's side still hides part of whoever stands behind them
         seen = self.detect.facing(self._group.camera) if hasattr(self.detect, "facing") else None
         # a box cut by the image's side: a torso completed beyond the side (``complete_cut_torsos``), a whole person
-        # (HOG) is off by up to half a body and dropped, MoveNet's too near the side (``whole_people``)
-        margin = BODY_MARGIN if isinstance(self.detect, MoveNetFacing) else 0.0
+        # (HOG) is off by up to half a body and dropped, MoveNet's too near the side (``whole_people``) unless a
+        # laser places them (below)
+        keypoints = isinstance(self.detect, MoveNetFacing)
+        margin = BODY_MARGIN if keypoints else 0.0
         boxes, whole = complete_cut_torsos(boxes, w) if self.torso else (boxes, whole_people(boxes, w, margin))
+        cut = ~whole if keypoints else np.zeros(len(boxes), dtype=bool)
+        whole = whole | cut
         boxes = boxes[whole]
         if self.torso:  # the torso's edges are the outer edges of the box's first and last rows, not their centres
             boxes = boxes.copy()  # (half a pixel: 0.1 m of range 5 m away; boxes_to_ground takes pixel centres)
@@ -304,13 +308,18 @@ class Perception:
         else:
             xy = boxes_to_ground(self._group.camera, boxes, ProxyGeometry(), torso=self.torso)
         found = np.isfinite(xy[:, 0])
-        xy = xy[found]
         with self._lock:
             scan = self.scan
+        ranged = np.zeros(len(xy), dtype=bool)
         if not self.torso and scan is not None:  # to the robot frame at capture
             c, sn = math.cos(pose[2]), math.sin(pose[2])
             lasers = (scan - pose[:2]) @ np.array([[c, -sn], [sn, c]])
-            xy = laser_ranged(xy, lasers, self.laser_depth)[0]
+            xy[found], ranged[found] = laser_ranged(xy[found], lasers, self.laser_depth)
+        # a person the image's side cuts: kept where a laser places them (their returns' range and bearing; the
+        # keypoints of half a body tell neither, nor the facing), else dropped
+        cut = cut[whole]
+        found &= ~cut | ranged
+        xy, cut = xy[found], cut[found]
         if self.torso and len(xy):
             centre = None
             if self.centre0 is not None:  # the group's centre in the robot frame at capture
@@ -322,7 +331,7 @@ class Perception:
         dt = frame.stamp - prev if prev is not None and 0 < frame.stamp - prev < 1.0 else 0.1
         facing = facing_std = None
         if seen is not None:  # phi relative to the line of sight from the robot's origin, as the tracker takes it
-            phi, std = seen.phi[whole][found], seen.std[whole][found]
+            phi, std = np.where(cut, np.nan, seen.phi[whole][found]), seen.std[whole][found]
             yaw = facing_yaw(xy, np.nan_to_num(phi), self._group.camera.centre()[:2])
             facing = np.where(np.isfinite(phi), yaw - np.arctan2(-xy[:, 1], -xy[:, 0]), np.nan)
             facing_std = np.where(np.isfinite(phi), std, np.inf)
