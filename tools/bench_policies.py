@@ -14,8 +14,8 @@ from pathlib import Path
 from typing import Any
 
 from ssbl_pb.analysis.report import write_json
-from ssbl_pb.bench.policies import bench_table, check_perceptions
-from ssbl_pb.cli import ArgumentParser, int_at_least, run
+from ssbl_pb.bench.policies import add_bench_args, bench_table, check_perceptions
+from ssbl_pb.cli import ArgumentParser, run
 from ssbl_pb.files import check_output_path, output_dir, write_text
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -26,13 +26,7 @@ SCENARIOS = "default,vis_a_vis,l_shape,side_by_side,circular,behind,mixed"
 def main(argv: list[str] | None = None) -> int:
     ap = ArgumentParser(description=__doc__)
     ap.add_argument("--policies", default="sffm,straight,random")
-    ap.add_argument("--scenarios", default=SCENARIOS, help="comma list of scenarios; SCENARIO:ROOM_YAML plays it "
-                    "with that room YAML (e.g. default@map:results/rooms/lab.yaml)")
-    ap.add_argument("--perception", default="off", help="comma list of off (the true state), on or movenet (the "
-                    "group as deploy's perception sees it: the observation model of a real Pepper's MoveNet chain) "
-                    "and colour (the model of the colour detector on box proxies); default off")
-    ap.add_argument("--episodes", type=int_at_least(1), default=200, help="episodes per scenario (default 200)")
-    ap.add_argument("--seed", type=int_at_least(0), default=500_000, help="first held-out seed")
+    add_bench_args(ap, SCENARIOS, "off")
     ap.add_argument("--out", type=Path, default=ROOT / "results" / "bench_policies",
                     help="results stem: OUT.json and OUT.md (default results/bench_policies)")
     args = ap.parse_args(argv)

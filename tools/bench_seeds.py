@@ -16,8 +16,15 @@ import json
 from pathlib import Path
 
 from ssbl_pb.analysis.report import write_json
-from ssbl_pb.bench.policies import bench_table, check_perceptions, plot_spread, seed_spread, spread_markdown
-from ssbl_pb.cli import ArgumentParser, int_at_least, run
+from ssbl_pb.bench.policies import (
+    add_bench_args,
+    bench_table,
+    check_perceptions,
+    plot_spread,
+    seed_spread,
+    spread_markdown,
+)
+from ssbl_pb.cli import ArgumentParser, run
 from ssbl_pb.errors import UserError
 from ssbl_pb.files import check_output_path, output_dir, write_text
 
@@ -48,12 +55,7 @@ def main(argv: list[str] | None = None) -> int:
     ap = ArgumentParser(description=__doc__)
     ap.add_argument("--runs", required=True, help="comma list of a recipe's outputs, one per seed "
                     "(tools/train_pb.py --recipe ... --out DIR --seed N), or model folders")
-    ap.add_argument("--scenarios", default="default,mixed,real,default@furnished,mixed@furnished",
-                    help="comma list of scenarios (SCENARIO:ROOM_YAML: with that room)")
-    ap.add_argument("--perception", default="off,movenet", help="comma list of off, on/movenet, colour "
-                    "(tools/bench_policies.py); default off,movenet")
-    ap.add_argument("--episodes", type=int_at_least(1), default=200, help="episodes per scenario (default 200)")
-    ap.add_argument("--seed", type=int_at_least(0), default=500_000, help="first held-out seed")
+    add_bench_args(ap, "default,mixed,real,default@furnished,mixed@furnished", "off,movenet")
     ap.add_argument("--out", type=Path, default=ROOT / "results" / "recipe_seeds",
                     help="results stem: OUT.json, OUT.md, OUT.png (default results/recipe_seeds)")
     args = ap.parse_args(argv)

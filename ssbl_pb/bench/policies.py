@@ -11,12 +11,24 @@ import numpy as np
 from ..agents.rollout import run_episodes
 from ..analysis.evaluation import Setup, check_policy_spec
 from ..analysis.report import summarize
-from ..cli import progress_bar
+from ..cli import int_at_least, progress_bar
 from ..errors import UserError
 
 PERCEPTIONS = ("off", "on", "movenet", "colour")
 # the paper's social measures the comparison with the SFFM judges (``analysis.compare``), and success
 MEASURES = ("success_rate", "personal_zone_time_s", "human_displacement_m", "arrival_speed", "mean_jerk")
+
+
+def add_bench_args(ap: Any, scenarios: str, perception: str) -> None:
+    """The evaluation's flags both bench tools take: ``--scenarios``, ``--perception``, ``--episodes``, ``--seed``
+    (with these defaults)."""
+    ap.add_argument("--scenarios", default=scenarios, help="comma list of scenarios; SCENARIO:ROOM_YAML plays it "
+                    f"with that room YAML (e.g. default@map:results/rooms/lab.yaml); default {scenarios}")
+    ap.add_argument("--perception", default=perception, help="comma list of off (the true state), on or movenet "
+                    "(the group as deploy's perception sees it: the observation model of a real Pepper's MoveNet "
+                    f"chain) and colour (the model of the colour detector on box proxies); default {perception}")
+    ap.add_argument("--episodes", type=int_at_least(1), default=200, help="episodes per scenario (default 200)")
+    ap.add_argument("--seed", type=int_at_least(0), default=500_000, help="first held-out seed")
 
 
 def check_perceptions(percs: list[str]) -> None:
