@@ -141,6 +141,54 @@ def test_deploy_feeds_movenet_facing_to_the_group_model():
         assert m.facing is not None and abs(math.remainder(m.facing - truth[1], 2 * math.pi)) < math.radians(15)
 
 
+def test_deploy_keeps_a_movenet_person_the_image_side_cuts_only_where_a_laser_places_them():
+    # deploy's pipeline with MoveNet's detector (its network replaced): one person 2 m straight ahead, one 1.8 m
+    # away at the image's side (their box cut). Without laser returns the cut one is dropped; with returns on their
+    # near side they are placed there, their facing unknown (the keypoints of half a body)
+    from ssbl_pb.deploy.perceive import BODY_MARGIN, Perception, whole_people
+    from ssbl_pb.deploy.robot import Frame
+    from ssbl_pb.perception.camera import sim_camera
+    from ssbl_pb.perception.detection.movenet import MoveNetFacing
+    from ssbl_pb.perception.detection.ranging import PinholeGeometry
+    from ssbl_pb.perception.tracking.tuning import MOVENET_DEFAULT
+
+    cam = sim_camera(RobotParams(), 320, 240)
+    geom = PinholeGeometry(cam)
+    side = 1.8 * np.array([math.cos(math.radians(26)), math.sin(math.radians(26))])
+    people_xy = [np.array([2.0, 0.0]), side]
+    rows = np.stack([person_row(geom, xy, math.atan2(-xy[1], -xy[0])) for xy in people_xy])  # facing the robot
+    assert whole_people(rows[:, :4], 320, BODY_MARGIN).tolist() == [True, False]
+
+    class Robot:
+        stamp = 0.0
+
+        def frame(self) -> Frame:
+            self.stamp += 0.1
+            return Frame(np.zeros((240, 320, 3), np.uint8), self.stamp)
+
+    u = side / np.hypot(*side)
+    near = side - 0.1 * u  # a real Pepper's lasers hit the shins 0.1 m in front of the centre (LEG_DEPTH_M)
+    returns = near + np.outer([-0.06, 0.0, 0.06], [-u[1], u[0]])
+    found = {}
+    clock = [0.0]
+    for lasers in (False, True):
+        perception = Perception(Robot(), lambda: clock[0], "colour", RobotParams(), threaded=False)
+        perception.detect, perception.torso = MoveNetFacing(MOVENET_DEFAULT.ssd, MOVENET_DEFAULT.rng,
+                                                            detector=lambda frame: rows.copy()), False
+        for _ in range(6):
+            clock[0] += 0.1
+            perception.odometry.append((clock[0], np.zeros(3)))
+            if lasers:
+                perception.ranges(returns, np.zeros(3))
+            perception.step()
+        found[lasers] = sorted(perception.snapshot()[0].members, key=lambda m: m.pos[1])
+    assert len(found[False]) == 1 and np.hypot(*(found[False][0].pos - people_xy[0])) < 0.3
+    assert len(found[True]) == 2
+    cut = found[True][1]
+    assert np.hypot(*(cut.pos - side)) < 0.05 and cut.facing is None
+    assert found[True][0].facing is not None
+
+
 def test_facing_errors_by_hand():
     from ssbl_pb.bench.pets_facing import facing_errors, summarise
 
