@@ -63,3 +63,22 @@ def test_with_the_observation_model_the_engine_brakes_for_a_member_ahead_that_pe
     assert out[0] == pytest.approx([0.0, -allow / b.robot_params.max_speed])
     g.pos[0, 0] = _at(50, 1.2)[0]  # in the blind sector: nothing to brake for
     assert b._range_guard(np.array([[0.3, 0.2]]), aim) == pytest.approx(np.array([[0.3, 0.2]]))
+
+
+def test_the_engine_guards_every_step_with_the_model_on_and_never_with_it_off(monkeypatch):
+    calls = []
+    original = BatchedApproach._range_guard
+
+    def spy(self, actions, aim):
+        calls.append(len(actions))
+        return original(self, actions, aim)
+
+    monkeypatch.setattr(BatchedApproach, "_range_guard", spy)
+    for perception, expected in ((True, [1, 1]), (False, [])):
+        calls.clear()
+        b = BatchedApproach(1, "default", perception=perception)
+        b.seed(0, 3)
+        b.reset(0)
+        for _ in range(2):
+            b.step(np.zeros((1, b.n_act)))
+        assert calls == expected, perception

@@ -315,17 +315,21 @@ class BatchedApproach:
         fields. Not modelled: deploy's memory of returns in the lasers' blind sectors and the sonars."""
         g, turn, top = self.groups_state, self._tp[kernels.TURN] > 0, self.robot_params.max_speed
         out = np.array(actions, dtype=np.float64, copy=True)
-        for i in range(self.num):
-            n = int(g.count[i])
-            c, s = math.cos(self.pose[i, 2]), math.sin(self.pose[i, 2])
-            rel = g.pos[i, :n] - self.pose[i, :2]
-            bodies = np.column_stack([c * rel[:, 0] + s * rel[:, 1], -s * rel[:, 0] + c * rel[:, 1]])
-            if not n or not lasers_see_body(bodies, self._shield.human_radius).any():
-                continue
+        c, s = np.cos(self.pose[:, 2])[:, None], np.sin(self.pose[:, 2])[:, None]
+        rel = g.pos - self.pose[:, None, :2]  # every copy's members in its robot frame at once (the hot path)
+        local = np.stack([c * rel[..., 0] + s * rel[..., 1], -s * rel[..., 0] + c * rel[..., 1]], axis=-1)
+        seen = lasers_see_body(local.reshape(-1, 2), self._shield.human_radius).reshape(local.shape[:2])
+        seen &= np.arange(local.shape[1])[None, :] < g.count[:, None]
+        sh, clearance = self._shield, self.task.intimate_zone + RETURN_MARGIN
+        # only bodies near enough to cut full speed: sqrt(2 a (c - c_min)) < top within c_min + top^2 / 2a
+        gap = np.hypot(local[..., 0], local[..., 1]) - math.hypot(sh.half_length, sh.half_width) - sh.human_radius
+        seen &= gap < clearance + top * top / (2.0 * sh.brake_accel)
+        for i in np.flatnonzero(seen.any(axis=1)).tolist():
+            bodies = local[i, :int(g.count[i])]
             h = 0.0 if turn else kernels.heading_error(self.pose[i], aim[i])  # the action's frame -> the body's
             rot = np.array([[math.cos(h), -math.sin(h)], [math.sin(h), math.cos(h)]])
             v = rot @ np.clip(out[i, :2], -1.0, 1.0) * top
-            v = brake_for_bodies(v, bodies, self.task.intimate_zone + RETURN_MARGIN, self._shield)
+            v = brake_for_bodies(v, bodies, clearance, sh)
             out[i, :2] = rot.T @ v / top
         return out
 
