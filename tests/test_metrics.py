@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from ssbl_pb.agents.metrics import METRICS, TTC_HORIZON, episode_metrics, time_to_collision
+from ssbl_pb.agents.metrics import METRICS, PERCEIVED_METRICS, TTC_HORIZON, episode_metrics, time_to_collision
 from ssbl_pb.agents.policies import make_policy
 from ssbl_pb.agents.rollout import run_episode
 from ssbl_pb.core.task import TaskParams
@@ -77,7 +77,7 @@ def test_every_metric_has_a_documented_direction_and_name():
     from pathlib import Path
 
     doc = (Path(__file__).resolve().parents[1] / "docs" / "metrics.md").read_text()
-    for name, (unit, direction, community) in METRICS.items():
+    for name, (unit, direction, community) in (METRICS | PERCEIVED_METRICS).items():
         assert direction in ("lower", "higher", "") and unit and community
         assert f"`{name}`" in doc, name
 

@@ -65,6 +65,8 @@ def main(argv: list[str] | None = None) -> int:
           f"shield {summary['shield_intervention_rate']:.1%} of steps  "
           f"return {summary['mean_return']:.3f}  personal-zone {summary['personal_zone_time_s']:.2f}s  "
           f"-> {args.out}/summary.json")
+    if "failures" in summary:  # through the observation model: why the others failed (metrics.failure_kind)
+        print("failures: " + ", ".join(f"{k} {n}" for k, n in summary["failures"].items()))
     return 0
 
 

@@ -74,6 +74,10 @@ def _result(core: Any, seed: int, trajectory: list[dict[str, Any]], info: dict[s
                         info.get("obstacle_collision", False))
     sums = info["episode_terms"]
     m["shield_intervention_rate"] = float(shield_rate)  # share of steps the shield changed the action in
+    if "perceived" in info:  # the observation model's end state (``BatchedApproach.perceived_outcome``)
+        seen = info["perceived"]
+        m.update(perceived_slot_error_m=seen["slot_error_m"], perceived_place_distance_m=seen["place_distance_m"],
+                 members_unfound=seen["members_unfound"])
     m["return"] = sums["reward"]
     for k in TERMS:
         m[f"term_{k}"] = sums[k]

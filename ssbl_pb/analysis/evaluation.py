@@ -10,6 +10,7 @@ from typing import Any
 
 import gymnasium as gym
 
+from ..agents.metrics import failure_counts
 from ..agents.policies import BASELINES, Policy, make_policy
 from ..agents.rollout import EpisodeResult, run_episodes
 from ..agents.trained import load_trained, policy_env_kwargs, shield_at_place
@@ -71,7 +72,7 @@ def evaluate(setup: Setup, episodes: int, seed: int, out: Path, workers: int = 1
     check_policy_spec(setup.policy)
     check_output_path(out)
     env, _ = setup()  # fail fast on a bad model / obs mode / scenario before any episode or output
-    room = env.unwrapped.world_params.room_size
+    room, tolerance = env.unwrapped.world_params.room_size, env.unwrapped.task.slot_tolerance
     env.close()
     results = run_episodes(setup, range(seed, seed + episodes), workers, keep_trajectories=n_paths,
                            progress=progress)
@@ -81,6 +82,8 @@ def evaluate(setup: Setup, episodes: int, seed: int, out: Path, workers: int = 1
     summary = summarize(rows, {"policy": setup.policy, "obs_mode": setup.obs_mode, "scenario": setup.scenario,
                                "perception": "off" if perceived is None else f"on ({perceived.detector})",
                                "seed": seed})
+    if perceived is not None:  # why the episodes through the model failed (``metrics.failure_kind``)
+        summary["failures"] = failure_counts(rows, tolerance)
     with output_dir(out) as out:
         stage = make_stage_dir(out, ".staging-")
         try:

@@ -393,7 +393,22 @@ class BatchedApproach:
         if f[kernels.TERMINATED] or f[kernels.TRUNCATED]:
             info["episode_terms"] = self.episode_terms(i)
             info["is_success"] = info["success"]  # SB3's convention for success-rate logging
+            if self.perceived is not None:
+                info["perceived"] = self.perceived_outcome(i)
         return info
+
+    def perceived_outcome(self, i: int) -> dict[str, float]:
+        """With the observation model, where copy ``i``'s perception left it: the perceived place's distance (m)
+        from the true one (inf: too few people known for a group), the robot's from the perceived place, and how
+        many true members perception never knew (none of its people within ``GroupParams.same_person_m``)."""
+        g, n, p = self.groups_state, int(self.groups_state.count[i]), self.perceived
+        cp = p.copies[i]
+        known = np.array([m.pos for m in cp.members]).reshape(-1, 2)
+        near = cp.tracker.p.same_person_m
+        unfound = sum(1 for xy in g.pos[i, :n] if not len(known) or np.hypot(*(known - xy).T).min() > near)
+        return {"slot_error_m": float(np.hypot(*(p.slot[i] - self.slot[i]))) if p.known[i] else math.inf,
+                "place_distance_m": float(np.hypot(*(p.slot[i] - self.pose[i, :2]))) if p.known[i] else math.inf,
+                "members_unfound": float(unfound)}
 
     def episode_terms(self, i: int) -> dict[str, float]:
         """Copy ``i``'s sums of every term and of the reward so far."""
