@@ -31,6 +31,7 @@ from .robot import Frame, Odometry, RangeScan, clamp_command
 MOTION = ("move", "stopMove", "getRobotPosition", "getRobotVelocity")
 VIDEO = ("subscribeCamera", "getImageRemote", "unsubscribe")
 WATCHDOG = "SSBLWatchdog"
+SONAR_SUBSCRIBER = "ssbl_pb"  # the name deploy subscribes ALSonar under
 IDENTITY = "SSBLVirtualPepper"  # served by ``virtual.pepper``: a simulated Pepper says so (and which detector fits)
 RESOLUTIONS = {0: (160, 120), 1: (320, 240), 2: (640, 480)}  # NAOqi kQQVGA, kQVGA, kVGA
 RGB, BGR = 11, 13  # NAOqi colour spaces
@@ -112,6 +113,7 @@ class NaoqiRobot:
         self.identity: dict[str, str] | None = None  # a virtual Pepper's ``describe()``; None for a real robot
         self.move_failed: list[dict[str, Any]] = []
         self.memory: Any = None  # ALMemory where it holds the base's range sensors' keys (``ranges``)
+        self.sonar: Any = None  # ALSonar, subscribed while deploy runs (NAOqi before 2.9 has it)
         self.protection: bool | None = None  # external collision protection for the base; None: cannot tell
         self._subscribers: list[Any] = []
         self.session = qi.Session()
@@ -166,6 +168,12 @@ class NaoqiRobot:
                 self.memory = memory
             except RuntimeError:  # no such keys: no range readings
                 pass
+        if self.memory is not None and "ALSonar" in names:  # NAOqi before 2.9 runs the sonars only for subscribers
+            # (naoqi_driver's converters/sonar.cpp subscribes before it reads their keys): without, ALMemory holds
+            # an old echo and the guards would brake for what stood there, or not for what stands there now
+            sonar = self._service("ALSonar", ("subscribe", "unsubscribe"))
+            self._call(sonar.subscribe(SONAR_SUBSCRIBER, _async=True), "ALSonar.subscribe")
+            self.sonar = sonar
         if hasattr(self.motion, "robotIsWakeUp") and not self._call(self.motion.robotIsWakeUp(_async=True),
                                                                     "ALMotion.robotIsWakeUp"):
             raise RobotError(f"{self.url}: the robot is resting (ALMotion.robotIsWakeUp() is false); wake it up "
@@ -292,6 +300,10 @@ class NaoqiRobot:
             handle, self.handle = self.handle, None
             self._attempt(lambda: self._call(self._async(self.video.unsubscribe, handle, what="unsubscribe"),
                                              "ALVideoDevice.unsubscribe"))
+        if self.sonar is not None:  # the sonars stop emitting once nobody subscribes
+            sonar, self.sonar = self.sonar, None
+            self._attempt(lambda: self._call(self._async(sonar.unsubscribe, SONAR_SUBSCRIBER, what="unsubscribe"),
+                                             "ALSonar.unsubscribe"))
         self._subscribers.clear()
         try:
             self.session.close()

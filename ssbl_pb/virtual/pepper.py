@@ -17,7 +17,8 @@ killed deploy leaves its base stopped; ``--no-watchdog`` serves none (deploy the
 ``--log`` (JSONL, flushed per line) records every simulation step: time, commanded and actual velocity,
 room-frame pose, odometry pose, the members, the free slot and the clearance, so tests can see when the base
 really stopped. ALMemory serves the base's lasers and sonars under NAOqi's keys (``getData``, ``getListData``;
-``deploy.ranges``), ray-cast in the world at their rates. ALMotion reports its external collision protection on
+``deploy.ranges``), ray-cast in the world at their rates, the sonars only while ALSonar has a subscriber (as NAOqi
+before 2.9). ALMotion reports its external collision protection on
 (``getExternalCollisionProtectionEnabled``, as a Pepper's defaults; ``--collision-protection-off`` starts it off);
 ``--security-distance`` imitates it (a move toward a person closer than that is stopped and
 ``ALMotion/MoveFailed`` raised through ALMemory) while it is on. ``--walker member|stranger`` scripts a person
@@ -92,6 +93,8 @@ class VirtualPepper:
         self.security_distance = security_distance  # m; > 0: NAOqi-like collision protection (see ``protect``)
         self.protection = dict.fromkeys(PROTECTION_CHAINS, protection)  # ALMotion's external collision protection
         self.memory: Any = None  # the ALMemory service, for ALMotion/MoveFailed
+        self.sonar_subscribers: set[str] = set()  # ALSonar's: the sonars run while any (``services.make_services``)
+        self.sonar_held: dict[str, float] = {}  # ... and ALMemory holds their last echo meanwhile
         self._refused = False
         self.epoch = time.time()  # the robot clock of frame stamps: wall time at start + sim time
         self.frozen = False
@@ -275,7 +278,7 @@ def main(argv: list[str] | None = None) -> int:
     vp = VirtualPepper(robot, args.log, security_distance=args.security_distance,
                        protection=not args.collision_protection_off)
     vp.hang_stops = args.hang_stops
-    for name, service in zip(("ALMotion", "ALVideoDevice", "ALMemory"), make_services(vp), strict=True):
+    for name, service in zip(("ALMotion", "ALVideoDevice", "ALMemory", "ALSonar"), make_services(vp), strict=True):
         session.registerService(name, service)
     session.registerService(IDENTITY, Identity({**robot.identity, "scenario": args.scenario,
                                                 "seed": str(args.seed), "groups": groups}, vp))

@@ -11,7 +11,9 @@ from typing import Any
 import cv2
 import numpy as np
 
+from ..core.range_sensors import RANGES
 from ..deploy.naoqi import BGR, RESOLUTIONS, RGB, import_qi
+from ..deploy.ranges import SONAR_KEYS
 
 MAX_SUBSCRIPTIONS = 6  # NAOqi's limit per subscriber name
 PROTECTION_CHAINS = ("Move", "Arms")  # ALMotion's external collision protection groups (the base, the arms)
@@ -25,9 +27,12 @@ def _chains(name: str) -> tuple[str, ...]:
     return PROTECTION_CHAINS if name == "All" else (name,)
 
 
-def make_services(vp: Any) -> tuple[Any, Any, Any]:  # vp: the ``pepper.VirtualPepper``
-    """ALMotion, ALVideoDevice and ALMemory (``subscriber``, for ALMotion/MoveFailed; ``getData``/``getListData``
-    for the base's range sensors) objects with NAOqi's method names and return layouts."""
+def make_services(vp: Any) -> tuple[Any, Any, Any, Any]:  # vp: the ``pepper.VirtualPepper``
+    """ALMotion, ALVideoDevice, ALMemory (``subscriber``, for ALMotion/MoveFailed; ``getData``/``getListData``
+    for the base's range sensors) and ALSonar objects with NAOqi's method names and return layouts. As on a
+    Pepper with NAOqi before 2.9, the sonars run only while someone subscribes ALSonar (naoqi_driver's
+    ``converters/sonar.cpp`` subscribes before it reads their keys): meanwhile ALMemory holds their last echo
+    (before any: ``sonar_reported_max``, nothing)."""
     qi = import_qi()
     robot = vp.robot
 
@@ -118,17 +123,35 @@ def make_services(vp: Any) -> tuple[Any, Any, Any]:  # vp: the ``pepper.VirtualP
 
         def getListData(self, keys: list[str]) -> list[float]:
             try:
-                return robot.memory_values([str(k) for k in keys])
+                values = robot.memory_values([str(k) for k in keys])
             except KeyError as exc:  # NAOqi's ALMemory raises on a key it does not hold
                 raise RuntimeError(f"ALMemory::getData: no data for key {exc.args[0]!r}") from None
+            for k, (key, v) in enumerate(zip(keys, values, strict=True)):
+                if key in SONAR_KEYS:  # the sonars' last echo while they ran
+                    if vp.sonar_subscribers:
+                        vp.sonar_held[key] = v
+                    values[k] = vp.sonar_held.get(key, RANGES.sonar_reported_max)
+            return values
 
         @qi.nobind
         def raise_event(self, key: str, value: Any) -> None:
             if key in self.subscribers:
                 self.subscribers[key].signal(value)
 
+    class ALSonar:
+        def subscribe(self, name: str) -> None:
+            vp.sonar_subscribers.add(str(name))
+            vp.write({"kind": "call", "wall": time.time(), "t": robot.t, "call": "ALSonar.subscribe", "name": name})
+
+        def unsubscribe(self, name: str) -> None:
+            vp.sonar_subscribers.discard(str(name))
+            vp.write({"kind": "call", "wall": time.time(), "t": robot.t, "call": "ALSonar.unsubscribe", "name": name})
+
+        def getSubscribersInfo(self) -> list[list[Any]]:
+            return [[name, 0, 0.0] for name in sorted(vp.sonar_subscribers)]
+
     vp.memory = ALMemory()
-    return ALMotion(), ALVideoDevice(), vp.memory
+    return ALMotion(), ALVideoDevice(), vp.memory, ALSonar()
 
 
 class Identity:
