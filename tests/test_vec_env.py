@@ -174,3 +174,30 @@ def test_reset_options_pick_the_group_in_single_and_batched_envs():
     assert np.allclose(obs[0], single_obs, atol=1e-6)  # the same episode as the single env with those options
     venv.reset()
     assert [i["n_humans"] for i in venv.reset_infos] == [2, 2]  # options apply to the next reset only
+
+
+def test_the_shield_penalty_costs_each_step_how_far_the_shield_moved_the_action_in_both_vec_envs():
+    from ssbl_pb.core.shield import ShieldRecord
+
+    rec = ShieldRecord(np.array([[1.0, 1.0], [0.2, 0.0]]), np.array([[0.4, 0.2], [0.2, 0.0]]), np.array([3, 0]))
+    assert rec.correction() == pytest.approx([1.0, 0.0])  # hypot(0.6, 0.8); the second untouched
+    kwargs = {"scenario": "mixed"}
+    plain, paid = (BatchedVecEnv(4, 0.4, True, False, w, **kwargs) for w in (0.0, 0.5))
+    single = DummyVecEnv([EnvFactory({"obs_mode": "vector", **kwargs}, monitor=False, smoothing=0.4, shield=True,
+                                     shield_penalty=0.5)] * 4)
+    for v in (plain, paid, single):
+        v.seed(3)
+        v.reset()
+    shielded = 0.0
+    for _ in range(60):  # full speed ahead: into the group, where the shield brakes
+        act = np.tile(np.array([1.0, 0.3], dtype=np.float32), (4, 1))
+        _, r0, d0, _ = plain.step(act)
+        _, r1, d1, _ = paid.step(act)
+        _, r2, _, _ = single.step(act)
+        moved = paid.stages.shield.last.correction()
+        assert np.allclose(r1, r0 - 0.5 * moved, atol=1e-6) and np.allclose(r2, r1, atol=1e-5)
+        assert np.array_equal(d0, d1)  # the same steps: the penalty changes the reward only
+        shielded += float(moved.sum())
+    assert shielded > 1.0  # the shield did move those actions
+    with pytest.raises(ConfigError, match="shield_penalty"):
+        TrainConfig(safety_shield=False, shield_penalty=0.1)

@@ -468,6 +468,11 @@ class ShieldRecord:
         """Per row, whether a rule changed the action (bool (N,))."""
         return self.rules != 0
 
+    def correction(self) -> np.ndarray:
+        """Per row, how far the shield moved the action (the Euclidean norm of after - before, action units)."""
+        rows = len(self.rules)
+        return np.linalg.norm(self.after.reshape(rows, -1) - self.before.reshape(rows, -1), axis=1)
+
     def row(self, i: int = 0) -> dict[str, Any] | None:
         """Row ``i`` for a log: before, after and the rules' names; None where the shield left it alone."""
         if not self.rules[i]:

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import dataclasses
 import inspect
+import math
 from pathlib import Path
 from typing import Any
 
@@ -119,6 +120,10 @@ class TrainConfig:
     shield_at_place: bool = False  # near its place the shield keeps the place's clearance from the members and
     #                                slows the arrival (ShieldParams.place_clearance, place_arrival_speed; on for
     #                                the shipped vector); tools and deploy too
+    # reward per step of -shield_penalty x how far the shield moved the action (``ShieldRecord.correction``): a
+    # policy that leans on its shield pays for it, as Alshiekh et al. (AAAI 2018, "Safe reinforcement learning via
+    # shielding") punish the actions a shield replaces. 0: off (ours; the paper has no shield)
+    shield_penalty: float = 0.0
 
     @property
     def vec_env_kind(self) -> str:
@@ -177,6 +182,10 @@ class TrainConfig:
                self.normalize_obs, "true, false or unset (auto)")
         _check(isinstance(self.shield_at_place, bool), "config", "shield_at_place", self.shield_at_place,
                "true or false")
+        _check(isinstance(self.shield_penalty, int | float) and math.isfinite(self.shield_penalty)
+               and self.shield_penalty >= 0, "config", "shield_penalty", self.shield_penalty, "a number >= 0 (0: off)")
+        _check(self.shield_penalty == 0 or self.shield_active, "config", "shield_penalty", self.shield_penalty,
+               "0 without the safety shield (safety_shield: true and obs_mode: vector)")
         _check(isinstance(self.action_smoothing, int | float) and 0 < self.action_smoothing <= 1, "config",
                "action_smoothing", self.action_smoothing, "a number in (0, 1] (1 = off)")
         _check(not isinstance(self.feature_smoothing, bool) and isinstance(self.feature_smoothing, int | float)

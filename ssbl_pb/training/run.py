@@ -103,15 +103,15 @@ class EnvFactory:
     """Picklable env constructor for SubprocVecEnv workers (the agent's action smoothing included)."""
 
     def __init__(self, kwargs: dict[str, Any], monitor: bool = True, smoothing: float = 1.0,
-                 shield: bool = False, shield_at_place: bool = False) -> None:
+                 shield: bool = False, shield_at_place: bool = False, shield_penalty: float = 0.0) -> None:
         self.kwargs, self.monitor, self.smoothing, self.shield = kwargs, monitor, smoothing, shield
-        self.shield_at_place = shield_at_place
+        self.shield_at_place, self.shield_penalty = shield_at_place, shield_penalty
 
     def __call__(self) -> Any:
         env = make_env(**self.kwargs)
         if self.shield or self.smoothing < 1.0:
             stages = ActionStages.of(env.unwrapped, self.smoothing, self.shield, self.shield_at_place)
-            env = ActionStagesWrapper(env, stages)
+            env = ActionStagesWrapper(env, stages, self.shield_penalty)
         if self.monitor:
             env = Monitor(env, info_keywords=("is_success",))
         return env
@@ -123,9 +123,10 @@ class BatchedFactory:
     def __init__(self, kwargs: dict[str, Any], cfg: TrainConfig) -> None:
         self.env_kwargs, _ = core_kwargs(**{k: v for k, v in kwargs.items() if k != "obs_mode"})
         self.smoothing, self.shield, self.at_place = cfg.action_smoothing, cfg.shield_active, cfg.shield_at_place
+        self.penalty = cfg.shield_penalty
 
     def __call__(self, n: int) -> Any:
-        return BatchedVecEnv(n, self.smoothing, self.shield, self.at_place, **self.env_kwargs)
+        return BatchedVecEnv(n, self.smoothing, self.shield, self.at_place, self.penalty, **self.env_kwargs)
 
 
 def make_vec_env(cfg: TrainConfig, seed: int) -> Any:
@@ -135,7 +136,7 @@ def make_vec_env(cfg: TrainConfig, seed: int) -> Any:
         venv = VecMonitor(BatchedFactory(_env_kwargs(cfg), cfg)(cfg.n_envs), info_keywords=("is_success",))
     else:
         factory = EnvFactory(_env_kwargs(cfg), smoothing=cfg.action_smoothing, shield=cfg.shield_active,
-                             shield_at_place=cfg.shield_at_place)
+                             shield_at_place=cfg.shield_at_place, shield_penalty=cfg.shield_penalty)
         fns = [factory] * cfg.n_envs
         venv = SubprocVecEnv(fns, start_method="forkserver") if kind == "subproc" else DummyVecEnv(fns)
     venv.seed(seed)

@@ -26,10 +26,11 @@ class BatchedVecEnv(VecEnv):
     """``num`` copies of the Vector-mode task; ``env_kwargs`` as for ``BatchedApproach`` (scenario, weights...)."""
 
     def __init__(self, num: int, smoothing: float = 1.0, shield: bool = False, shield_at_place: bool = False,
-                 **env_kwargs: Any) -> None:
+                 shield_penalty: float = 0.0, **env_kwargs: Any) -> None:
         self.batch = BatchedApproach(num, **env_kwargs)
         b = self.batch
         self.stages = ActionStages.of(b, smoothing, shield, shield_at_place)
+        self.shield_penalty = shield_penalty  # reward per unit the shield moves an action (TrainConfig's)
         self.render_mode = None
         size = b.obs_size  # with the range scan or without (``scan=False``)
         obs_space = gym.spaces.Box(-ob.OBS_LIMIT, ob.OBS_LIMIT, shape=(size,), dtype=np.float32)
@@ -58,6 +59,8 @@ class BatchedVecEnv(VecEnv):
     def step_wait(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[dict[str, Any]]]:
         b = self.batch
         rewards, terminated, truncated = b.step(self.stages(self._obs, self._actions))
+        if self.shield_penalty > 0 and self.stages.shield is not None:
+            rewards = rewards - self.shield_penalty * self.stages.shield.last.correction()
         obs = b.observations()
         done = terminated | truncated
         infos: list[dict[str, Any]] = [{} for _ in range(self.num_envs)]

@@ -64,9 +64,10 @@ class ActionStagesWrapper(gym.Wrapper):
     """``ActionStages`` around a Vector-mode env (it keeps the observation each action answers); each step's
     ``info["shield"]`` says what the shield changed (``ShieldRecord.row``), None if nothing or no shield."""
 
-    def __init__(self, env: gym.Env, stages: ActionStages) -> None:
+    def __init__(self, env: gym.Env, stages: ActionStages, shield_penalty: float = 0.0) -> None:
         super().__init__(env)
         self.stages = stages
+        self.shield_penalty = shield_penalty  # reward per unit the shield moves the action (TrainConfig's)
         self._obs: np.ndarray | None = None
 
     def reset(self, **kwargs):  # type: ignore[override]
@@ -81,6 +82,8 @@ class ActionStagesWrapper(gym.Wrapper):
         obs, r, terminated, truncated, info = self.env.step(self.stages(self._obs, action))
         self._obs = obs
         shield = self.stages.shield
+        if self.shield_penalty > 0 and shield is not None:
+            r = float(r) - self.shield_penalty * float(shield.last.correction()[0])
         return obs, r, terminated, truncated, {**info, "shield": None if shield is None else shield.last.row()}
 
 
