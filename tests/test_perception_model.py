@@ -197,7 +197,7 @@ def test_a_share_of_facings_comes_out_turned_by_half_a_turn_as_keypoints_mistake
 
 
 def test_facing_rays_that_cross_fix_the_centre_and_facing_each_other_do_not():
-    from ssbl_pb.perception.groups.estimate import facing_centre
+    from ssbl_pb.perception.groups.facing_centre import facing_centre
 
     c = np.array([1.0, 2.0])
     members = c + np.array([[0.8, 0.0], [0.0, 0.8], [-0.8, 0.0]])
@@ -421,7 +421,7 @@ def test_the_engine_lets_the_policy_drive_while_no_look_is_due():
 def test_robust_facing_centre_weighs_rays_against_the_centroid_and_discounts_a_ray_that_misses():
     from scipy.optimize import brentq
 
-    from ssbl_pb.perception.groups.estimate import CENTROID_STD_M, facing_centre, robust_facing_centre
+    from ssbl_pb.perception.groups.facing_centre import CENTROID_STD_M, facing_centre, robust_facing_centre
 
     # two rays from (-1, 0) and (1, 0) meet at (0, 2); a third from (0, 3) points down the y axis (no pull in y);
     # the centroid is (0, 1). By symmetry x = 0; y balances the two rays (normal distance |2 - y| / sqrt(5), std
