@@ -398,10 +398,9 @@ def shield_row(obs: np.ndarray, action: np.ndarray, out: np.ndarray, clearance_m
     return rules
 
 
-# m the robot's centre may come inside the o-space radius (where the members and their places stand): the slot
-# tolerance, so a place on the ring stays within reach. Ours (seventh session): 6 % of `mixed` starts, L-shaped and
-# side-by-side pairs whose ring is wider than the default pair's, ended with the robot inside the o-space, 0.3-0.6 m
-# inward of its place, until the time-out
+# m the robot's centre may come inside the o-space radius: the slot tolerance, so a place on the ring stays within
+# reach. Ours: without, 6 % of `mixed` starts (L-shaped and side-by-side pairs, whose ring is wider) ended with the
+# robot inside the o-space, 0.3-0.6 m inward of its place, until the time-out
 OSPACE_MARGIN = PLACE_NEAR
 CAP_SLACK = 0.01  # m: the speed cap holds only where the robot keeps the clearance asked of it, less this
 
@@ -469,9 +468,8 @@ class ShieldRecord:
         return self.rules != 0
 
     def correction(self) -> np.ndarray:
-        """Per row, how far the shield moved the action (the Euclidean norm of after - before, action units)."""
-        rows = len(self.rules)
-        return np.linalg.norm(self.after.reshape(rows, -1) - self.before.reshape(rows, -1), axis=1)
+        """Per row, how far the shield moved the action (the norm of after - before, in action units)."""
+        return np.linalg.norm((self.after - self.before).reshape(len(self.rules), -1), axis=1)
 
     def row(self, i: int = 0) -> dict[str, Any] | None:
         """Row ``i`` for a log: before, after and the rules' names; None where the shield left it alone."""

@@ -8,10 +8,8 @@ their place comes back into view, unoccluded and within detection range, and nob
 The group's geometry is the simulator's (``core.humans.measured_group``: the centre, the o-space radius, the
 joining weight and the free slot come from the same functions the env steps), spawned where the members stood
 before the robot came to join (their *rest* positions) and then moved to where they stand now, as in the env.
-The centre is measured: a pair gives its midpoint (the calibrated model: real pairs stand symmetric about their
-centre), or, in the paper's model, a point on the robot's side of the chord at the model's radius
-(``SocialParams.ospace_radius_for``); three or more give their centroid (the calibrated model: the centre of
-real groups is their centroid) or, in the paper's model, a least-squares circle through them.
+The centre is where the members' facings meet (``facing_centre``, ``robust_facing_centre``), else it is measured
+from positions (``group_circle``: as each groups model places members round it).
 """
 
 from __future__ import annotations
@@ -26,7 +24,7 @@ from scipy.optimize import linear_sum_assignment
 from ...core.humans import MAX_HUMANS, measured_group
 from ...core.layouts import slot_keep
 from ...core.task import TaskParams
-from ...params import RobotParams, SocialParams
+from ...params import RobotParams, SocialParams, _check
 from ..camera import PinholeCamera
 from ..detection.keypoint_range import BODY_MARGIN, EYES_TO_ANKLES_M
 from ..tracking.tracker import Tracker, TrackerParams
@@ -56,7 +54,6 @@ TORSO_HEIGHT = 0.60  # m: the proxy's torso box (urdf/human.urdf)
 WALK_SPEED = 1.0
 MIN_VISIBLE = 0.35  # share of a torso's width that must show inside the image for a cut box to count
 
-
 @dataclasses.dataclass(frozen=True)
 class GroupParams:
     """How long people are remembered and when they count as visible (ours)."""
@@ -76,6 +73,16 @@ class GroupParams:
     facing_gate_deg: float = 180.0  # deg: a measured facing further than this from the filtered one is left out ...
     facing_switch: int = 3  # ... unless this many in a row are: then the filter restarts from the newest (it held
     #   a flipped facing, or the person turned)
+
+    def __post_init__(self) -> None:
+        for name, ok, expected in [(n, lambda v: isinstance(v, int) and v >= 1, "an integer >= 1")
+                                   for n in ("forget_frames", "facing_switch")] + [
+                (n, lambda v: isinstance(v, int | float) and 0 < v < math.inf, "metres > 0")
+                for n in ("same_person_m", "took_over_m", "max_range_m", "person_halfwidth_m")] + [
+                (n, lambda v: isinstance(v, int | float) and 0 <= v < math.inf, "a number >= 0")
+                for n in ("edge_margin_m", "facing_turn_std")] + [
+                ("facing_gate_deg", lambda v: isinstance(v, int | float) and 0 < v <= 180, "degrees in (0, 180]")]:
+            _check(ok(getattr(self, name)), "group", name, getattr(self, name), expected)
 
 
 # the group memory for MoveNet's people: a person is expected detected only where perceive keeps their box
@@ -115,7 +122,10 @@ class Member:
 
 def group_circle(members: np.ndarray, robot_xy: np.ndarray, social: SocialParams, paper: bool = False
                  ) -> tuple[np.ndarray, float]:
-    """Conversation centre (2,) and o-space radius (m) of members (n >= 2, (n, 2)); see the module docstring."""
+    """Conversation centre (2,) and o-space radius (m) of members (n >= 2, (n, 2)): a pair's midpoint (real pairs
+    stand symmetric about their centre), in the paper's model a point on the robot's side of the chord at the
+    model's radius (``SocialParams.ospace_radius_for``); three or more their centroid (that of real groups), in the
+    paper's model a least-squares circle through them."""
     pts = np.asarray(members, dtype=float).reshape(-1, 2)
     n = len(pts)
     if n < 2:
