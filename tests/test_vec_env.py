@@ -179,8 +179,10 @@ def test_reset_options_pick_the_group_in_single_and_batched_envs():
 def test_the_shield_penalty_costs_each_step_how_far_the_shield_moved_the_action_in_both_vec_envs():
     from ssbl_pb.core.shield import ShieldRecord
 
-    rec = ShieldRecord(np.array([[1.0, 1.0], [0.2, 0.0]]), np.array([[0.4, 0.2], [0.2, 0.0]]), np.array([3, 0]))
-    assert rec.correction() == pytest.approx([1.0, 0.0])  # hypot(0.6, 0.8); the second untouched
+    before = np.array([[0.6, 0.8], [1.2, 1.6], [2.0, 0.0]])
+    rec = ShieldRecord(before, np.array([[0.0, 0.8], [0.3, 0.4], [2.0, 0.0]]), np.array([1, 1, 0]))
+    # braked to a stop ahead: 0.6; capped at 1 (0.6, 0.8), then halved: 0.5, not the cap's 1.5; untouched: 0
+    assert rec.correction() == pytest.approx([0.6, 0.5, 0.0])
     kwargs = {"scenario": "mixed"}
     plain, paid = (BatchedVecEnv(4, 0.4, True, False, w, **kwargs) for w in (0.0, 0.5))
     single = DummyVecEnv([EnvFactory({"obs_mode": "vector", **kwargs}, monitor=False, smoothing=0.4, shield=True,

@@ -1,15 +1,15 @@
 """Safety shield: the last stage of the agent's action, keeping the robot out of the members' intimate zones.
 
-It reads only the Vector observation (the same one the tracker produces on the robot), so the same function runs
-in training, evaluation and deploy. For each member it computes the clearance between Pepper's footprint, taken
-as its circumscribed circle (0.32 m: turning cannot bring a corner closer), and the member's body, and limits the
-robot's closing speed on that member (relative to the member's own velocity) to
-what the base can still brake away before ``clearance_min``: ``v_allow = sqrt(2 a (c - c_min))`` with ``a`` a
-fraction of the base's acceleration limit. Anything faster toward the member is removed from the command; motion
-past or away from it is untouched. With the range scan in the observation, each ray's end is treated alike as a
-standing obstacle point, braked for before ``obstacle_clearance_min``. NAOqi's own move protection (ALMotion's
-security distances) does the same on the robot; the shield makes the simulated agent behave that way too, and lets
-the policy rely on it (it is on in training). Ours; the paper has no such layer.
+It reads only the Vector observation (the same one the tracker produces on the robot), so the same function runs in
+training, evaluation and deploy. For each member it computes the clearance between Pepper's footprint, taken as its
+circumscribed circle (0.32 m: turning cannot bring a corner closer), and the member's body, and limits the robot's
+closing speed on that member (relative to the member's own velocity) to what the base can still brake away before
+``clearance_min``: ``v_allow = sqrt(2 a (c - c_min))`` with ``a`` a fraction of the base's acceleration limit.
+Anything faster toward the member is removed from the command; motion past or away from it is untouched. With the
+range scan in the observation, each ray's end is treated alike as a standing obstacle point, braked for before
+``obstacle_clearance_min``. NAOqi's own move protection (ALMotion's security distances) does the same on the robot;
+the shield makes the simulated agent behave that way too, and lets the policy rely on it (it is on in training).
+Ours; the paper has no such layer.
 """
 
 from __future__ import annotations
@@ -50,11 +50,11 @@ from .task import TaskParams
 PLACE_NEAR, PLACE_FAR = 0.3, 0.6
 # ... and where the range scan's nearest point lies beyond ``ROOM_FAR`` (not at all where it is nearer than
 # ``ROOM_NEAR``, linear between), the same from ``CLEARANCE_NEAR`` of the place out to ``CLEARANCE_FAR``: the
-# passing clearance. Ours: held within 0.6 m only, the robot rounding a pair's member toward its place passed
-# them at the 0.5 m line and pushed them 0.25-0.38 m in 10 % of default starts (members displaced 0.087 m
-# against the SFFM's 0.073). Swept on 200 starts per scenario (docs/decisions.md, "Safety shield"): 1.2 / 1.6 m
-# gives 0.062 m; without the scan's gate it cost 17 points in the small map room (ways between a member and the
-# furniture); 2.0 / 2.5 m cost 4.5 points of mixed
+# passing clearance. Ours: held within 0.6 m only, the robot rounding a pair's member toward its place passed them
+# at the 0.5 m line and pushed them 0.25-0.38 m in 10 % of default starts (members displaced 0.087 m against the
+# SFFM's 0.073). Swept on 200 starts per scenario (docs/decisions.md, "Safety shield"): 1.2 / 1.6 m gives 0.062 m;
+# without the scan's gate it cost 17 points in the small map room (ways between a member and the furniture); 2.0 /
+# 2.5 m cost 4.5 points of mixed
 CLEARANCE_NEAR, CLEARANCE_FAR = 1.2, 1.6
 ROOM_NEAR, ROOM_FAR = 1.0, 1.5
 
@@ -432,8 +432,7 @@ def shield_actions(obs: np.ndarray, actions: np.ndarray, p: ShieldParams) -> np.
 def shield_actions_explained(obs: np.ndarray, actions: np.ndarray, p: ShieldParams) -> tuple[np.ndarray, np.ndarray]:
     """``shield_actions`` and, per row, the rules that changed the action (``RULE_*`` flags, int (N,))."""
     a = np.ascontiguousarray(actions, dtype=np.float32)
-    out = np.empty_like(a)
-    rules = np.zeros(len(a), dtype=np.int64)
+    out, rules = np.empty_like(a), np.zeros(len(a), dtype=np.int64)
     _shield_rows(np.ascontiguousarray(obs, dtype=np.float32), a, out, rules, *_limits(p))
     return out, rules
 
@@ -468,33 +467,34 @@ class ShieldRecord:
         return self.rules != 0
 
     def correction(self) -> np.ndarray:
-        """Per row, how far the shield moved the action (the norm of after - before, in action units)."""
-        return np.linalg.norm((self.after - self.before).reshape(len(self.rules), -1), axis=1)
+        """Per row, how far a rule moved the action (norm, action units; not the base's cap of the planar speed at 1,
+        which a changed action gets too); 0 where none changed it."""
+        b = self.before.reshape(len(self.rules), -1).astype(float)
+        b[:, :2] /= np.maximum(np.linalg.norm(b[:, :2], axis=1, keepdims=True), 1.0)
+        return np.where(self.changed(), np.linalg.norm(self.after.reshape(b.shape) - b, axis=1), 0.0)
 
     def row(self, i: int = 0) -> dict[str, Any] | None:
         """Row ``i`` for a log: before, after and the rules' names; None where the shield left it alone."""
         if not self.rules[i]:
             return None
-        before, after = self.before.reshape(len(self.rules), -1), self.after.reshape(len(self.rules), -1)
-        return {"before": before[i].tolist(), "after": after[i].tolist(), "rules": rule_names(self.rules[i])}
+        before, after = self.before.reshape(len(self.rules), -1)[i], self.after.reshape(len(self.rules), -1)[i]
+        return {"before": before.tolist(), "after": after.tolist(), "rules": rule_names(self.rules[i])}
 
 
 class SafetyShield:
-    """``shield_action`` with fixed parameters (Pepper's defaults unless given), as ``TrainedPolicy`` applies it
-    after its smoothing filter: one observation (OBS_SIZE,) with one action, or a batch (N, OBS_SIZE) with
-    (N, A) actions, every row shielded. ``last`` records what it did to the last call (``ShieldRecord``), for
-    the evaluation's intervention rate and deploy's log."""
+    """``shield_action`` with fixed parameters (Pepper's defaults unless given), as ``TrainedPolicy`` applies it after
+    its smoothing filter: one observation (OBS_SIZE,) with one action, or a batch (N, OBS_SIZE) with (N, A) actions,
+    every row shielded. ``last`` records what it did to the last call (``ShieldRecord``): the evaluation's
+    intervention rate, deploy's log, training's ``shield_penalty``."""
 
     def __init__(self, params: ShieldParams | None = None) -> None:
         self.params = params or ShieldParams()
         self.last: ShieldRecord | None = None
 
     def __call__(self, obs: np.ndarray, action: np.ndarray) -> np.ndarray:
-        obs, action = np.asarray(obs), np.asarray(action)
-        rows = obs.reshape(-1, obs.shape[-1])
+        action, rows = np.asarray(action), np.asarray(obs).reshape(-1, np.shape(obs)[-1])
         if action.size % len(rows):
             raise ValueError(f"shield: {len(rows)} observations for actions of shape {action.shape}")
         out, rules = shield_actions_explained(rows, action.reshape(len(rows), -1), self.params)
-        out = out.reshape(action.shape)
-        self.last = ShieldRecord(action.astype(np.float32, copy=True), out, rules)
-        return out
+        self.last = ShieldRecord(action.astype(np.float32, copy=True), out.reshape(action.shape), rules)
+        return self.last.after
