@@ -14,7 +14,7 @@ from ssbl_pb.agents.policies import make_policy
 from ssbl_pb.calib.dynamics_log import read_log as read_dynamics_log
 from ssbl_pb.deploy.faults import EXIT_CODES, StaleOdometry
 from ssbl_pb.deploy.frames import Frames
-from ssbl_pb.deploy.log import RunLog, read_log
+from ssbl_pb.deploy.log import POLICY_STATES, RunLog, read_log
 from ssbl_pb.deploy.loop import DeployLoop, DeployParams, Setup, deploy_shield
 from ssbl_pb.deploy.perceive import Perception
 from ssbl_pb.params import RobotParams, SocialParams
@@ -246,8 +246,8 @@ def test_the_shield_s_interventions_are_logged_and_summarised(tmp_path):
     loop.run()
     log.close()
     rows = read_log(tmp_path)
-    acted = [r for r in rows if r.get("shield")]
-    policy_rows = [r for r in rows if "shield" in r]
+    policy_rows = [r for r in rows if "shield" in r and r["state"] in POLICY_STATES]  # its command sent
+    acted = [r for r in policy_rows if r["shield"]]
     assert acted and len(policy_rows) > len(acted)
     for r in acted:
         assert r["shield"]["rules"] and set(r["shield"]["rules"]) <= {"members", "obstacles", "slide", "velocity",
@@ -257,6 +257,14 @@ def test_the_shield_s_interventions_are_logged_and_summarised(tmp_path):
     summary = log.summary("duration", 3, "", {})
     assert summary["policy_ticks"] == len(policy_rows) and summary["shield_interventions"] == len(acted)
     assert summary["shield_intervention_rate"] == pytest.approx(len(acted) / len(policy_rows))
+    (tmp_path / "states").mkdir()
+    log = RunLog(tmp_path / "states")  # a look, a confirmation or the hold replaces the policy's command: not counted
+    for state, shield in [("look", {"rules": ["place"]}), ("hold", {"rules": ["place"]}), ("approach", None),
+                          ("dock", {"rules": ["members"]}), ("confirm", None)]:
+        log.write({"state": state, "shield": shield, "tick_ms": 1.0})
+    summary = log.summary("duration", 3, "", {})
+    log.close()
+    assert (summary["policy_ticks"], summary["shield_interventions"]) == (2, 1)
 
 
 def test_a_learned_policy_runs_only_at_its_training_rate():

@@ -549,3 +549,20 @@ def test_the_shield_builder_and_the_last_stage_perception_takes_over():
     out = take_over(actions, np.array([False, True]), body, 0.3)
     assert out.tolist() == [[0.4, -0.2, 0.9], [0.0, 0.2, 0.0]] and actions[1].tolist() == [1.0, 1.0, 1.0]
     assert take_over(actions, np.zeros(2, bool), body, 0.3) is actions  # nobody driven: the policy's, as is
+
+
+def test_with_the_observation_model_the_rate_counts_the_steps_the_policy_drove_not_those_a_search_replaced():
+    from ssbl_pb.agents.rollout import run_episode, run_episodes, shield_changed
+    from ssbl_pb.analysis.evaluation import Setup
+
+    setup = Setup("vector", scenario="mixed", env_kwargs=(("perception", True),))
+    env, policy = setup()
+    sim, seen = env.unwrapped.sim, []
+    r = run_episode(env, policy, 500009, keep_trajectory=False,
+                    on_step=lambda e: seen.append((bool(sim.driven[0]), bool(shield_changed(policy, 1)[0]))))
+    steps = seen[1:]  # the first call comes after the reset, before any step
+    driven = [c for d, c in steps if d]
+    assert len(driven) < len(steps)  # it searched for the group, or looked at members, on some steps
+    assert r.metrics["shield_intervention_rate"] == pytest.approx(sum(driven) / len(driven))
+    batch = run_episodes(setup, [500009], workers=1)
+    assert batch[0].metrics["shield_intervention_rate"] == r.metrics["shield_intervention_rate"]

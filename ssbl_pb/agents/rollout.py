@@ -7,6 +7,7 @@ whatever the number of workers (results are put back in episode order).
 from __future__ import annotations
 
 import dataclasses
+import math
 import multiprocessing as mp
 import os
 import signal
@@ -47,17 +48,25 @@ def run_episode(env: gym.Env, policy: Policy, seed: int, keep_trajectory: bool =
     if on_step is not None:
         on_step(env)
     steps = shielded = 0
+    sim = getattr(core, "sim", None)
     while True:
         action, state = policy.predict(obs, state=state, episode_start=start, deterministic=True)
         start = np.zeros((1,), dtype=bool)
-        steps += 1
-        shielded += int(shield_changed(policy, 1)[0])
+        changed = bool(shield_changed(policy, 1)[0])
         obs, _, terminated, truncated, info = env.step(action)
+        driven = sim is None or bool(sim.driven[0])  # the policy's action, not one perception's search replaced
+        steps += driven
+        shielded += driven and changed
         if on_step is not None:
             on_step(env)
         if terminated or truncated:
             break
-    return _result(core, seed, core.trajectory, {**reset_info, **info}, keep_trajectory, shielded / steps)
+    return _result(core, seed, core.trajectory, {**reset_info, **info}, keep_trajectory, _rate(shielded, steps))
+
+
+def _rate(shielded: float, steps: float) -> float:
+    """Share of the steps the policy drove that its shield changed (NaN: it drove none)."""
+    return shielded / steps if steps else math.nan
 
 
 def shield_changed(policy: Policy, n: int) -> np.ndarray:
@@ -73,7 +82,7 @@ def _result(core: Any, seed: int, trajectory: list[dict[str, Any]], info: dict[s
                         core.social.fov_half_angle_deg, body_radii(core.social, core.robot_params.radius),
                         info.get("obstacle_collision", False))
     sums = info["episode_terms"]
-    m["shield_intervention_rate"] = float(shield_rate)  # share of steps the shield changed the action in
+    m["shield_intervention_rate"] = float(shield_rate)  # share of the steps the policy drove its shield changed
     if "perceived" in info:  # the observation model's end state (``BatchedApproach.perceived_outcome``)
         seen = info["perceived"]
         m.update(perceived_slot_error_m=seen["slot_error_m"], perceived_place_distance_m=seen["place_distance_m"],
@@ -112,9 +121,11 @@ def run_batch(env: gym.Env, policy: Policy, seeds: list[int], keep: list[bool]) 
     while active.any():
         action, state = policy.predict(obs, state=state, episode_start=start, deterministic=True)
         start[:] = False
-        steps += active
-        shielded += active & shield_changed(policy, len(seeds))
+        changed = shield_changed(policy, len(seeds))
         _, terminated, truncated = sim.step(action)
+        driven = active & sim.driven  # the policy's actions, not those perception's search or looks replaced
+        steps += driven
+        shielded += driven & changed
         t += core.dt
         obs = sim.observations()
         for i in np.flatnonzero(active).tolist():
@@ -122,7 +133,7 @@ def run_batch(env: gym.Env, policy: Policy, seeds: list[int], keep: list[bool]) 
             if terminated[i] or truncated[i]:
                 active[i] = False
                 out[i] = _result(core, seeds[i], trajectories[i], {**infos[i], **sim.outcome(i)}, keep[i],
-                                 shielded[i] / steps[i])
+                                 _rate(shielded[i], steps[i]))
     return out  # type: ignore[return-value]
 
 

@@ -10,7 +10,8 @@ ticks ``shield``: what the policy's safety shield changed (the action before and
 ``cmd_before`` the body command it replaced), null where it changed nothing; ``ranges``, how many range returns
 the robot gave (null without range sensors) and ``range_guard``, what braking for them changed (the command before
 and after, the nearest return and its clearance; ``deploy.guards``), null where nothing. The summary's
-``shield_intervention_rate`` is the share of policy ticks the shield changed, ``range_guard_rate`` the share of
+``shield_intervention_rate`` is the share of policy ticks the shield changed (those whose command the robot
+was sent: not a look, a confirmation or the hold at the place, which replace it), ``range_guard_rate`` the share of
 ticks with range returns the range guard changed.
 """
 
@@ -27,6 +28,7 @@ from ..calib.dynamics_log import CMD, POSE
 from ..files import write_json
 
 LOG, RUN, SUMMARY, PATHS = "log.jsonl", "run.json", "summary.json", "paths.png"
+POLICY_STATES = ("approach", "dock", "joined")  # the loop's states that send the policy's command (``DeployLoop``)
 
 
 def _clean(value: Any) -> Any:
@@ -74,7 +76,7 @@ class RunLog:
         self.late += bool(row.get("late"))
         if row.get("min_clearance_m") is not None:
             self.min_clearance = min(self.min_clearance, float(row["min_clearance_m"]))
-        if "shield" in row:
+        if "shield" in row and row.get("state") in POLICY_STATES:
             self.policy_ticks += 1
             self.shielded += row["shield"] is not None
         if row.get("ranges") is not None:

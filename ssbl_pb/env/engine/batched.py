@@ -84,6 +84,8 @@ class BatchedApproach:
         self.prev_accel = np.zeros((num, 2))
         self.clearance = np.zeros((num, m))
         self.slot = np.zeros((num, 2))
+        self.driven = np.ones(num, dtype=bool)  # the last step executed the policy's action (not deploy's search or
+        #   a look in place, with the observation model)
         self.potential = np.zeros(num)
         self.sums = np.zeros((num, len(TERMS) + 1))  # episode sums of the terms and of the reward
         self.terms = np.zeros((num, len(TERMS)))  # the last step's terms
@@ -291,6 +293,7 @@ class BatchedApproach:
             aim = self._turn_guard(aim)
             lost = ~self.perceived.known  # the action pipeline's last stage: deploy drives these itself (its
             a = take_over(a, lost | looking, search, self.robot_params.max_speed)  # search, or a look in place)
+            self.driven = ~(lost | looking)
             a = self._range_guard(a, aim)  # and deploy's guard for what the lasers see
             # searching is not approaching: its time is added to the episode, up to one episode more (deploy's
             # 60 s --duration is twice the simulated episode, for the search)
