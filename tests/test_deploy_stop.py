@@ -51,8 +51,9 @@ class Session:
         pass
 
 
-def robot(calls, hang=(), watchdog=True):
-    """A connected NaoqiRobot with a subscribed camera and (``watchdog``) an armed watchdog."""
+def robot(calls, hang=(), watchdog=True, sonar=False):
+    """A connected NaoqiRobot with a subscribed camera, (``watchdog``) an armed watchdog and (``sonar``) ALSonar
+    subscribed."""
     r = NaoqiRobot.__new__(NaoqiRobot)
     r.url, r.limits, r.p = "tcp://fake:9559", RobotParams(), NaoqiParams()
     r.lost, r.unresponsive, r.stopped, r.closed = threading.Event(), False, False, False
@@ -62,6 +63,7 @@ def robot(calls, hang=(), watchdog=True):
     r.video = Service(calls, hang)
     r.watchdog = Service(calls, hang) if watchdog else None
     r.handle = "ssbl_deploy_0"
+    r.sonar = Service(calls, hang) if sonar else None
     return r
 
 
@@ -80,12 +82,13 @@ def test_close_releases_the_robot_after_a_timed_out_call_once_a_stop_was_answere
 
 def test_deploys_stop_is_tried_again_until_one_is_answered():
     calls = []
-    r = robot(calls, hang=["stopMove", "stopMove"])  # two lost stops (a stalled network)
+    r = robot(calls, hang=["stopMove", "stopMove"], sonar=True)  # two lost stops (a stalled network)
     r.send(np.array([0.2, 0.0, 0.0]))
     r.stop()
     assert calls.count("stopMove") == 3 and r.stopped and not r.unresponsive
     r.close()
-    assert "disarm" in calls and "unsubscribe" in calls
+    assert "disarm" in calls and calls.count("unsubscribe") == 2  # the camera's and ALSonar's, after the stop
+    assert calls.index("unsubscribe") > max(i for i, c in enumerate(calls) if c == "stopMove")
 
 
 def test_a_stop_never_answered_gives_up_after_its_bound_and_close_tries_nothing_more():
