@@ -42,6 +42,15 @@ def test_stages_run_in_order_each_from_the_one_before_and_a_rerun_continues(tmp_
         steps = [int(r["step"]) for r in csv.DictReader(fh)]
     assert steps == sorted(steps) and steps[-1] > 128 >= steps[0]
     assert (out / "learning_curve.png").is_file() and json.loads((out / "recipe.json").read_text())["seed"] == 5
+    from ssbl_pb.training.run import process_commit
+
+    # each stage records the commit of the code that trained it (this process's), the recipe the final stage's
+    assert [s["commit"] for s in record["stages"]] == [process_commit()] * 2 and record["commit"] == process_commit()
+    from ssbl_pb.agents.trained import resolve_model
+
+    ckpt = sorted((second / "checkpoints").glob("ckpt_*.zip"))[-1]  # a checkpoint: its own statistics, the run's config
+    model, norm, config = resolve_model(str(ckpt))
+    assert norm == ckpt.with_name(f"{ckpt.stem}_vecnormalize.pkl") and config["action_smoothing"] == 0.5
     # stopped during the second stage: the same call skips the first and trains the second again
     mtime = (first / "model.zip").stat().st_mtime_ns
     shutil.rmtree(second)

@@ -35,7 +35,8 @@ def resolve_model(spec: str) -> tuple[Path, Path | None, dict[str, Any]]:
     """(model zip, normalisation pickle or None, run config) for a shipped name, a run dir or a .zip path.
 
     A run directory gives its final model (``model.zip``; ``RUN/best`` names the best evaluated one); the
-    normalisation statistics and config are those saved beside the chosen model."""
+    normalisation statistics and config are those saved beside the chosen model (a training checkpoint,
+    ``RUN/checkpoints/ckpt_N.zip``: its ``ckpt_N_vecnormalize.pkl`` and the run's config)."""
     path = SHIPPED.get(spec, Path(spec))
     if spec in SHIPPED and not path.is_dir():
         raise ModelError(f"shipped policy '{spec}' is missing: expected {path}/model.zip")
@@ -50,7 +51,9 @@ def resolve_model(spec: str) -> tuple[Path, Path | None, dict[str, Any]]:
             raise ModelError(f"{model}: model file not found")
     folder = model.parent
     norm = folder / "vecnormalize.pkl"
-    config = read_run_config(folder / "config.yaml")
+    if model.with_name(f"{model.stem}_vecnormalize.pkl").is_file():  # a checkpoint's own
+        norm = model.with_name(f"{model.stem}_vecnormalize.pkl")
+    config = read_run_config((folder.parent if folder.name == "checkpoints" else folder) / "config.yaml")
     check_model_set(model, norm if norm.is_file() else None)
     return model, (norm if norm.is_file() else None), config
 

@@ -13,7 +13,8 @@ A recipe YAML::
 ``run_recipe`` trains stage i in ``OUT/NN_name`` (``train``), skips a stage whose run finished and resumes one a
 signal or a crash left half done (``resume``), so the same command continues the whole recipe. ``--seed`` sets
 every stage's seed. ``OUT/learning_curve.csv``, ``eval.csv`` and ``learning_curve.png`` join the stages' logs
-with their steps counted from the recipe's start; ``OUT/recipe.json`` records the stages, seed and commit."""
+with their steps counted from the recipe's start; ``OUT/recipe.json`` records the stages (each with the commit it
+trained at), the seed and the commit of the final stage."""
 
 from __future__ import annotations
 
@@ -125,8 +126,9 @@ def join_stages(recipe: Recipe, out: Path, seed: int | None) -> dict[str, Any]:
                 with open(folder / name) as fh:
                     rows.extend({**r, "step": str(int(float(r["step"])) + offset)} for r in csv.DictReader(fh))
         steps = finished_at(folder) or 0
+        done = json.loads((folder / "summary.json").read_text()) if (folder / "summary.json").is_file() else {}
         bounds.append({"stage": stage.name, "dir": str(folder), "config": str(stage.config), "init": stage.init,
-                       "set": stage.overrides, "first_step": offset, "steps": steps})
+                       "set": stage.overrides, "first_step": offset, "steps": steps, "commit": done.get("commit")})
         offset += steps
     for name, rows in logs.items():
         if rows:
@@ -136,7 +138,10 @@ def join_stages(recipe: Recipe, out: Path, seed: int | None) -> dict[str, Any]:
     last = stage_dir(out, len(recipe.stages) - 1, recipe.stages[-1])
     baselines = json.loads((last / "baselines.json").read_text()) if (last / "baselines.json").is_file() else {}
     plot_learning_curve(out, baselines)
-    record = {"recipe": str(recipe.path), "name": recipe.name, "seed": seed, "commit": source_commit(),
+    # the commit the final model was trained at (each stage's in ``stages``; a stage trained before stages recorded
+    # theirs: the checkout's now)
+    commit = bounds[-1]["commit"] or source_commit()
+    record = {"recipe": str(recipe.path), "name": recipe.name, "seed": seed, "commit": commit,
               "total_steps": offset, "stages": bounds, "final_model": str(last)}
     write_json(out / "recipe.json", record)
     return record

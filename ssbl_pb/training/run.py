@@ -7,6 +7,7 @@ with its normalisation), ``checkpoints/``, ``learning_curve.csv/png``, ``eval.cs
 
 from __future__ import annotations
 
+import functools
 import json
 import pickle
 import shutil
@@ -34,7 +35,7 @@ from ..env.gymenv.approach import core_kwargs, make_env
 from ..env.gymenv.encoded import EncodedVecEnv, load_encoder
 from ..env.gymenv.wrappers import ActionStagesWrapper
 from ..errors import UserError
-from ..files import check_output_path, output_dir, remove_temporaries, write_text
+from ..files import check_output_path, output_dir, remove_temporaries, source_commit, write_text
 from ..params import ConfigError, parse_yaml
 from .callbacks import (
     EpisodeLogCallback,
@@ -206,6 +207,13 @@ def _callbacks(cfg: TrainConfig, run_dir: Path) -> list[Any]:
                                    BatchedFactory(eval_kwargs, cfg) if cfg.vec_env_kind == "batched" else None)]
 
 
+@functools.cache
+def process_commit() -> str | None:
+    """The commit of the code this process runs: the checkout's at the first call (a recipe's later stages run the
+    code its first stage loaded, whatever the checkout holds by then)."""
+    return source_commit()
+
+
 def _learn(cfg: TrainConfig, run_dir: Path, model: Any, venv: Any, resumed_from: int | None) -> dict[str, Any]:
     """Train to ``cfg.total_steps``. Ctrl-C / SIGTERM stop at the next env step: a checkpoint is saved, the
     ``--resume`` command printed, and the signal re-raised (exit 130 / 143 through ``cli.run``)."""
@@ -229,7 +237,7 @@ def _learn(cfg: TrainConfig, run_dir: Path, model: Any, venv: Any, resumed_from:
         plot_learning_curve(run_dir, baselines)
         best = run_dir / "best" / "eval.json"
         summary = {"name": cfg.name, "steps": int(model.num_timesteps), "total_steps": cfg.total_steps,
-                   "resumed_from": resumed_from, "wall_time_s": round(wall, 1),
+                   "commit": process_commit(), "resumed_from": resumed_from, "wall_time_s": round(wall, 1),
                    "steps_per_s": round((model.num_timesteps - start_steps) / max(wall, 1e-9), 1),
                    "baselines": baselines, "best_eval": json.loads(best.read_text()) if best.exists() else None}
         write_text(run_dir / "summary.json", json.dumps(summary, indent=2))
