@@ -50,6 +50,35 @@ def person_row(geom: object, xy: np.ndarray, yaw: float, face: float = 0.9) -> n
 
 
 @pytest.mark.skipif(not CALIB.is_file(), reason=f"PETS calibration not found: {CALIB}")
+def movenet_deploy(rows: np.ndarray, frames: int = 6, returns: np.ndarray | None = None) -> list:
+    """Deploy's perception with MoveNet's detector, its network replaced by one that returns ``rows``, over
+    ``frames`` black frames 0.1 s apart at the odometry origin (with ``returns``: these laser returns each frame);
+    the members it then knows."""
+    from ssbl_pb.deploy.perceive import Perception
+    from ssbl_pb.deploy.robot import Frame
+    from ssbl_pb.perception.detection.movenet import MoveNetFacing
+    from ssbl_pb.perception.tracking.tuning import MOVENET_DEFAULT
+
+    class Robot:
+        stamp = 0.0
+
+        def frame(self) -> Frame:
+            self.stamp += 0.1
+            return Frame(np.zeros((240, 320, 3), np.uint8), self.stamp)
+
+    clock = [0.0]
+    perception = Perception(Robot(), lambda: clock[0], "colour", RobotParams(), threaded=False)
+    perception.detect, perception.torso = MoveNetFacing(MOVENET_DEFAULT.ssd, MOVENET_DEFAULT.rng,
+                                                        detector=lambda frame: rows.copy()), False
+    for _ in range(frames):
+        clock[0] += 0.1
+        perception.odometry.append((clock[0], np.zeros(3)))
+        if returns is not None:
+            perception.ranges(returns, np.zeros(3))
+        perception.step()
+    return perception.snapshot()[0].members
+
+
 def test_a_track_faces_where_the_body_faces_not_where_it_moves():
     # PETS' camera, two people 1 m/s across the square: one walks forward (faces +x, moves +x), one backwards
     # (faces +x, moves -x). Each track's facing is +x; its velocity says otherwise for the second
@@ -107,33 +136,13 @@ def test_track_writes_each_tracks_facing(tmp_path):
 def test_deploy_feeds_movenet_facing_to_the_group_model():
     # deploy's pipeline with MoveNet's detector (its network replaced by one returning these people): a pair 2.5 m
     # ahead of the robot, side by side facing each other (+y and -y). The group model's members carry those facings
-    from ssbl_pb.deploy.perceive import Perception
-    from ssbl_pb.deploy.robot import Frame
     from ssbl_pb.perception.camera import sim_camera
-    from ssbl_pb.perception.detection.movenet import MoveNetFacing
     from ssbl_pb.perception.detection.ranging import PinholeGeometry
-    from ssbl_pb.perception.tracking.tuning import MOVENET_DEFAULT
 
     geom = PinholeGeometry(sim_camera(RobotParams(), 320, 240))
     pair = [(np.array([2.5, -0.45]), math.pi / 2), (np.array([2.5, 0.45]), -math.pi / 2)]
     rows = np.stack([person_row(geom, xy, yaw) for xy, yaw in pair])
-
-    class Robot:
-        stamp = 0.0
-
-        def frame(self) -> Frame:
-            self.stamp += 0.1
-            return Frame(np.zeros((240, 320, 3), np.uint8), self.stamp)
-
-    clock = [0.0]
-    perception = Perception(Robot(), lambda: clock[0], "colour", RobotParams(), threaded=False)
-    perception.detect, perception.torso = MoveNetFacing(MOVENET_DEFAULT.ssd, MOVENET_DEFAULT.rng,
-                                                        detector=lambda frame: rows.copy()), False
-    for _ in range(6):
-        clock[0] += 0.1
-        perception.odometry.append((clock[0], np.zeros(3)))
-        perception.step()
-    members = perception.snapshot()[0].members
+    members = movenet_deploy(rows)
     assert len(members) == 2
     for m in members:
         truth = pair[int(m.pos[1] > 0)]
@@ -145,12 +154,9 @@ def test_deploy_keeps_a_movenet_person_the_image_side_cuts_only_where_a_laser_pl
     # deploy's pipeline with MoveNet's detector (its network replaced): one person 2 m straight ahead, one 1.8 m
     # away at the image's side (their box cut). Without laser returns the cut one is dropped; with returns on their
     # near side they are placed there, their facing unknown (the keypoints of half a body)
-    from ssbl_pb.deploy.perceive import BODY_MARGIN, Perception, whole_people
-    from ssbl_pb.deploy.robot import Frame
+    from ssbl_pb.deploy.perceive import BODY_MARGIN, whole_people
     from ssbl_pb.perception.camera import sim_camera
-    from ssbl_pb.perception.detection.movenet import MoveNetFacing
     from ssbl_pb.perception.detection.ranging import PinholeGeometry
-    from ssbl_pb.perception.tracking.tuning import MOVENET_DEFAULT
 
     cam = sim_camera(RobotParams(), 320, 240)
     geom = PinholeGeometry(cam)
@@ -159,29 +165,11 @@ def test_deploy_keeps_a_movenet_person_the_image_side_cuts_only_where_a_laser_pl
     rows = np.stack([person_row(geom, xy, math.atan2(-xy[1], -xy[0])) for xy in people_xy])  # facing the robot
     assert whole_people(rows[:, :4], 320, BODY_MARGIN).tolist() == [True, False]
 
-    class Robot:
-        stamp = 0.0
-
-        def frame(self) -> Frame:
-            self.stamp += 0.1
-            return Frame(np.zeros((240, 320, 3), np.uint8), self.stamp)
-
     u = side / np.hypot(*side)
     near = side - 0.1 * u  # a real Pepper's lasers hit the shins 0.1 m in front of the centre (LEG_DEPTH_M)
     returns = near + np.outer([-0.06, 0.0, 0.06], [-u[1], u[0]])
-    found = {}
-    clock = [0.0]
-    for lasers in (False, True):
-        perception = Perception(Robot(), lambda: clock[0], "colour", RobotParams(), threaded=False)
-        perception.detect, perception.torso = MoveNetFacing(MOVENET_DEFAULT.ssd, MOVENET_DEFAULT.rng,
-                                                            detector=lambda frame: rows.copy()), False
-        for _ in range(6):
-            clock[0] += 0.1
-            perception.odometry.append((clock[0], np.zeros(3)))
-            if lasers:
-                perception.ranges(returns, np.zeros(3))
-            perception.step()
-        found[lasers] = sorted(perception.snapshot()[0].members, key=lambda m: m.pos[1])
+    found = {lasers: sorted(movenet_deploy(rows, returns=returns if lasers else None), key=lambda m: m.pos[1])
+             for lasers in (False, True)}
     assert len(found[False]) == 1 and np.hypot(*(found[False][0].pos - people_xy[0])) < 0.3
     assert len(found[True]) == 2
     cut = found[True][1]
