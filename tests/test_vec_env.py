@@ -201,5 +201,18 @@ def test_the_shield_penalty_costs_each_step_how_far_the_shield_moved_the_action_
         assert np.array_equal(d0, d1)  # the same steps: the penalty changes the reward only
         shielded += float(moved.sum())
     assert shielded > 1.0  # the shield did move those actions
+    plain, paid = (BatchedVecEnv(2, 0.4, True, False, w, scenario="mixed") for w in (0.0, 0.5))
+    for v in (plain, paid):
+        v.seed(3)
+        v.reset()
+    paid.batch.driven[:] = [False, True]  # as the observation model marks a step its search or a look took over
+    taken = 0.0
+    for _ in range(60):
+        act = np.tile(np.array([1.0, 0.3], dtype=np.float32), (2, 1))
+        r0, r1 = plain.step(act)[1], paid.step(act)[1]
+        moved = paid.stages.shield.last.correction()
+        assert r1[0] == pytest.approx(r0[0], abs=1e-6) and r1[1] == pytest.approx(r0[1] - 0.5 * moved[1], abs=1e-6)
+        taken += float(moved[0])
+    assert taken > 0.0  # the shield moved the first copy's actions: their cost was left out
     with pytest.raises(ConfigError, match="shield_penalty"):
         TrainConfig(safety_shield=False, shield_penalty=0.1)

@@ -120,9 +120,10 @@ class TrainConfig:
     shield_at_place: bool = False  # near its place the shield keeps the place's clearance from the members and
     #                                slows the arrival (ShieldParams.place_clearance, place_arrival_speed; on for
     #                                the shipped vector); tools and deploy too
-    # reward per step of -shield_penalty x how far the shield moved the action (``ShieldRecord.correction``): a
-    # policy that leans on its shield pays for it, as Alshiekh et al. (AAAI 2018, "Safe reinforcement learning via
-    # shielding") punish the actions a shield replaces. 0: off (ours; the paper has no shield)
+    # reward per step of -shield_penalty x how far the shield moved the action executed (``ShieldRecord.correction``;
+    # not one the observation model's search or looks replaced): a policy that leans on its shield pays for it, as
+    # Alshiekh et al. (AAAI 2018, "Safe reinforcement learning via shielding") punish the actions a shield replaces.
+    # 0: off (ours; the paper has no shield)
     shield_penalty: float = 0.0
 
     @property

@@ -59,8 +59,8 @@ class BatchedVecEnv(VecEnv):
     def step_wait(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[dict[str, Any]]]:
         b = self.batch
         rewards, terminated, truncated = b.step(self.stages(self._obs, self._actions))
-        if self.shield_penalty > 0 and self.stages.shield is not None:
-            rewards = rewards - self.shield_penalty * self.stages.shield.last.correction()
+        if self.shield_penalty > 0 and self.stages.shield is not None:  # on the actions executed (``driven``)
+            rewards = rewards - self.shield_penalty * self.stages.shield.last.correction() * b.driven
         obs = b.observations()
         done = terminated | truncated
         infos: list[dict[str, Any]] = [{} for _ in range(self.num_envs)]

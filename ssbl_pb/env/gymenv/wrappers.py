@@ -82,7 +82,7 @@ class ActionStagesWrapper(gym.Wrapper):
         obs, r, terminated, truncated, info = self.env.step(self.stages(self._obs, action))
         self._obs = obs
         shield = self.stages.shield
-        if self.shield_penalty > 0 and shield is not None:
+        if self.shield_penalty > 0 and shield is not None and self.env.unwrapped.sim.driven[0]:  # executed
             r = float(r) - self.shield_penalty * float(shield.last.correction()[0])
         return obs, r, terminated, truncated, {**info, "shield": None if shield is None else shield.last.row()}
 
