@@ -18,7 +18,6 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import math
-import os
 import shutil
 import signal
 import sys
@@ -30,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from ..agents.trained import policy_env_kwargs, policy_groups, resolve_model
-from ..cli import ArgumentParser, run
+from ..cli import ArgumentParser, run_without_teardown
 from ..core import observation as ob
 from ..core.layouts import GROUP_MODELS
 from ..core.task import TaskParams
@@ -260,17 +259,5 @@ def _tell(line: str, stream: Any = None) -> None:
         pass
 
 
-def _run_and_exit() -> None:
-    """``cli.run(main)``, then exit without the interpreter's teardown: once the run's files are written and the
-    base stopped, native finalizers (libqi's threads and others) take ~0.5 s, which would hide how fast a fault
-    ends the process."""
-    try:
-        run(main)
-    except SystemExit as done:
-        sys.stdout.flush()
-        sys.stderr.flush()
-        os._exit(done.code if isinstance(done.code, int) else 1)
-
-
 if __name__ == "__main__":
-    _run_and_exit()
+    run_without_teardown(main)

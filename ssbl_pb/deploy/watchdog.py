@@ -19,13 +19,14 @@ when the connection to the robot is lost (the base can no longer be stopped from
 from __future__ import annotations
 
 import argparse
+import os
 import signal
 import sys
 import threading
 import time
 
 try:  # inside the package: its error type and command-line contract
-    from ssbl_pb.cli import ArgumentParser, run
+    from ssbl_pb.cli import ArgumentParser, run_without_teardown
     from ssbl_pb.errors import UserError
 except ImportError:  # copied alone onto the robot: plain qi, the same contract in brief
     UserError = ValueError  # type: ignore[misc, assignment]
@@ -39,8 +40,9 @@ except ImportError:  # copied alone onto the robot: plain qi, the same contract 
     def _interrupt(signum, frame):  # type: ignore[no-untyped-def]
         raise KeyboardInterrupt(signum)
 
-    def run(main):  # type: ignore[no-redef]
-        """A ``ValueError`` is one line and exit 2; Ctrl-C exits 130, SIGTERM and SIGHUP 143 (the package's)."""
+    def run_without_teardown(main):  # type: ignore[no-redef]
+        """A ``ValueError`` is one line and exit 2; Ctrl-C exits 130, SIGTERM and SIGHUP 143 (the package's); the
+        exit skips the interpreter's teardown, where libqi's finalizers may abort."""
         signal.signal(signal.SIGTERM, _interrupt)
         if signal.getsignal(signal.SIGHUP) is not signal.SIG_IGN:  # nohup: the user asked to outlive the shell
             signal.signal(signal.SIGHUP, _interrupt)
@@ -51,7 +53,9 @@ except ImportError:  # copied alone onto the robot: plain qi, the same contract 
             code = 2
         except KeyboardInterrupt as exc:
             code = 143 if exc.args in ((signal.SIGTERM,), (signal.SIGHUP,)) else 130
-        sys.exit(code)
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
 
 SERVICE = "SSBLWatchdog"
 EXIT_LOST = 7  # as deploy's connection_lost
@@ -263,4 +267,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    run(main)
+    run_without_teardown(main)
