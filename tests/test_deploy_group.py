@@ -364,7 +364,8 @@ def test_group_params_name_the_bad_field():
     from ssbl_pb.params import ConfigError
     from ssbl_pb.perception.groups.estimate import GroupParams
 
-    for field, value, expected in [("forget_frames", 0, "an integer >= 1"), ("same_person_m", -0.1, "metres > 0"),
+    for field, value, expected in [("forget_frames", 0, "an integer >= 1"), ("facing_switch", True, "an integer >= 1"),
+                                   ("same_person_m", -0.1, "metres > 0"),
                                    ("edge_margin_m", float("nan"), "a number >= 0"),
                                    ("facing_gate_deg", 0.0, r"degrees in \(0, 180\]")]:
         with pytest.raises(ConfigError, match=f"group.{field} = .*expected {expected}"):

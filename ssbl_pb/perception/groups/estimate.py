@@ -75,7 +75,7 @@ class GroupParams:
     #   a flipped facing, or the person turned)
 
     def __post_init__(self) -> None:
-        for name, ok, expected in [(n, lambda v: isinstance(v, int) and v >= 1, "an integer >= 1")
+        for name, ok, expected in [(n, lambda v: type(v) is int and v >= 1, "an integer >= 1")
                                    for n in ("forget_frames", "facing_switch")] + [
                 (n, lambda v: isinstance(v, int | float) and 0 < v < math.inf, "metres > 0")
                 for n in ("same_person_m", "took_over_m", "max_range_m", "person_halfwidth_m")] + [
