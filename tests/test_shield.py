@@ -8,6 +8,7 @@ import pytest
 
 from ssbl_pb.core.observation import MEMBER_X, MEMBER_Y, MEMBERS, OBS_SIZE, POS_SCALE
 from ssbl_pb.core.shield import (
+    RULES,
     SafetyShield,
     ShieldParams,
     brake_closing,
@@ -552,17 +553,24 @@ def test_the_shield_builder_and_the_last_stage_perception_takes_over():
 
 
 def test_with_the_observation_model_the_rate_counts_the_steps_the_policy_drove_not_those_a_search_replaced():
-    from ssbl_pb.agents.rollout import run_episode, run_episodes, shield_changed
+    from ssbl_pb.agents.rollout import run_episode, run_episodes, shield_rules
     from ssbl_pb.analysis.evaluation import Setup
 
     setup = Setup("vector", scenario="mixed", env_kwargs=(("perception", True),))
     env, policy = setup()
     sim, seen = env.unwrapped.sim, []
     r = run_episode(env, policy, 500009, keep_trajectory=False,
-                    on_step=lambda e: seen.append((bool(sim.driven[0]), bool(shield_changed(policy, 1)[0]))))
+                    on_step=lambda e: seen.append((bool(sim.driven[0]), int(shield_rules(policy, 1)[0]))))
     steps = seen[1:]  # the first call comes after the reset, before any step
-    driven = [c for d, c in steps if d]
+    driven = [rules for d, rules in steps if d]
     assert len(driven) < len(steps)  # it searched for the group, or looked at members, on some steps
-    assert r.metrics["shield_intervention_rate"] == pytest.approx(sum(driven) / len(driven))
+    assert r.metrics["shield_intervention_rate"] == pytest.approx(sum(x != 0 for x in driven) / len(driven))
+    for name in ("members", "place"):  # each rule's share of the same steps (core.shield.RULES)
+        flag = RULES.index(name)
+        share = sum(bool(x & (1 << flag)) for x in driven) / len(driven)
+        assert r.metrics[f"shield_{name}_rate"] == pytest.approx(share) and share > 0
+    rates = [r.metrics[f"shield_{name}_rate"] for name in RULES]
+    assert max(rates) <= r.metrics["shield_intervention_rate"] <= sum(rates) + 1e-12  # a step may meet several
     batch = run_episodes(setup, [500009], workers=1)
     assert batch[0].metrics["shield_intervention_rate"] == r.metrics["shield_intervention_rate"]
+    assert [batch[0].metrics[f"shield_{n}_rate"] for n in RULES] == rates

@@ -65,6 +65,8 @@ def main(argv: list[str] | None = None) -> int:
           f"shield {summary['shield_intervention_rate']:.1%} of steps  "
           f"return {summary['mean_return']:.3f}  personal-zone {summary['personal_zone_time_s']:.2f}s  "
           f"-> {args.out}/summary.json")
+    if summary.get("shield_rules"):  # which of the shield's rules changed the steps (core.shield.RULES)
+        print("shield by rule: " + ", ".join(f"{k} {v:.1%}" for k, v in summary["shield_rules"].items()))
     if "failures" in summary:  # through the observation model: why the others failed (metrics.failure_kind)
         print("failures: " + ", ".join(f"{k} {n}" for k, n in summary["failures"].items()))
     return 0

@@ -22,6 +22,7 @@ import numpy as np
 from ..cli import children_ignore_sigint, die_with_parent
 from ..core.layouts import body_radii
 from ..core.reward import TERMS
+from ..core.shield import RULES
 from .metrics import episode_metrics
 from .policies import Policy
 
@@ -47,42 +48,53 @@ def run_episode(env: gym.Env, policy: Policy, seed: int, keep_trajectory: bool =
     state, start = None, np.ones((1,), dtype=bool)
     if on_step is not None:
         on_step(env)
-    steps = shielded = 0
+    steps = 0
+    shielded = np.zeros(len(RULES) + 1)  # steps changed by any rule, then by each of ``RULES``
     sim = getattr(core, "sim", None)
     while True:
         action, state = policy.predict(obs, state=state, episode_start=start, deterministic=True)
         start = np.zeros((1,), dtype=bool)
-        changed = bool(shield_changed(policy, 1)[0])
+        rules = shield_rules(policy, 1)[0]
         obs, _, terminated, truncated, info = env.step(action)
         driven = sim is None or bool(sim.driven[0])  # the policy's action, not one perception's search replaced
         steps += driven
-        shielded += driven and changed
+        shielded += driven * rule_flags(rules)
         if on_step is not None:
             on_step(env)
         if terminated or truncated:
             break
-    return _result(core, seed, core.trajectory, {**reset_info, **info}, keep_trajectory, _rate(shielded, steps))
+    return _result(core, seed, core.trajectory, {**reset_info, **info}, keep_trajectory, _rates(shielded, steps))
 
 
-def _rate(shielded: float, steps: float) -> float:
-    """Share of the steps the policy drove that its shield changed (NaN: it drove none)."""
-    return shielded / steps if steps else math.nan
+def _rates(shielded: np.ndarray, steps: float) -> np.ndarray:
+    """Shares of the steps the policy drove that its shield changed, by any rule then by each (NaN: it drove
+    none)."""
+    return shielded / steps if steps else np.full(len(shielded), math.nan)
 
 
-def shield_changed(policy: Policy, n: int) -> np.ndarray:
-    """Per row of the policy's last action (``n`` rows), whether its safety shield changed it (all False for a
-    policy without one); ``core.shield.SafetyShield.last``."""
+def rule_flags(rules: np.ndarray | int) -> np.ndarray:
+    """Per shield record (``RULE_*`` flags, shape (n,) or scalar), whether any rule acted, then each of ``RULES``
+    (float (..., 1 + len(RULES)))."""
+    r = np.asarray(rules, dtype=np.int64)[..., None]
+    return np.concatenate([r != 0, (r & (1 << np.arange(len(RULES)))) != 0], axis=-1).astype(float)
+
+
+def shield_rules(policy: Policy, n: int) -> np.ndarray:
+    """Per row of the policy's last action (``n`` rows), the rules of its safety shield that changed it (``RULE_*``
+    flags; all 0 for a policy without one); ``core.shield.SafetyShield.last``."""
     last = getattr(getattr(policy, "shield", None), "last", None)
-    return np.zeros(n, dtype=bool) if last is None else last.changed()
+    return np.zeros(n, dtype=np.int64) if last is None else np.asarray(last.rules, dtype=np.int64).reshape(n)
 
 
 def _result(core: Any, seed: int, trajectory: list[dict[str, Any]], info: dict[str, Any],
-            keep_trajectory: bool, shield_rate: float) -> EpisodeResult:
+            keep_trajectory: bool, shield_rates: np.ndarray) -> EpisodeResult:
     m = episode_metrics(trajectory, info["success"], info["collision"], info["violation"], core.task, core.dt,
                         core.social.fov_half_angle_deg, body_radii(core.social, core.robot_params.radius),
                         info.get("obstacle_collision", False))
     sums = info["episode_terms"]
-    m["shield_intervention_rate"] = float(shield_rate)  # share of the steps the policy drove its shield changed
+    m["shield_intervention_rate"] = float(shield_rates[0])  # share of the steps the policy drove its shield changed
+    for name, rate in zip(RULES, shield_rates[1:], strict=True):  # ... and each rule
+        m[f"shield_{name}_rate"] = float(rate)
     if "perceived" in info:  # the observation model's end state (``BatchedApproach.perceived_outcome``)
         seen = info["perceived"]
         m.update(perceived_slot_error_m=seen["slot_error_m"], perceived_place_distance_m=seen["place_distance_m"],
@@ -117,15 +129,15 @@ def run_batch(env: gym.Env, policy: Policy, seeds: list[int], keep: list[bool]) 
     start, active = np.ones(len(seeds), dtype=bool), np.ones(len(seeds), dtype=bool)
     out: list[EpisodeResult | None] = [None] * len(seeds)
     t = 0.0
-    steps, shielded = np.zeros(len(seeds)), np.zeros(len(seeds))
+    steps, shielded = np.zeros(len(seeds)), np.zeros((len(seeds), len(RULES) + 1))
     while active.any():
         action, state = policy.predict(obs, state=state, episode_start=start, deterministic=True)
         start[:] = False
-        changed = shield_changed(policy, len(seeds))
+        rules = shield_rules(policy, len(seeds))
         _, terminated, truncated = sim.step(action)
         driven = active & sim.driven  # the policy's actions, not those perception's search or looks replaced
         steps += driven
-        shielded += driven & changed
+        shielded += driven[:, None] * rule_flags(rules)
         t += core.dt
         obs = sim.observations()
         for i in np.flatnonzero(active).tolist():
@@ -133,7 +145,7 @@ def run_batch(env: gym.Env, policy: Policy, seeds: list[int], keep: list[bool]) 
             if terminated[i] or truncated[i]:
                 active[i] = False
                 out[i] = _result(core, seeds[i], trajectories[i], {**infos[i], **sim.outcome(i)}, keep[i],
-                                 _rate(shielded[i], steps[i]))
+                                 _rates(shielded[i], steps[i]))
     return out  # type: ignore[return-value]
 
 

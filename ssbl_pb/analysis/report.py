@@ -80,6 +80,10 @@ def summarize(rows: list[dict[str, float]], extra: dict[str, Any] | None = None)
                 "outside_fov_time_s", "time_to_success_s", "path_length_m", "min_obstacle_clearance_m",
                 "shield_intervention_rate"):
         out[key] = per[key]["mean"]
+    rules = {k[len("shield_"):-len("_rate")]: per[k]["mean"] for k in keys
+             if k.startswith("shield_") and k.endswith("_rate") and k != "shield_intervention_rate"}
+    if rules:  # each shield rule's share of the steps the policy drove (``agents.rollout``)
+        out["shield_rules"] = rules
     out["metrics"] = per
     return out
 
