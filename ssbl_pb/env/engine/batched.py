@@ -206,10 +206,19 @@ class BatchedApproach:
     def observations(self, rows: np.ndarray | None = None) -> np.ndarray:
         """The Vector observations (N, OBS_SIZE) of the current states (recomputing ``rows`` only, if given): of
         the true group, or with the observation model of the perceived one."""
+        rows = self._all if rows is None else rows
         g = self.perceived or self.groups_state
         slot = self.slot if self.perceived is None else self.perceived.slot
         kernels.observations(self._tp, self.pose, self.vel, g.count, g.pos, g.vel, g.centre, g.scalars, slot,
-                             self.room, self.fields, self.plans, self._obs, self._all if rows is None else rows)
+                             self.room, self.fields, self.plans, self._obs, rows)
+        oracle = () if self.perceived is None else self.perceived.params.oracle
+        if oracle:  # diagnostics: parts of it from the true state (``PerceptionParams.oracle``)
+            t, true = self.groups_state, np.empty_like(self._obs)
+            kernels.observations(self._tp, self.pose, self.vel, t.count, t.pos, t.vel, t.centre, t.scalars,
+                                 self.slot, self.room, self.fields, self.plans, true, rows)
+            for part in oracle:
+                cols = slice(ob.MEMBERS, ob.HEADING) if part == "members" else slice(ob.SLOT_X, ob.OSPACE_RADIUS + 1)
+                self._obs[rows, cols] = true[rows, cols]
         return self._obs.copy()
 
     # -- episodes ---------------------------------------------------------------------------------------

@@ -60,6 +60,10 @@ from .looks import CONFIRM_S, Looks, claim_rule
 IMAGE_SIZE = (320, 240)
 
 
+# parts of the Vector observation ``oracle`` can give from the true state instead (diagnostics: what each part of the
+# perceived group costs, tools/ablate_perception.py): the member blocks (positions, velocities, presence) and the
+# group's place, centre and o-space radius
+ORACLE_PARTS = ("members", "group")
 DETECTORS = ("movenet", "colour")  # the chains modelled: a real Pepper's (MoveNet on people), the virtual Pepper's
 #   colour detector on box proxies
 
@@ -109,6 +113,9 @@ class PerceptionParams:
     sidestep_repeats: int = 3  # ... up to this many in a row (DeployParams.sidestep_repeats)
     sidestep_clearance: float = 0.4  # m: a sidestep goes only where the footprint keeps this from walls and furniture
     confirm_s: float = CONFIRM_S  # s: a claim is backed by members seen this long before it (Looks.confirm_s)
+    # diagnostics only: these ``ORACLE_PARTS`` of the observation come from the true state (the search, the looks
+    # and the success rule stay perception's); () for the chain a robot runs
+    oracle: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         _check(self.detector in DETECTORS, "perception", "detector", self.detector, f"one of {list(DETECTORS)}")
@@ -142,6 +149,8 @@ class PerceptionParams:
                "sidestep_clearance", self.sidestep_clearance, "metres >= 0")
         _check(isinstance(self.confirm_s, int | float) and self.confirm_s > 0, "perception", "confirm_s",
                self.confirm_s, "seconds > 0")
+        _check(isinstance(self.oracle, tuple) and all(p in ORACLE_PARTS for p in self.oracle), "perception",
+               "oracle", self.oracle, f"a list of {list(ORACLE_PARTS)} (empty: none)")
 
     @property
     def keypoints(self) -> bool:
