@@ -16,6 +16,7 @@ from ssbl_pb.errors import UserError
 from ssbl_pb.params import ConfigError
 
 MEMBERS, GROUP = slice(ob.MEMBERS, ob.HEADING), slice(ob.SLOT_X, ob.OSPACE_RADIUS + 1)
+PLACE = slice(ob.SLOT_X, ob.SLOT_Y + 1)
 
 
 def _perceived_and_true(oracle: list[str]) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -32,11 +33,14 @@ def _perceived_and_true(oracle: list[str]) -> list[tuple[np.ndarray, np.ndarray]
 
 
 def test_the_oracle_gives_the_parts_named_from_the_true_state_and_the_rest_as_perceived() -> None:
-    both = _perceived_and_true(["members", "group"])
+    both = _perceived_and_true(["members", "place", "centre"])
     assert all(np.array_equal(s[MEMBERS], t[MEMBERS]) and np.array_equal(s[GROUP], t[GROUP]) for s, t in both)
     members = _perceived_and_true(["members"])
     assert all(np.array_equal(s[MEMBERS], t[MEMBERS]) for s, t in members)
     assert any(not np.allclose(s[GROUP], t[GROUP], atol=1e-3) for s, t in members)  # the place as perceived
+    place = _perceived_and_true(["place"])
+    assert all(np.array_equal(s[PLACE], t[PLACE]) for s, t in place)
+    assert any(not np.allclose(s[GROUP], t[GROUP], atol=1e-3) for s, t in place)  # the centre as perceived
     none = _perceived_and_true([])
     assert any(not np.allclose(s[MEMBERS], t[MEMBERS], atol=1e-3) for s, t in none)
 
@@ -68,9 +72,9 @@ def test_the_tool_writes_each_ablations_evaluation_and_the_table(tmp_path) -> No
     tool = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(tool)  # type: ignore[union-attr]
     out = tmp_path / "abl"
-    assert tool.main(["--policy", "straight", "--only", "model,true-both", "--episodes", "1", "--out",
+    assert tool.main(["--policy", "straight", "--only", "model,true-all", "--episodes", "1", "--out",
                       str(out)]) == 0
     data = json.loads((out / "ablations.json").read_text())
-    assert [r["name"] for r in data["rows"]] == ["model", "true-both"] and data["detector"] == "movenet"
-    assert (out / "model" / "episodes.csv").is_file() and (out / "true-both" / "summary.json").is_file()
-    assert "| true-both |" in (out / "ablations.md").read_text()
+    assert [r["name"] for r in data["rows"]] == ["model", "true-all"] and data["detector"] == "movenet"
+    assert (out / "model" / "episodes.csv").is_file() and (out / "true-all" / "summary.json").is_file()
+    assert "| true-all |" in (out / "ablations.md").read_text()

@@ -33,9 +33,10 @@ ABLATIONS = (
     Ablation("any-sliver", "a person found with any part of the torso in the image", {"min_visible": 0.01}),
     Ablation("every-member-in-view", "every member in the image found (the three above)", IN_VIEW),
     Ablation("true-members", "the observation's member blocks from the true state", {"oracle": ["members"]}),
-    Ablation("true-group", "the observation's place, centre and radius from the true state", {"oracle": ["group"]}),
-    Ablation("true-both", "both (the search, looks and success rule stay perception's)",
-             {"oracle": ["members", "group"]}),
+    Ablation("true-place", "the observation's place from the true state", {"oracle": ["place"]}),
+    Ablation("true-group", "... and its centre and o-space radius", {"oracle": ["place", "centre"]}),
+    Ablation("true-all", "... and its members (the search, looks and success rule stay perception's)",
+             {"oracle": ["members", "place", "centre"]}),
 )
 BY_NAME = {a.name: a for a in ABLATIONS}
 

@@ -37,6 +37,10 @@ from ..rooms.spawn import NoPlace, spawn_layout
 from . import kernels
 from .env_params import parse_env_params
 
+# the observation's columns of each part ``PerceptionParams.oracle`` can give from the true state
+ORACLE_COLUMNS = {"members": slice(ob.MEMBERS, ob.HEADING), "place": slice(ob.SLOT_X, ob.SLOT_Y + 1),
+                  "centre": slice(ob.CENTRE_X, ob.OSPACE_RADIUS + 1)}
+
 SPAWN_TRIES = 20  # groups in the map room, or furnished rooms, tried for one episode (each 1000 places)
 
 
@@ -217,8 +221,7 @@ class BatchedApproach:
             kernels.observations(self._tp, self.pose, self.vel, t.count, t.pos, t.vel, t.centre, t.scalars,
                                  self.slot, self.room, self.fields, self.plans, true, rows)
             for part in oracle:
-                cols = slice(ob.MEMBERS, ob.HEADING) if part == "members" else slice(ob.SLOT_X, ob.OSPACE_RADIUS + 1)
-                self._obs[rows, cols] = true[rows, cols]
+                self._obs[rows, ORACLE_COLUMNS[part]] = true[rows, ORACLE_COLUMNS[part]]
         return self._obs.copy()
 
     # -- episodes ---------------------------------------------------------------------------------------

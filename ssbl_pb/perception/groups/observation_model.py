@@ -61,9 +61,9 @@ IMAGE_SIZE = (320, 240)
 
 
 # parts of the Vector observation ``oracle`` can give from the true state instead (diagnostics: what each part of the
-# perceived group costs, tools/ablate_perception.py): the member blocks (positions, velocities, presence) and the
-# group's place, centre and o-space radius
-ORACLE_PARTS = ("members", "group")
+# perceived group costs, tools/ablate_perception.py): the member blocks (positions, velocities, presence), the place,
+# and the group's centre with its o-space radius
+ORACLE_PARTS = ("members", "place", "centre")
 DETECTORS = ("movenet", "colour")  # the chains modelled: a real Pepper's (MoveNet on people), the virtual Pepper's
 #   colour detector on box proxies
 
