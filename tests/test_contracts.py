@@ -303,6 +303,8 @@ CASES = [
     C("bench_seeds.py", "--runs", "{tmp}", "--perception", "maybe", "--out", "{out}", expect="--perception maybe"),
     C("bench_seeds.py", "--runs", "{tmp}", "--episodes", "0", "--out", "{out}", expect="argument --episodes"),
     C("main_job.py", "--seed", "-1", "--out", "{out}", expect="argument --seed: -1: expected an integer in [0, "),
+    C("ablate_perception.py", "--only", "model,bogus", "--out", "{out}", expect="unknown ablation(s) ['bogus']"),
+    C("ablate_perception.py", "--policy", "{tmp}/nope", "--out", "{out}", expect="--policy '"),
     C("train_pb.py", "--seed", "4294967296", "--out", "{out}", expect="argument --seed"),
     C("train_pb.py", "--set", "seed=-1", "--out", "{out}", expect="config.seed = -1: expected an integer in [0, "),
     C("train_ae.py", "--frames", "{file}", "--seed", "-1", "--out", "{out}", expect="argument --seed"),
