@@ -37,10 +37,6 @@ from ..rooms.spawn import NoPlace, spawn_layout
 from . import kernels
 from .env_params import parse_env_params
 
-# the observation's columns of each part ``PerceptionParams.oracle`` can give from the true state
-ORACLE_COLUMNS = {"members": slice(ob.MEMBERS, ob.HEADING), "place": slice(ob.SLOT_X, ob.SLOT_Y + 1),
-                  "centre": slice(ob.CENTRE_X, ob.OSPACE_RADIUS + 1)}
-
 SPAWN_TRIES = 20  # groups in the map room, or furnished rooms, tried for one episode (each 1000 places)
 
 
@@ -215,13 +211,13 @@ class BatchedApproach:
         slot = self.slot if self.perceived is None else self.perceived.slot
         kernels.observations(self._tp, self.pose, self.vel, g.count, g.pos, g.vel, g.centre, g.scalars, slot,
                              self.room, self.fields, self.plans, self._obs, rows)
-        oracle = () if self.perceived is None else self.perceived.params.oracle
-        if oracle:  # diagnostics: parts of it from the true state (``PerceptionParams.oracle``)
+        columns = [] if self.perceived is None else self.perceived.oracle_columns
+        if columns:  # diagnostics: parts of it from the true state (``PerceptionParams.oracle``)
             t, true = self.groups_state, np.empty_like(self._obs)
             kernels.observations(self._tp, self.pose, self.vel, t.count, t.pos, t.vel, t.centre, t.scalars,
                                  self.slot, self.room, self.fields, self.plans, true, rows)
-            for part in oracle:
-                self._obs[rows, ORACLE_COLUMNS[part]] = true[rows, ORACLE_COLUMNS[part]]
+            for cols in columns:
+                self._obs[rows, cols] = true[rows, cols]
         return self._obs.copy()
 
     # -- episodes ---------------------------------------------------------------------------------------

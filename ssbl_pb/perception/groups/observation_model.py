@@ -38,6 +38,7 @@ from typing import Any
 
 import numpy as np
 
+from ...core import observation as ob
 from ...core.humans import MAX_HUMANS, N_SCALARS, RADIUS
 from ...core.range_sensors import lasers_see_body
 from ...params import ConfigError, RobotParams, SocialParams, _check, from_dict
@@ -61,9 +62,11 @@ IMAGE_SIZE = (320, 240)
 
 
 # parts of the Vector observation ``oracle`` can give from the true state instead (diagnostics: what each part of the
-# perceived group costs, tools/ablate_perception.py): the member blocks (positions, velocities, presence), the place,
-# and the group's centre with its o-space radius
-ORACLE_PARTS = ("members", "place", "centre")
+# perceived group costs, tools/ablate_perception.py), by their columns: the member blocks (positions, velocities,
+# presence), the place, and the group's centre with its o-space radius
+ORACLE_COLUMNS = {"members": slice(ob.MEMBERS, ob.HEADING), "place": slice(ob.SLOT_X, ob.SLOT_Y + 1),
+                  "centre": slice(ob.CENTRE_X, ob.OSPACE_RADIUS + 1)}
+ORACLE_PARTS = tuple(ORACLE_COLUMNS)
 DETECTORS = ("movenet", "colour")  # the chains modelled: a real Pepper's (MoveNet on people), the virtual Pepper's
 #   colour detector on box proxies
 
@@ -433,6 +436,11 @@ class PerceivedGroups:
         self.scalars = np.zeros((num, N_SCALARS))
         self.slot = np.zeros((num, 2))
         self.known = np.zeros(num, dtype=bool)
+
+    @property
+    def oracle_columns(self) -> list[slice]:
+        """The observation's columns the engine takes from the true state (``PerceptionParams.oracle``)."""
+        return [ORACLE_COLUMNS[part] for part in self.params.oracle]
 
     def seed(self, i: int, seed: int | None) -> None:
         self.copies[i].seed(seed)
