@@ -18,15 +18,9 @@ import os
 import shutil
 from pathlib import Path
 
-from ssbl_pb.agents.rollout import run_episodes
-from ssbl_pb.agents.trained import copy_policy, load_trained, policy_env_kwargs, resolve_model
-from ssbl_pb.analysis.evaluation import Setup
-from ssbl_pb.analysis.report import summarize
 from ssbl_pb.cli import ArgumentParser, UserError, command_line, int_at_least, progress_bar, run
-from ssbl_pb.env.gymenv.approach import make_env
 from ssbl_pb.files import make_stage_dir, source_commit, write_json
 from ssbl_pb.policies import SHIPPED_DIR
-from ssbl_pb.training.recipe import provenance
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIOS = ("default", "mixed", "mixed@furnished")  # mixed@furnished: the rooms with furniture
@@ -47,6 +41,10 @@ def pick_model(run_dir: Path, which: str) -> Path:
 
 
 def evaluate(policy: str, seeds: range, label: str) -> dict[str, dict[str, float]]:
+    from ssbl_pb.agents.rollout import run_episodes
+    from ssbl_pb.analysis.evaluation import Setup
+    from ssbl_pb.analysis.report import summarize
+
     results = {}
     for scenario in SCENARIOS:
         with progress_bar(len(seeds), f"{label} {scenario}") as bar:
@@ -81,6 +79,10 @@ def main(argv: list[str] | None = None) -> int:
                     help="the run's best evaluated model (best/, default) or its final one (model.zip)")
     ap.add_argument("--force", action="store_true", help="ship even if it evaluates worse than the shipped policy")
     args = ap.parse_args(argv)
+    # the env, its perception and torch: after --help and argparse's errors
+    from ssbl_pb.agents.trained import copy_policy, load_trained, policy_env_kwargs, resolve_model
+    from ssbl_pb.env.gymenv.approach import make_env
+    from ssbl_pb.training.recipe import provenance
 
     if not args.name.isidentifier():
         raise UserError(f"--name {args.name!r}: expected a plain name (letters, digits, _)")
