@@ -55,6 +55,8 @@ def test_ablations_are_picked_by_name_in_the_tools_order() -> None:
     assert pick(None) == list(ABLATIONS) and ABLATIONS[0].perception == {}  # the model itself first
     with pytest.raises(UserError, match=r"unknown ablation\(s\) \['bogus'\]"):
         pick("model,bogus")
+    with pytest.raises(UserError, match="--only ','"):  # nothing named: no empty table
+        pick(",")
 
 
 def test_the_table_gives_success_shield_and_failures_per_ablation() -> None:

@@ -47,6 +47,8 @@ def pick(names: str | None) -> list[Ablation]:
         return list(ABLATIONS)
     wanted = [n.strip() for n in names.split(",") if n.strip()]
     unknown = [n for n in wanted if n not in BY_NAME]
+    if not wanted:
+        raise UserError(f"--only {names!r}: expected some of {list(BY_NAME)}")
     if unknown:
         raise UserError(f"--only: unknown ablation(s) {unknown}; expected some of {list(BY_NAME)}")
     return [a for a in ABLATIONS if a.name in wanted]
