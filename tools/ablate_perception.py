@@ -42,7 +42,9 @@ def main(argv: list[str] | None = None) -> int:
                              args.out, workers, bar)
     for r in rows:
         print(f"{r['name']:>22}: success {r['success_rate']:.1%}  shield {r['shield_intervention_rate']:.1%}  "
-              + ", ".join(f"{k} {n}" for k, n in r["failures"].items()))
+              + ", ".join(f"{k} {n}" for k, n in r["failures"].items())
+              + ("" if not r["versus"] else f"  (vs {r['versus']['against']}: +{r['versus']['gained']} "
+                 f"-{r['versus']['lost']}, p {r['versus']['p']:.2g})"))
     print(f"-> {args.out}/ablations.md")
     return 0
 

@@ -10,6 +10,7 @@ from typing import Any
 
 from ..errors import UserError
 from ..files import write_json, write_text
+from .compare import paired_test
 from .evaluation import Setup, evaluate
 
 NOISELESS = {"laser_std_m": 0.0, "range_std_m": 0.0, "range_std_per_m": 0.0, "bearing_std_deg": 0.0,
@@ -58,28 +59,45 @@ def run_ablations(policy: str, scenario: str, detector: str, ablations: list[Abl
                   out: Path, workers: int = 1, progress: Any = None) -> list[dict[str, Any]]:
     """Evaluate ``policy`` through each ablation of the ``detector``'s model (``out/NAME/``: evaluate's files), then
     write ``out/ablations.json`` and ``out/ablations.md``; returns the rows."""
-    rows = []
+    rows, first = [], None
     for a in ablations:
         setup = Setup(policy, scenario=scenario, env_kwargs=(("perception", {"preset": detector, **a.perception}),))
-        summary, _ = evaluate(setup, episodes, seed, out / a.name, workers, 0, progress)
+        summary, results = evaluate(setup, episodes, seed, out / a.name, workers, 0, progress)
+        success = {r.seed: r.metrics["success"] for r in results}
+        first = first or (a.name, success)
         rows.append({"name": a.name, "what": a.what, "success_rate": summary["success_rate"],
                      "shield_intervention_rate": summary["shield_intervention_rate"],
-                     "failures": summary["failures"]})
+                     "failures": summary["failures"],
+                     "versus": None if first[1] is success else versus(success, first[1], first[0])})
     meta = {"policy": policy, "scenario": scenario, "detector": detector, "episodes": episodes, "seed": seed}
     write_json(out / "ablations.json", {**meta, "rows": rows})
     write_text(out / "ablations.md", table(rows, meta))
     return rows
 
 
+def versus(success: dict[int, float], first: dict[int, float], name: str) -> dict[str, Any]:
+    """One ablation's episodes against the first row's (``name``), seed by seed (the same starts): how many it
+    joined that the first did not (``gained``), the reverse (``lost``), and McNemar's exact p on those discordant
+    pairs (``compare.paired_test``). Two evaluations of 200 starts differ by +-2.5 points by chance alone; the
+    pairs tell whether a difference is more than that."""
+    seeds = sorted(success)
+    t = paired_test([success[s] for s in seeds], [first[s] for s in seeds], binary=True)
+    return {"against": name, "gained": t["a_only"], "lost": t["b_only"], "p": t["p"]}
+
+
 def table(rows: list[dict[str, Any]], meta: dict[str, Any]) -> str:
-    """The rows as Markdown: success, shield rate and the failures by kind (``agents.metrics.failure_kind``)."""
+    """The rows as Markdown: success, shield rate, the failures by kind (``agents.metrics.failure_kind``) and each
+    row against the first, seed by seed (``versus``)."""
     kinds = list(rows[0]["failures"]) if rows else []
     lines = [f"Policy `{meta['policy']}` on `{meta['scenario']}` through the `{meta['detector']}` chain's model, "
              f"{meta['episodes']} episodes from seed {meta['seed']} each.", "",
-             "| ablation | what it takes away | success | shield | " + " | ".join(kinds) + " |",
-             "|---|---|---|---|" + "---|" * len(kinds)]
+             "| ablation | what it takes away | success | shield | " + " | ".join(kinds) + " | joined / lost vs "
+             f"{rows[0]['name'] if rows else '-'} (McNemar p) |",
+             "|---|---|---|---|" + "---|" * len(kinds) + "---|"]
     for r in rows:
+        v = r.get("versus")
+        pair = "-" if not v else f"+{v['gained']} / -{v['lost']} (p {v['p']:.2g})"
         lines.append(f"| {r['name']} | {r['what']} | {100 * r['success_rate']:.1f} % | "
                      f"{100 * r['shield_intervention_rate']:.1f} % | "
-                     + " | ".join(str(r["failures"][k]) for k in kinds) + " |")
+                     + " | ".join(str(r["failures"][k]) for k in kinds) + f" | {pair} |")
     return "\n".join(lines) + "\n"
