@@ -200,8 +200,9 @@ def test_the_clearance_kept_from_members_out_of_view_grows_by_their_reach_capped
 
 
 def test_someone_seen_walking_into_a_blind_sector_is_braked_for_where_they_could_stand():
+    from ssbl_pb.core.range_memory import PHANTOM_REACH, RANGE_MEMORY_S
     from ssbl_pb.core.range_sensors import in_laser_fields
-    from ssbl_pb.deploy.guards import PHANTOM_REACH, RANGE_MEMORY_S, Guards
+    from ssbl_pb.deploy.guards import Guards
     from ssbl_pb.deploy.robot import RangeScan
 
     guards = Guards(SHIELD, 0.55, 0.45, Frames())

@@ -13,11 +13,11 @@ from typing import Any
 
 import numpy as np
 
+from ..core.range_memory import WALK_SPEED
 from ..core.range_sensors import in_laser_fields
 from ..deploy.robot import relative
 from ..env.view.bullet import pybullet as p
 from ..env.view.world import World, box_circle_distance
-from ..perception.groups.estimate import WALK_SPEED
 from ..urdf import urdf_path
 
 WALKER_KEEP = 0.6  # m between a walker's body and the footprint where it stops (ours: people do not walk into a

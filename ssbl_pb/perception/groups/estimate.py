@@ -23,6 +23,7 @@ from scipy.optimize import linear_sum_assignment
 
 from ...core.humans import MAX_HUMANS, measured_group
 from ...core.layouts import slot_keep
+from ...core.range_memory import WALK_SPEED
 from ...core.task import TaskParams
 from ...params import RobotParams, SocialParams, _check
 from ..camera import PinholeCamera
@@ -47,11 +48,6 @@ TRACKER = TrackerParams(meas_std=0.1, birth_hits=2, accel_std=0.7)
 TRACKER_KEYPOINTS = TrackerParams(meas_std=0.25, birth_hits=3, accel_std=0.3, min_new_dist=0.4, max_jump=1.0,
                                   max_speed=0.5, coast=False)
 TORSO_HEIGHT = 0.60  # m: the proxy's torso box (urdf/human.urdf)
-# m/s a person out of view may walk: how fast a remembered member's uncertainty grows (``Member.reach``). Comfortable
-# walking is 1.27-1.46 m/s (Bohannon 1997, adults 20-79); ETH/UCY pedestrians moving faster than 0.3 m/s walk at a
-# median 1.16 m/s, quartiles 0.78-1.45 (shared/data/trajectories, ``calib.humans``); someone in a conversation
-# who moves steps rather than walks, and the simulated members never exceed SocialParams.max_speed (1.0)
-WALK_SPEED = 1.0
 MIN_VISIBLE = 0.35  # share of a torso's width that must show inside the image for a cut box to count
 
 @dataclasses.dataclass(frozen=True)
