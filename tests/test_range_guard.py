@@ -82,3 +82,26 @@ def test_the_engine_guards_every_step_with_the_model_on_and_never_with_it_off(mo
         for _ in range(2):
             b.step(np.zeros((1, b.n_act)))
         assert calls == expected, perception
+
+
+def test_a_member_the_lasers_saw_and_nobody_tracks_is_braked_for_in_the_blind_sector_they_stepped_into():
+    """Deploy's ``RangeMemory`` in the engine: a member perception never tracked, seen by the front laser at 25 deg,
+    then standing at 50 deg (the blind sector), is braked for half a second later; a new episode forgets them."""
+    b = BatchedApproach(1, "default", perception=True)
+    b.seed(0, 3)
+    b.reset(0)
+    g, n = b.groups_state, int(b.groups_state.count[0])
+    b.pose[0] = [0.0, 0.0, 0.0]
+    b.perceived.count[0] = 0  # perception tracks nobody: no track explains what the lasers see
+    g.pos[0, 1:n] = [[-3.0, 3.0]] * (n - 1)
+    aim = np.array([[3.0, 0.0]])  # straight ahead: the action frame is the body's
+    g.pos[0, 0] = _at(25, 1.6)[0]
+    b.steps[0] = 0
+    b._range_guard(np.zeros((1, 2)), aim)  # the front laser sees them
+    g.pos[0, 0] = _at(50, 1.2)[0]
+    b.steps[0] = 5  # 0.5 s on: they may have walked 0.5 m unseen
+    toward = np.array([[math.cos(math.radians(50)), math.sin(math.radians(50))]])
+    out = b._range_guard(toward, aim)
+    assert out[0] @ toward[0] < 0.5  # the closing speed cut by half at least
+    b._range_memory[0].clear()
+    assert b._range_guard(toward, aim) == pytest.approx(toward)  # nothing remembered: nothing in view to brake for

@@ -5,6 +5,7 @@ training env's model of them (``env.engine.batched.BatchedApproach._range_guard`
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -32,6 +33,16 @@ PERSON_REACH = 0.6  # m from a tracked person within which a return is theirs (t
 #   estimate's p90 error, 0.30 m, ``GroupTracker.hold``): not remembered, the member guard has them
 
 
+@functools.lru_cache(maxsize=4)
+def _hidden_centres(radius: float) -> tuple[np.ndarray, np.ndarray]:
+    """Body centres (robot frame) no laser would see any of: out of every field (centre and both sides), from just
+    beyond the footprint to the lasers' range and a body beyond; and each one's bearing bin (3 deg)."""
+    bearing, dist = np.meshgrid(np.radians(np.arange(-180, 180, 3.0)), np.arange(0.5, RANGES.laser_max + 0.3, 0.05))
+    c = np.column_stack([(dist * np.cos(bearing)).ravel(), (dist * np.sin(bearing)).ravel()])
+    hidden = ~lasers_see_body(c, radius)
+    return c[hidden], np.indices(bearing.shape)[1].ravel()[hidden]
+
+
 class RangeMemory:
     """Unexplained range returns (not on the map, not by a tracked person) remembered in the odometry frame for
     ``RANGE_MEMORY_S``, and where whoever they came from could be now (``phantoms``): someone a laser saw may since
@@ -43,12 +54,11 @@ class RangeMemory:
         self.r = human_radius
         self.points = np.zeros((0, 2))  # odometry frame (m), one per ``MEMORY_CELL``
         self.times = np.zeros(0)  # when each was last seen (s, the loop's clock)
-        # body centres (robot frame) no laser would see any of: out of every field (centre and both sides), from
-        # just beyond the footprint to the lasers' range and a body beyond
-        bearing, dist = np.meshgrid(np.radians(np.arange(-180, 180, 3.0)), np.arange(0.5, RANGES.laser_max + 0.3, 0.05))
-        c = np.column_stack([(dist * np.cos(bearing)).ravel(), (dist * np.sin(bearing)).ravel()])
-        hidden = ~lasers_see_body(c, human_radius)
-        self.hidden, self.bins = c[hidden], np.indices(bearing.shape)[1].ravel()[hidden]  # and each one's bearing
+        self.hidden, self.bins = _hidden_centres(float(human_radius))
+
+    def clear(self) -> None:
+        """Forget every return (a new episode)."""
+        self.points, self.times = np.zeros((0, 2)), np.zeros(0)
 
     def update(self, points: np.ndarray, near: np.ndarray, now: float, people: np.ndarray) -> None:
         """Remember the returns at odometry-frame ``points`` where ``near`` (those the map does not explain, within

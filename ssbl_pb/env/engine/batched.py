@@ -23,9 +23,10 @@ from ...core.actions import take_over
 from ...core.base import BaseArrays, BaseParams
 from ...core.humans import KEEP, MAX_HUMANS, RADIUS, GroupArrays, free_slot, sffm_params
 from ...core.layouts import GroupModel, member_keep_out, slot_keep
+from ...core.range_memory import MEMORY_REACH, RangeMemory
 from ...core.range_sensors import RETURN_MARGIN, brake_for_bodies, lasers_see_body
 from ...core.reward import TERMS, RewardWeights, weight_vector
-from ...core.shield import ShieldParams
+from ...core.shield import ShieldParams, brake_returns
 from ...core.task import TaskParams
 from ...errors import UserError
 from ...params import RobotParams, SocialParams, WorldParams, from_dict
@@ -97,6 +98,7 @@ class BatchedApproach:
         self._init_rooms()
         self.perceived = self._perception(perception)
         self._shield = ShieldParams.of(self)  # the robot's limits, for the range guard (``_range_guard``)
+        self._range_memory = [RangeMemory(self._shield.human_radius) for _ in range(num)]  # ... and its memory
 
     def _perception(self, value: Any) -> Any:
         """The copies' perceived groups (``perception.groups.observation_model.PerceivedGroups``), or None for the true
@@ -261,6 +263,7 @@ class BatchedApproach:
         self.potential[i] = self.potential_of(i, 0.0)
         if self.perceived is not None:
             self.perceived.reset(i, self.pose[i], g.pos[i, :n], g.yaw[i, :n], self.dt)
+            self._range_memory[i].clear()
         return {"n_humans": n, "formation": formation, "start": start}
 
     def _plan(self, i: int) -> None:
@@ -323,7 +326,9 @@ class BatchedApproach:
         """``actions`` with deploy's range guard on each copy's body command (``range_sensors.brake_for_bodies``,
         for ``RETURN_MARGIN`` beyond the intimate zone, as ``deploy.guards.Guards`` brakes): with the observation
         model the policy and its shield see only the members perception found, the lasers see the others in their
-        fields. Not modelled: deploy's memory of returns in the lasers' blind sectors and the sonars."""
+        fields, and deploy's ``RangeMemory`` remembers those no track explains for where they could stand in the
+        lasers' blind sectors since (the bodies' centres remembered, deploy's the returns on them). Not modelled:
+        the sonars."""
         g, turn, top = self.groups_state, self._tp[kernels.TURN] > 0, self.robot_params.max_speed
         out = np.array(actions, dtype=np.float64, copy=True)
         c, s = np.cos(self.pose[:, 2])[:, None], np.sin(self.pose[:, 2])[:, None]
@@ -332,16 +337,34 @@ class BatchedApproach:
         seen = lasers_see_body(local.reshape(-1, 2), self._shield.human_radius).reshape(local.shape[:2])
         seen &= np.arange(local.shape[1])[None, :] < g.count[:, None]
         sh, clearance = self._shield, self.task.intimate_zone + RETURN_MARGIN
+        phantoms = self._phantoms(seen & (np.hypot(local[..., 0], local[..., 1]) <= MEMORY_REACH))
         # only bodies near enough to cut full speed: sqrt(2 a (c - c_min)) < top within c_min + top^2 / 2a
         gap = np.hypot(local[..., 0], local[..., 1]) - math.hypot(sh.half_length, sh.half_width) - sh.human_radius
         seen &= gap < clearance + top * top / (2.0 * sh.brake_accel)
-        for i in np.flatnonzero(seen.any(axis=1)).tolist():
+        for i in sorted({*np.flatnonzero(seen.any(axis=1)).tolist(), *phantoms}):
             bodies = local[i, :int(g.count[i])]
             h = 0.0 if turn else kernels.heading_error(self.pose[i], aim[i])  # the action's frame -> the body's
             rot = np.array([[math.cos(h), -math.sin(h)], [math.sin(h), math.cos(h)]])
             v = rot @ np.clip(out[i, :2], -1.0, 1.0) * top
             v = brake_for_bodies(v, bodies, clearance, sh)
+            if i in phantoms:
+                v = brake_returns(v, phantoms[i], clearance, sh, radius=sh.human_radius)
             out[i, :2] = rot.T @ v / top
+        return out
+
+    def _phantoms(self, seen: np.ndarray) -> dict[int, np.ndarray]:
+        """Each copy's ``RangeMemory`` told of the members its lasers see now (``seen`` (N, MAX_HUMANS), within the
+        memory's reach) on the episode's clock, with the members perception tracks as the people that explain
+        them; returns, by copy, where those remembered could stand unseen now (robot frame)."""
+        out = {}
+        for i in range(self.num):
+            n, memory, now = int(self.groups_state.count[i]), self._range_memory[i], float(self.steps[i]) * self.dt
+            people = self.perceived.pos[i, :int(self.perceived.count[i])]
+            memory.update(self.groups_state.pos[i, :n], seen[i, :n], now, people)
+            if len(memory.points):
+                found = memory.phantoms(self.pose[i], now)
+                if len(found):
+                    out[i] = found
         return out
 
     TURN_CLEARANCE = 0.05  # m: a turn that would bring the footprint's corner nearer furniture than this is held
