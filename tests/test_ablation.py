@@ -9,7 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ssbl_pb.analysis.ablation import ABLATIONS, pick, table, versus
+from ssbl_pb.analysis.ablation import ABLATIONS, pick, table
+from ssbl_pb.analysis.compare import paired_success
 from ssbl_pb.core import observation as ob
 from ssbl_pb.env.gymenv.approach import ApproachGroupEnv
 from ssbl_pb.errors import UserError
@@ -64,10 +65,10 @@ def test_each_ablation_is_paired_with_the_first_seed_by_seed() -> None:
     exact p on 4 against 2 discordant pairs: 2 * P(X <= 2 | n=6, 1/2) = 2 * (1 + 6 + 15) / 64 = 0.6875; on 8
     against 0: 2 / 2**8."""
     first = {s: float(s <= 6) for s in range(1, 11)}
-    v = versus({s: float(s >= 3) for s in range(1, 11)}, first, "model")
+    v = paired_success({s: float(s >= 3) for s in range(1, 11)}, first, "model")
     assert (v["against"], v["gained"], v["lost"]) == ("model", 4, 2) and v["p"] == pytest.approx(0.6875)
     more = {s: float(s <= 8) for s in range(1, 21)}
-    assert versus(more, {s: 0.0 for s in range(1, 21)}, "model")["p"] == pytest.approx(2 / 2 ** 8)
+    assert paired_success(more, {s: 0.0 for s in range(1, 21)}, "model")["p"] == pytest.approx(2 / 2 ** 8)
 
 
 def test_the_table_gives_success_shield_and_failures_per_ablation() -> None:

@@ -1,5 +1,6 @@
 """Baselines and the evaluation tool: behaviour, determinism, files, bad input."""
 
+import csv
 import json
 import subprocess
 import sys
@@ -175,3 +176,28 @@ def test_path_panels_show_the_place_and_the_o_space() -> None:
     (x0, x1), (y0, y1) = view_bounds(robot, members, slot=(-2.0, 0.0), centre=(-0.5, 0.0), radius=1.0)
     # x from the place (-2) to the start (3), each 1 m out: [-3, 4]; y widened to the same 7 m, centred on 0
     assert (x0, x1) == pytest.approx((-3.0, 4.0)) and (y0, y1) == pytest.approx((-3.5, 3.5))
+
+
+def test_against_pairs_two_evaluations_seed_by_seed_and_refuses_other_seeds(tmp_path):
+    """``--against DIR``: the straight-line policy against the SFFM on the same 3 starts; the pairs counted by hand
+    from both episodes.csv files, and an evaluation of other seeds refused before anything is written."""
+    from test_contracts import run_in_process
+
+    common = ["--episodes", "3", "--paths", "0", "--workers", "1", "--seed", "1000"]
+    a, b = tmp_path / "sffm", tmp_path / "straight"
+    tool = ROOT / "tools" / "evaluate.py"
+    assert run_in_process(tool, ["--policy", "sffm", *common, "--out", str(a)]).returncode == 0
+    res = run_in_process(ROOT / "tools" / "evaluate.py", ["--policy", "straight", *common, "--out", str(b),
+                                                         "--against", str(a)])
+    assert res.returncode == 0, res.stderr
+    ok = {d: {int(r["seed"]): float(r["success"]) for r in csv.DictReader(open(d / "episodes.csv"))} for d in (a, b)}
+    gained = sum(ok[b][s] == 1 and ok[a][s] == 0 for s in ok[a])
+    lost = sum(ok[b][s] == 0 and ok[a][s] == 1 for s in ok[a])
+    versus = json.loads((b / "summary.json").read_text())["against"]
+    assert (versus["against"], versus["gained"], versus["lost"]) == (str(a), gained, lost)
+    assert f"against {a}: joined {gained} it did not, lost {lost} it joined" in res.stdout
+    c = tmp_path / "other_seeds"
+    res = run_in_process(ROOT / "tools" / "evaluate.py", ["--policy", "straight", "--episodes", "2", "--seed", "5",
+                                                         "--workers", "1", "--out", str(c), "--against", str(a)])
+    assert res.returncode != 0 and "no episodes with seeds [5, 6]" in res.stderr and "1000-1002" in res.stderr
+    assert not c.exists()

@@ -6,6 +6,8 @@ Examples:
     python tools/evaluate.py --policy vector --scenario mixed --episodes 200 --out results/eval_vector_mixed
     python tools/evaluate.py --policy runs/ppo_vector --episodes 50 --out results/eval_run
     python tools/evaluate.py --policy sffm --groups paper --episodes 200 --out results/eval_sffm_paper
+    python tools/evaluate.py --policy vector --scenario mixed --perception movenet --episodes 200 --seed 500000 \
+        --out results/eval_b --against results/eval_a    # seed by seed: joined / lost, McNemar's p
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ from pathlib import Path
 
 from ssbl_pb.analysis.evaluation import Setup, evaluate
 from ssbl_pb.cli import ArgumentParser, int_at_least, progress_bar, run
+from ssbl_pb.files import write_json
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -43,6 +46,9 @@ def main(argv: list[str] | None = None) -> int:
                          "colour, the virtual Pepper's colour detector on box proxies")
     ap.add_argument("--shield", choices=["auto", "on", "off"], default="auto",
                     help="a trained policy's safety shield: as trained (auto, default), or forced on/off")
+    ap.add_argument("--against", type=Path,
+                    help="another evaluation's folder of the same --seed and --episodes: pair this one's episodes "
+                         "with its, seed by seed (joined / lost and McNemar's p, in summary.json's 'against')")
     for name, what in (("camera", "tools/calibrate_camera.py"), ("robot", "tools/identify_dynamics.py"),
                        ("social", "tools/calibrate_humans.py"), ("room", "tools/import_map.py"),
                        ("groups", "tools/calibrate_groups.py")):
@@ -58,8 +64,16 @@ def main(argv: list[str] | None = None) -> int:
         calib += (("perception", True if args.perception == "on" else args.perception),)
     shield = {"auto": None, "on": True, "off": False}[args.shield]
     setup = Setup(args.policy, args.obs_mode, args.scenario, calib, shield)
+    other = None
+    if args.against is not None:  # read before any episode runs (scipy's tests load only when asked for)
+        from ssbl_pb.analysis.compare import paired_success, read_success
+
+        other = read_success(args.against, list(range(args.seed, args.seed + args.episodes)))
     with progress_bar(args.episodes, f"evaluate {args.policy}") as bar:
-        summary, _ = evaluate(setup, args.episodes, args.seed, args.out, workers, args.paths, bar)
+        summary, results = evaluate(setup, args.episodes, args.seed, args.out, workers, args.paths, bar)
+    if other is not None:
+        summary["against"] = paired_success({r.seed: r.metrics["success"] for r in results}, other, str(args.against))
+        write_json(args.out / "summary.json", summary)
     print(f"perception {summary['perception']}  success {summary['success_rate']:.1%}  "
           f"collision {summary['collision_rate']:.1%}  "
           f"shield {summary['shield_intervention_rate']:.1%} of steps  "
@@ -69,6 +83,10 @@ def main(argv: list[str] | None = None) -> int:
         print("shield by rule: " + ", ".join(f"{k} {v:.1%}" for k, v in summary["shield_rules"].items()))
     if "failures" in summary:  # through the observation model: why the others failed (metrics.failure_kind)
         print("failures: " + ", ".join(f"{k} {n}" for k, n in summary["failures"].items()))
+    if "against" in summary:
+        v = summary["against"]
+        print(f"against {v['against']}: joined {v['gained']} it did not, lost {v['lost']} it joined "
+              f"(McNemar p {v['p']:.2g})")
     return 0
 
 

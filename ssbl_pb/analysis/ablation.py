@@ -10,7 +10,7 @@ from typing import Any
 
 from ..errors import UserError
 from ..files import write_json, write_text
-from .compare import paired_test
+from .compare import paired_success
 from .evaluation import Setup, evaluate
 
 NOISELESS = {"laser_std_m": 0.0, "range_std_m": 0.0, "range_std_per_m": 0.0, "bearing_std_deg": 0.0,
@@ -68,21 +68,11 @@ def run_ablations(policy: str, scenario: str, detector: str, ablations: list[Abl
         rows.append({"name": a.name, "what": a.what, "success_rate": summary["success_rate"],
                      "shield_intervention_rate": summary["shield_intervention_rate"],
                      "failures": summary["failures"],
-                     "versus": None if first[1] is success else versus(success, first[1], first[0])})
+                     "versus": None if first[1] is success else paired_success(success, first[1], first[0])})
     meta = {"policy": policy, "scenario": scenario, "detector": detector, "episodes": episodes, "seed": seed}
     write_json(out / "ablations.json", {**meta, "rows": rows})
     write_text(out / "ablations.md", table(rows, meta))
     return rows
-
-
-def versus(success: dict[int, float], first: dict[int, float], name: str) -> dict[str, Any]:
-    """One ablation's episodes against the first row's (``name``), seed by seed (the same starts): how many it
-    joined that the first did not (``gained``), the reverse (``lost``), and McNemar's exact p on those discordant
-    pairs (``compare.paired_test``). Two evaluations of 200 starts differ by +-2.5 points by chance alone; the
-    pairs tell whether a difference is more than that."""
-    seeds = sorted(success)
-    t = paired_test([success[s] for s in seeds], [first[s] for s in seeds], binary=True)
-    return {"against": name, "gained": t["a_only"], "lost": t["b_only"], "p": t["p"]}
 
 
 def table(rows: list[dict[str, Any]], meta: dict[str, Any]) -> str:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import csv
 import math
 import os
 from pathlib import Path
@@ -11,6 +12,7 @@ import numpy as np
 from scipy import stats
 
 from ..agents import metrics
+from ..errors import UserError
 from .report import mean_ci
 
 # the five social measures of the targets: lower is better for each
@@ -44,6 +46,36 @@ def paired_test(a: list[float], b: list[float], binary: bool) -> dict[str, float
     effect = float((ranks[nz > 0].sum() - ranks[nz < 0].sum()) / ranks.sum())
     return {"test": "wilcoxon", "n": int(len(d)), "p": float(res.pvalue), "effect": effect,
             "median_diff": float(np.median(d))}
+
+
+def paired_success(success: dict[int, float], other: dict[int, float], name: str) -> dict[str, Any]:
+    """One evaluation's episodes against another's (``name``), seed by seed (the same starts): how many it joined
+    that the other did not (``gained``), the reverse (``lost``), and McNemar's exact p on those discordant pairs
+    (``paired_test``). Two evaluations of 200 starts differ by +-2.5 points by chance alone; the pairs tell whether
+    a difference is more than that."""
+    seeds = sorted(success)
+    t = paired_test([success[s] for s in seeds], [other[s] for s in seeds], binary=True)
+    return {"against": name, "gained": t["a_only"], "lost": t["b_only"], "p": t["p"]}
+
+
+def read_success(folder: Path, seeds: list[int]) -> dict[int, float]:
+    """Success by seed from an evaluation's ``folder/episodes.csv`` (``tools/evaluate.py``), for every one of
+    ``seeds``; a missing file, column or seed is refused by name."""
+    path = Path(folder) / "episodes.csv"
+    try:
+        with open(path, newline="") as f:
+            rows = list(csv.DictReader(f))
+    except OSError as e:
+        raise UserError(f"{path}: cannot read an evaluation's episodes ({e.strerror or e})") from None
+    if not rows or not {"seed", "success"} <= set(rows[0]):
+        raise UserError(f"{path}: expected the columns 'seed' and 'success' (tools/evaluate.py's episodes.csv)")
+    have = {int(float(r["seed"])): float(r["success"]) for r in rows}
+    missing = [s for s in seeds if s not in have]
+    if missing:
+        raise UserError(f"{path}: no episodes with seeds {missing[:3]}{' ...' if len(missing) > 3 else ''} "
+                        f"({len(missing)} of {len(seeds)}); it holds seeds {min(have)}-{max(have)}: evaluate the "
+                        "same --seed and --episodes")
+    return {s: have[s] for s in seeds}
 
 
 def compare_rows(learned: list[dict[str, float]], baseline: list[dict[str, float]], alpha: float = 0.05
