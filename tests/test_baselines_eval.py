@@ -99,6 +99,7 @@ def run_cli(*args):
     (["--policy", "magic"], "--policy 'magic'"),
     (["--policy", "nope/model.zip"], "--policy 'nope/model.zip'"),
     (["--policy", "sffm", "--episodes", "0"], "argument --episodes: 0: expected an integer >= 1"),
+    (["--policy", "sffm", "--against", "nowhere"], "nowhere/episodes.csv: cannot read an evaluation's episodes"),
 ])
 def test_cli_bad_input(tmp_path, args, message):
     out = tmp_path / "out"

@@ -98,7 +98,8 @@ class BatchedApproach:
         self._init_rooms()
         self.perceived = self._perception(perception)
         self._shield = ShieldParams.of(self)  # the robot's limits, for the range guard (``_range_guard``)
-        self._range_memory = [RangeMemory(self._shield.human_radius) for _ in range(num)]  # ... and its memory
+        copies = num if self.perceived is not None else 0  # the guard runs with the observation model only
+        self._range_memory = [RangeMemory(self._shield.human_radius) for _ in range(copies)]  # ... and its memory
 
     def _perception(self, value: Any) -> Any:
         """The copies' perceived groups (``perception.groups.observation_model.PerceivedGroups``), or None for the true
