@@ -95,6 +95,12 @@ CASES = [
     C("train_pb.py", "--set", "feature_smoothing=0.5", "--out", "{out}",
       expect="feature_smoothing = 0.5: expected 1 for encoder 'none'"),
     # tracking
+    C("trace_episode.py", "--policy", "nosuch", "--out", "{out}", expect="--policy 'nosuch'"),
+    C("trace_episode.py", "--policy", "sffm", "--perception", "movenet", "--oracle", "members,places", "--out",
+      "{out}", expect="'places' is not one of"),
+    C("trace_episode.py", "--policy", "sffm", "--oracle", "members", "--out", "{out}",
+      expect="--oracle needs --perception"),
+    C("trace_episode.py", "--policy", "sffm", "--scenario", "bogus", "--out", "{out}", expect="scenario 'bogus'"),
     C("track.py", "{tmp}/none.avi", "--calib", "{tmp}/none.xml", "--out", "{out}", expect="none"),
     C("track.py", "{file}", "--calib", "{tmp}/none.xml", "--out", "{file}/tracks", expect="is a file"),
     C("eval_tracking.py", "--tracks", "{tmp}/none", "--gt", "{tmp}/none.xml", "--json", "{out}.json",
