@@ -50,11 +50,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.perception != "off":
         env_kwargs = (("perception", {"preset": args.perception, "oracle": oracle} if oracle else args.perception),)
     setup = Setup(args.policy, "vector", args.scenario, env_kwargs)
-    env, _ = setup()  # a bad scenario or model fails here, before anything is written
-    tolerance = env.unwrapped.task.slot_tolerance
-    env.close()
-    with output_dir(args.out) as out:
-        summary = write_trace(out, setup, args.seed, tolerance)
+    with output_dir(args.out) as out:  # a bad scenario or model fails inside: the folders it made are removed
+        summary = write_trace(out, setup, args.seed)
     print(f"seed {args.seed}: {summary['outcome']} after {summary['episode_time_s']:.1f} s"
           + (f" ({summary['failure']})" if summary.get("failure", "none") != "none" else "")
           + f"; shield {summary['shield_intervention_rate']:.0%} of steps, lateral reversals "

@@ -99,10 +99,11 @@ def side_swaps(rows: list[dict[str, Any]]) -> int:
     return sum(a != b for a, b in zip(sides, sides[1:], strict=False))
 
 
-def trace(setup: Setup, seed: int) -> tuple[list[dict[str, Any]], list[dict[str, Any]], EpisodeResult]:
-    """Play episode ``seed``; returns its rows (one per step), the states before each step (for ``plot_trace``)
-    and the episode's result (``run_episode``)."""
+def trace(setup: Setup, seed: int) -> tuple[list[dict[str, Any]], list[dict[str, Any]], EpisodeResult, float]:
+    """Play episode ``seed``; returns its rows (one per step), the states before each step (for ``plot_trace``),
+    the episode's result (``run_episode``) and the env's slot tolerance (m)."""
     env, policy = setup()
+    tolerance = env.unwrapped.task.slot_tolerance
     watched = _Watched(policy)
     rows: list[dict[str, Any]] = []
     states: list[dict[str, Any]] = []
@@ -116,14 +117,14 @@ def trace(setup: Setup, seed: int) -> tuple[list[dict[str, Any]], list[dict[str,
         result = run_episode(env, watched, seed, on_step=on_step)
     finally:
         env.close()
-    return rows, states[:-1], result
+    return rows, states[:-1], result, tolerance
 
 
 def summary_of(setup: Setup, seed: int, rows: list[dict[str, Any]], result: EpisodeResult,
                tolerance: float) -> dict[str, Any]:
     m = result.metrics
     out = {"policy": setup.policy, "scenario": setup.scenario, "seed": seed,
-           "env": {k: v for k, v in setup.env_kwargs}, "outcome": outcome(m), "steps": len(rows),
+           "env": dict(setup.env_kwargs), "outcome": outcome(m), "steps": len(rows),
            "episode_time_s": m["episode_time_s"], "shield_intervention_rate": m["shield_intervention_rate"],
            "lateral_reversals": reversals(rows), "nearest_member_side_swaps": side_swaps(rows)}
     if "perceived_slot_error_m" in m:
@@ -175,9 +176,9 @@ def plot_trace(path: Path, rows: list[dict[str, Any]], states: list[dict[str, An
     plt.close(fig)
 
 
-def write_trace(out: Path, setup: Setup, seed: int, tolerance: float) -> dict[str, Any]:
+def write_trace(out: Path, setup: Setup, seed: int) -> dict[str, Any]:
     """Trace episode ``seed`` into ``out``: ``trace.csv``, ``trace.png`` and ``summary.json`` (written together)."""
-    rows, states, result = trace(setup, seed)
+    rows, states, result, tolerance = trace(setup, seed)
     summary = summary_of(setup, seed, rows, result, tolerance)
     title = (f"{setup.policy} on {setup.scenario}, seed {seed}: {summary['outcome']}; lateral reversals "
              f"{summary['lateral_reversals']}, nearest member side swaps {summary['nearest_member_side_swaps']}")
