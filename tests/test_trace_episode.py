@@ -12,7 +12,7 @@ ROOT = Path(__file__).resolve().parents[1]
 def _rows(lefts, driven=None, sides=None):
     driven = driven or [1] * len(lefts)
     sides = sides or [""] * len(lefts)
-    return [{"asked_left": a, "driven": d, "first_member_side": s}
+    return [{"asked_left": a, "driven": d, "nearest_member_side": s}
             for a, d, s in zip(lefts, driven, sides, strict=True)]
 
 

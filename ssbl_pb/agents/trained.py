@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import pickle
 import zipfile
@@ -127,7 +128,28 @@ def _remedy(folder: Path) -> str:
     return f"finish the run with python tools/train_pb.py --resume {folder}"
 
 
-OBSERVATION_KEYS = ("waypoints", "waypoints_near_group")  # env arguments that change what a policy observes
+OBSERVATION_KEYS = ("waypoints", "waypoints_near_group", "member_order")  # env arguments that change what a policy
+#                                                                             observes
+
+
+@dataclasses.dataclass(frozen=True)
+class PolicyView:
+    """How a policy's Vector observation is made, beyond the env (config ``env``'s ``OBSERVATION_KEYS``); deploy
+    builds the same from its perception."""
+
+    waypoints: bool = False  # in rooms with obstacles the slot's entries show the way round them (``planner``)
+    waypoints_near_group: bool = False  # ... up to the group's keep-out disc
+    member_order: str = "nearest"  # the member blocks' order (``observation.MEMBER_ORDERS``)
+
+
+DEFAULT_VIEW = PolicyView()
+
+
+def policy_view(spec: str) -> PolicyView:
+    """The ``PolicyView`` of a trained model (a baseline's: the defaults)."""
+    seen = policy_env_kwargs(spec)
+    return PolicyView(bool(seen.get("waypoints", False)), bool(seen.get("waypoints_near_group", False)),
+                      str(seen.get("member_order", "nearest")))
 
 
 def policy_env_kwargs(spec: str) -> dict[str, Any]:

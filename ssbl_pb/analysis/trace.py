@@ -4,7 +4,7 @@ episode failed, which an evaluation's one row per episode does not tell.
 Each step's row: the robot's pose, whether the policy drove (not perception's search or looks), what the policy asked
 (after its smoothing, before its shield) and what the shield let through with the rules that changed it, the true
 place and the perceived one with the robot's distance to each, how many members there are and how many perception
-holds, and which side of the robot the observation's first member block (the nearest member) lies on. Two counts
+holds, and which side of the robot the observation's nearest member lies on. Two counts
 summarise the indecision seen in front of a group (docs/benchmarks_movenet.md, "Ending short of a place it knows"):
 the lateral reversals (the policy asking hard left, then hard right, or back) and the swaps of the nearest member
 from one side to the other.
@@ -66,8 +66,8 @@ def _row(before: dict[str, Any], watched: _Watched, driven: bool, dt: float, k: 
     asked = watched.action if last is None else np.asarray(last.before, dtype=float).ravel()
     rules = 0 if last is None else int(np.asarray(last.rules).ravel()[0])
     x, y, yaw = before["pose"][:3]
-    first = watched.obs[ob.MEMBERS:ob.MEMBERS + ob.MEMBER_FIELDS]
-    present = first[ob.MEMBER_PRESENT] > 0.5
+    members, _ = ob.decode_members(watched.obs)
+    near = members[np.argmin(np.hypot(*members.T))] if len(members) else None
     seen = before["seen_members"]
     return {"t_s": round(k * dt, 3), "x_m": float(x), "y_m": float(y), "yaw_deg": math.degrees(float(yaw)),
             "driven": int(driven), "asked_forward": float(asked[0]), "asked_left": float(asked[1]),
@@ -78,8 +78,8 @@ def _row(before: dict[str, Any], watched: _Watched, driven: bool, dt: float, k: 
             "seen_place_x_m": float(before["seen_place"][0]), "seen_place_y_m": float(before["seen_place"][1]),
             "seen_place_distance_m": float(np.hypot(*(before["seen_place"] - (x, y)))),
             "members": len(before["members"]), "members_seen": -1 if seen is None else len(seen),
-            "first_member_side": ("left" if first[ob.MEMBER_Y] >= 0 else "right") if present else "",
-            "first_member_distance_m": float(np.hypot(*first[:2]) * ob.POS_SCALE) if present else math.nan}
+            "nearest_member_side": ("left" if near[1] >= 0 else "right") if near is not None else "",
+            "nearest_member_distance_m": float(np.hypot(*near)) if near is not None else math.nan}
 
 
 def reversals(rows: list[dict[str, Any]]) -> int:
@@ -95,7 +95,7 @@ def reversals(rows: list[dict[str, Any]]) -> int:
 
 def side_swaps(rows: list[dict[str, Any]]) -> int:
     """How often the observation's nearest member changed from one side of the robot to the other."""
-    sides = [r["first_member_side"] for r in rows if r["first_member_side"]]
+    sides = [r["nearest_member_side"] for r in rows if r["nearest_member_side"]]
     return sum(a != b for a, b in zip(sides, sides[1:], strict=False))
 
 

@@ -17,6 +17,7 @@ stepping into it; ``virtual.walkers``) are whole approaches scored by the smalle
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import json
 import math
 import os
@@ -28,7 +29,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-from ..agents.trained import policy_env_kwargs, policy_groups
+from ..agents.trained import PolicyView, policy_groups, policy_view
 from ..core.task import TaskParams
 from ..deploy.frames import Frames, load_room
 from ..deploy.log import LOG, SUMMARY, RunLog, write_run, write_summary
@@ -192,7 +193,7 @@ def lockstep_approach(folder: Path, seed: int, policy: Any = "vector", scenario:
     robot_params, social, task, params = RobotParams(), SocialParams(), TaskParams(), DeployParams(
         duration_s=duration, status_s=0.0)
     pol = load_policy(policy, robot_params, social, task, params.stop_distance) if spec else policy
-    seen = policy_env_kwargs(policy) if spec and hasattr(pol, "model") else {}
+    view = policy_view(policy) if spec and hasattr(pol, "model") else PolicyView()
     (folder / "deploy").mkdir(parents=True, exist_ok=True)
     (folder / "deploy" / LOG).unlink(missing_ok=True)  # RunLog appends
     vp_log = folder / "virtual_pepper.jsonl"
@@ -218,7 +219,7 @@ def lockstep_approach(folder: Path, seed: int, policy: Any = "vector", scenario:
         perception = Perception(robot, clock.now, detector_for(detector, robot), robot_params,
                                 social=social, threaded=False)
         loop = DeployLoop(Setup(robot, pol, perception, frames, robot_params, social, task, groups,
-                                bool(seen.get("waypoints", False)), bool(seen.get("waypoints_near_group", False))),
+                                **dataclasses.asdict(view)),
                           params, log, now=clock.now, sleep=clock.sleep)
         try:
             outcome, message = loop.run()
@@ -238,9 +239,8 @@ def perception_report(folders: list[Path], policy: str = "vector", figure: Path 
     """Perception's errors (``perception_errors``) of each run folder (None where it has no logs) and pooled
     over them, the policy's action difference with the policy ``policy``; ``figure``: the pooled figure."""
     pol = load_policy(policy, RobotParams(), SocialParams(), TaskParams(), DeployParams().stop_distance)
-    seen = policy_env_kwargs(policy) if hasattr(pol, "model") else {}
-    waypoints = (bool(seen.get("waypoints", False)), bool(seen.get("waypoints_near_group", False)))
-    parts = [analyse_folder(f, pol, waypoints=waypoints)
+    view = policy_view(policy) if hasattr(pol, "model") else PolicyView()
+    parts = [analyse_folder(f, pol, view=view)
              if (f / "deploy" / LOG).is_file() and (f / "virtual_pepper.jsonl").is_file() else None for f in folders]
     found = [p for p in parts if p is not None]
     if not found:

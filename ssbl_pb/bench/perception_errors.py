@@ -31,6 +31,7 @@ from typing import Any
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
+from ..agents.trained import DEFAULT_VIEW, PolicyView
 from ..core import observation as ob
 from ..core.layouts import member_keep_out
 from ..core.task import TaskParams
@@ -211,9 +212,10 @@ def room_from_odom(row: dict[str, Any]) -> np.ndarray:
 
 
 def observation(fr: Frames, odom_pose: np.ndarray, body_vel: np.ndarray, members: np.ndarray, member_vel: np.ndarray,
-                centre: np.ndarray, radius: float, slot: np.ndarray, robot: RobotParams, waypoints: bool = False,
-                near_group: bool = False, reach_margin: float = 0.0) -> np.ndarray:
-    """The Vector observation from odometry-frame inputs, as ``DeployLoop._act`` builds it."""
+                centre: np.ndarray, radius: float, slot: np.ndarray, robot: RobotParams,
+                view: PolicyView = DEFAULT_VIEW, reach_margin: float = 0.0) -> np.ndarray:
+    """The Vector observation from odometry-frame inputs, as ``DeployLoop._act`` builds it for a policy that sees
+    as ``view`` tells."""
     room = fr.room_pose(np.asarray(odom_pose, dtype=float))
     rot = float(fr.room_from_odom[2])
     mvel_room = rotate(rot, member_vel)
@@ -222,11 +224,13 @@ def observation(fr: Frames, odom_pose: np.ndarray, body_vel: np.ndarray, members
     vel_room = np.array([cy * v[0] - sy * v[1], sy * v[0] + cy * v[1], v[2]])
     centre_room, slot_room = fr.room_points(np.array([centre, slot], dtype=float))
     members_room = fr.room_points(np.asarray(members, dtype=float).reshape(-1, 2))
-    if waypoints:
-        slot_room = fr.way_to(room, members_room, centre_room, slot_room, robot.reach, reach_margin, near_group)
+    if view.waypoints:
+        slot_room = fr.way_to(room, members_room, centre_room, slot_room, robot.reach, reach_margin,
+                              view.waypoints_near_group)
     frame = ob.approach_yaw(room, centre_room)
     return ob.vector_observation(room, vel_room, members_room, mvel_room, centre_room, radius, slot_room,
-                                 fr.walls(room), robot.max_speed, robot.max_yaw_rate, frame, fr.scan(room, frame))
+                                 fr.walls(room), robot.max_speed, robot.max_yaw_rate, frame, fr.scan(room, frame),
+                                 view.member_order)
 
 
 def network_actions(policy: Any, obs: np.ndarray) -> np.ndarray:
@@ -253,11 +257,10 @@ def network_actions(policy: Any, obs: np.ndarray) -> np.ndarray:
 # -- one run ----------------------------------------------------------------------------------------------------
 def analyse(rows: list[dict[str, Any]], start: dict[str, Any], states: list[dict[str, Any]],
             p: ErrorParams | None = None, policy: Any = None, frames: Frames | None = None,
-            robot: RobotParams | None = None, waypoints: tuple[bool, bool] = (False, False),
-            reach_margin: float = 0.0) -> Samples:
+            robot: RobotParams | None = None, view: PolicyView = DEFAULT_VIEW, reach_margin: float = 0.0) -> Samples:
     """The samples of one run from deploy's tick rows and the virtual Pepper's start row and states. With a
     ``policy``, also its network's action difference on every policy tick (``frames``: deploy's, default no map;
-    ``waypoints``: the policy's (waypoints, near_group), ``reach_margin`` the body reach ``way_to`` keeps)."""
+    ``view``: how the policy's observation is made, ``reach_margin`` the body reach ``way_to`` keeps)."""
     p = p or ErrorParams()
     robot = robot or RobotParams()
     s = Samples()
@@ -317,7 +320,7 @@ def analyse(rows: list[dict[str, Any]], start: dict[str, Any], states: list[dict
             if st.get("radius") is not None and row.get("radius") is not None:
                 s.radius_err.append(float(row["radius"]) - float(st["radius"]))
             if policy is not None:
-                args = (robot, *waypoints, reach_margin)
+                args = (robot, view, reach_margin)
                 opose = np.array([row["odom_x"], row["odom_y"], row["odom_yaw"]], dtype=float)
                 perceived.append(observation(fr_p, opose, np.asarray(row["vel"]), txy, tvel, np.asarray(row["centre"]),
                                              float(row["radius"]), np.asarray(row["slot"]), *args))
@@ -362,7 +365,7 @@ def _copy_frames(fr: Frames) -> Frames:
 
 
 def analyse_folder(folder: Path, policy: Any = None, p: ErrorParams | None = None,
-                   waypoints: tuple[bool, bool] = (False, False)) -> Samples:
+                   view: PolicyView = DEFAULT_VIEW) -> Samples:
     """``analyse`` of a benchmark run's folder (``deploy/`` and ``virtual_pepper.jsonl``, as ``bench`` writes)."""
     folder = Path(folder)
     rows = read_log(folder / "deploy")
@@ -371,7 +374,7 @@ def analyse_folder(folder: Path, policy: Any = None, p: ErrorParams | None = Non
     robot = RobotParams(**info["robot"]) if isinstance(info.get("robot"), dict) else RobotParams()
     margin = member_keep_out(SocialParams(), robot.reach, TaskParams().intimate_zone)  # as deploy's way_to is given
     frames = deploy_frames(folder / "deploy", rows) if policy is not None else None
-    return analyse(rows, start, states, p, policy, frames, robot, waypoints, margin)
+    return analyse(rows, start, states, p, policy, frames, robot, view, margin)
 
 
 # -- summaries --------------------------------------------------------------------------------------------------

@@ -19,8 +19,8 @@ idx   value                                                      scale
 7     robot turn rate                                            / max turn rate
 8-9   the frame's orientation in the room (cos, sin)             1
 10-13 distance to the walls (+x, -x, +y, -y, room frame)         / 5 m
-14-38 up to 5 members, nearest first: position (2), velocity     / 5 m, / 1 m/s
-      (2), present flag (1); absent members are zeros
+14-38 up to 5 members in ``member_order``: position (2),       / 5 m, / 1 m/s
+      velocity (2), present flag (1); absent members are zeros
 39    robot heading minus the frame's (how far it still turns)   / pi
 40-63 range scan: 24 sectors of 15 deg over 360 deg, sector k    / 3 m
       centred 15 k deg from the frame's x (toward the group
@@ -32,6 +32,11 @@ The original divides by half its 20 m arena (ref "Vector observation"); our defa
 The scan (ours): each sector reports the nearest obstacle anywhere in it (a single ray per 15 deg
 slipped past a map's 5 cm speckle); 3 m is the range naoqi_driver gives Pepper's lasers and 9 s of driving at the
 default speed. Members are not in it (they have their own fields).
+
+Member order (ours; the paper does not say): ``nearest`` first (the shipped policy) or by ``bearing`` from the
+robot, leftmost first. In front of the gap between two members about equally far (the place across a group), the
+nearest block swaps sides with a few centimetres of motion, and a policy reading it swings (docs/benchmarks_movenet.md,
+"The nearest member's side"); their bearings stay apart there.
 """
 
 from __future__ import annotations
@@ -53,7 +58,8 @@ OSPACE_RADIUS = 4
 VEL_FORWARD, VEL_LEFT, TURN_RATE = 5, 6, 7
 FRAME_COS, FRAME_SIN = 8, 9
 WALLS = 10  # four entries: +x, -x, +y, -y
-MEMBERS = 14  # MAX_MEMBERS blocks of MEMBER_FIELDS, nearest first
+MEMBERS = 14  # MAX_MEMBERS blocks of MEMBER_FIELDS, in ``MEMBER_ORDERS``
+MEMBER_ORDERS = ("nearest", "bearing")  # nearest first; by bearing from the robot, leftmost first
 MEMBER_X, MEMBER_Y, MEMBER_VX, MEMBER_VY, MEMBER_PRESENT = range(MEMBER_FIELDS)  # offsets within a block
 HEADING = MEMBERS + MAX_MEMBERS * MEMBER_FIELDS
 BASE_SIZE = HEADING + 1
@@ -68,10 +74,11 @@ OBS_LIMIT = 10.0
 def fill_observation(o: np.ndarray, x: float, y: float, yaw: float, vx: float, vy: float, wz: float,
                      members_pos: np.ndarray, members_vel: np.ndarray, cx: float, cy: float, radius: float,
                      sx: float, sy: float, walls: tuple[float, float, float, float], max_speed: float,
-                     max_yaw_rate: float, frame_yaw: float) -> None:
+                     max_yaw_rate: float, frame_yaw: float, by_bearing: bool = False) -> None:
     """Write the observation (the table above, up to index 39; any further entries become 0) into ``o``: the robot
     at (x, y, yaw) with world-frame velocity (vx, vy, wz), the members (k, 2) in world metres, centre (cx, cy), slot
-    (sx, sy), the distances to the walls, in the frame turned by ``frame_yaw``."""
+    (sx, sy), the distances to the walls, in the frame turned by ``frame_yaw``; members nearest first, or with
+    ``by_bearing`` leftmost first as seen in that frame (ties in index order either way)."""
     c, s = math.cos(frame_yaw), math.sin(frame_yaw)
     o[:] = 0.0
     o[SLOT_X], o[SLOT_Y] = (c * (sx - x) + s * (sy - y)) / POS_SCALE, (c * (sy - y) - s * (sx - x)) / POS_SCALE
@@ -86,8 +93,14 @@ def fill_observation(o: np.ndarray, x: float, y: float, yaw: float, vx: float, v
     d2 = np.empty(k)
     for j in range(k):
         d2[j] = (members_pos[j, 0] - x) ** 2 + (members_pos[j, 1] - y) ** 2
-    order = np.argsort(d2, kind="mergesort")  # nearest first, ties in index order
-    for r in range(min(k, MAX_MEMBERS)):
+    order = np.argsort(d2, kind="mergesort")[:MAX_MEMBERS]  # the nearest MAX_MEMBERS, ties in index order
+    if by_bearing:
+        left = np.empty(order.shape[0])
+        for r in range(order.shape[0]):
+            dx, dy = members_pos[order[r], 0] - x, members_pos[order[r], 1] - y
+            left[r] = -math.atan2(dx * -s + dy * c, dx * c + dy * s)
+        order = order[np.argsort(left, kind="mergesort")]
+    for r in range(order.shape[0]):
         j = order[r]
         dx, dy = members_pos[j, 0] - x, members_pos[j, 1] - y
         b = MEMBERS + MEMBER_FIELDS * r
@@ -114,11 +127,12 @@ def vector_observation(
     max_yaw_rate: float,
     frame_yaw: float | None = None,
     scan: np.ndarray | None = None,
+    member_order: str = "nearest",
 ) -> np.ndarray:
     """``fill_observation`` from arrays (world-frame metres, ``robot_vel`` (vx, vy, wz)); ``frame_yaw`` defaults
     to the approach frame (toward ``centre``); ``scan``: the range scan's entries (``SCAN_RAYS``, already divided by
-    ``SCAN_RANGE``) to append, None for the 40-entry observation. The robot's deploy loop builds its observation
-    with this."""
+    ``SCAN_RANGE``) to append, None for the 40-entry observation; ``member_order``: one of ``MEMBER_ORDERS``. The
+    robot's deploy loop builds its observation with this."""
     x, y, yaw = (float(v) for v in np.asarray(robot_pose, dtype=float)[:3])
     if frame_yaw is None:
         frame_yaw = approach_yaw(robot_pose, centre)
@@ -128,10 +142,17 @@ def vector_observation(
                      np.asarray(members_pos, dtype=float).reshape(-1, 2),
                      np.asarray(members_vel, dtype=float).reshape(-1, 2), float(centre[0]), float(centre[1]),
                      float(radius), float(slot[0]), float(slot[1]), tuple(float(w) for w in walls[:4]),
-                     float(max_speed), float(max_yaw_rate), float(frame_yaw))
+                     float(max_speed), float(max_yaw_rate), float(frame_yaw), orders_by_bearing(member_order))
     if scan is not None:
         obs[BASE_SIZE:] = np.asarray(scan, dtype=np.float32).reshape(SCAN_RAYS)
     return obs
+
+
+def orders_by_bearing(member_order: str) -> bool:
+    """Whether ``member_order`` (one of ``MEMBER_ORDERS``) orders the members by bearing."""
+    if member_order not in MEMBER_ORDERS:
+        raise ValueError(f"member_order {member_order!r}: expected one of {list(MEMBER_ORDERS)}")
+    return member_order == "bearing"
 
 
 def obs_size(scan: bool) -> int:

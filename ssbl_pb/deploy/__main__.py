@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from ..agents.trained import policy_env_kwargs, policy_groups, resolve_model
+from ..agents.trained import policy_groups, policy_view, resolve_model
 from ..cli import ArgumentParser, run_without_teardown
 from ..core import observation as ob
 from ..core.layouts import GROUP_MODELS
@@ -209,7 +209,6 @@ def _run(args: argparse.Namespace, url: str, folder: Path, robot: Any, params: A
         camera = PinholeCamera.from_yaml(args.camera_yaml) if args.camera_yaml else None
         args.detector = detector_for(args.detector, robot)
         perception = Perception(robot, time.monotonic, args.detector, robot_params, camera, social=social)
-        seen = {} if args.policy in BASELINES else policy_env_kwargs(args.policy)
         folder.mkdir(parents=True, exist_ok=True)
         write_run(folder, {"url": url, "policy": args.policy, "groups": args.groups,
                            "detector": args.detector, "map": args.map, "deploy": dataclasses.asdict(params),
@@ -217,7 +216,7 @@ def _run(args: argparse.Namespace, url: str, folder: Path, robot: Any, params: A
                            "started": time.strftime("%Y-%m-%d %H:%M:%S"), **frames.info()})
         log = RunLog(folder)
         loop = DeployLoop(Setup(robot, policy, perception, frames, robot_params, social, task, args.groups,
-                                bool(seen.get("waypoints", False)), bool(seen.get("waypoints_near_group", False))),
+                                **dataclasses.asdict(policy_view(args.policy))),
                           params, log, status=None if args.quiet else status_printer())
     except BaseException:
         if made is not None:

@@ -114,6 +114,7 @@ class Setup:
     groups: str = "calibrated"  # the group model the policy was trained with (``core.layouts.GROUP_MODELS``)
     waypoints: bool = False  # the policy was trained with waypoints in furnished rooms (``env.rooms.planner``)
     waypoints_near_group: bool = False  # ... shown up to the group's keep-out disc
+    member_order: str = "nearest"  # the order of the observation's member blocks it was trained with
 
 
 class DeployLoop:
@@ -186,7 +187,7 @@ class DeployLoop:
         frame = ob.approach_yaw(room, centre_room)
         obs = ob.vector_observation(room, vel_room, members_room, mvel_room, centre_room, radius, slot_room,
                                     fr.walls(room), s.robot_params.max_speed, s.robot_params.max_yaw_rate, frame,
-                                    fr.scan(room, frame))
+                                    fr.scan(room, frame), s.member_order)
         start = np.array([self._policy_state is None])
         action, self._policy_state = s.policy.predict(obs, state=self._policy_state, episode_start=start,
                                                       deterministic=True)

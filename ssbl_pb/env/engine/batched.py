@@ -50,10 +50,11 @@ class BatchedApproach:
                  groups: str | GroupModel | None = None, groups_yaml: str | None = None,
                  room_yaml: str | list[str] | None = None, furniture: FurnitureParams | dict | None = None,
                  scan: bool = True, waypoints: bool = False, waypoints_near_group: bool = False,
-                 perception: Any = None) -> None:
+                 perception: Any = None, member_order: str = "nearest") -> None:
         """``perception``: the observation model (``perception.groups.observation_model``): None/False, the true
         state (the default); True or a ``PerceptionParams`` (or a dict of its fields), the group as deploy's
-        perception would see it, and the robot turning in place while it knows fewer than two people."""
+        perception would see it, and the robot turning in place while it knows fewer than two people.
+        ``member_order``: the order of the observation's member blocks (``observation.MEMBER_ORDERS``)."""
         if not isinstance(num, int) or num < 1:
             raise UserError(f"number of copies {num!r}: expected an integer >= 1")
         for name, flag in (("scan", scan), ("waypoints", waypoints), ("waypoints_near_group", waypoints_near_group)):
@@ -63,7 +64,8 @@ class BatchedApproach:
         self.kwargs = {"scenario": scenario, "world": world, "robot": robot, "social": social, "reward": reward,
                        "task": task, "groups": groups, "groups_yaml": groups_yaml, "room_yaml": room_yaml,
                        "furniture": furniture, "scan": scan, "waypoints": waypoints,
-                       "waypoints_near_group": waypoints_near_group, "perception": perception}  # ``like`` builds more
+                       "waypoints_near_group": waypoints_near_group, "perception": perception,
+                       "member_order": member_order}  # ``like`` builds more
         self.waypoints = waypoints  # rooms with obstacles: the slot's entries show the way around them (planner)
         self.waypoints_near_group = waypoints_near_group  # ... up to the group's keep-out disc
         ep = parse_env_params(scenario, world, robot, social, reward, task, groups, groups_yaml, room_yaml, furniture)
@@ -76,7 +78,11 @@ class BatchedApproach:
         self._bparams = BaseParams.of(self.robot_params, self.dt)
         self._bp = np.array(self._bparams, dtype=float)
         self._sp = sffm_params(self.social, self.dt)
-        self._tp = kernels.task_params(self.world_params, self.robot_params, self.social, self.task)
+        try:
+            self._tp = kernels.task_params(self.world_params, self.robot_params, self.social, self.task, member_order)
+        except ValueError as exc:
+            raise UserError(str(exc)) from None
+        self.member_order = member_order
         self.rngs: list[np.random.Generator] = [seeding.np_random(None)[0] for _ in range(num)]
         self.bases, self.groups_state = BaseArrays(num, self._bparams), GroupArrays(num)
         m = MAX_HUMANS

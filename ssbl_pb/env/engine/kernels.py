@@ -23,7 +23,7 @@ from numba import njit
 from ...core.base import base_step, footprint_distance, wall_clearance, wrap_angle
 from ...core.humans import KEEP, RADIUS, free_slot, group_step
 from ...core.layouts import slot_keep
-from ...core.observation import BASE_SIZE, POS_SCALE, SCAN_RANGE, action_command, fill_observation
+from ...core.observation import BASE_SIZE, POS_SCALE, SCAN_RANGE, action_command, fill_observation, orders_by_bearing
 from ...core.reward import N_TERMS, proximity_cost, route_length, slot_potential, step_terms
 from ...core.task import TaskParams, joined
 from ...params import RobotParams, SocialParams, WorldParams
@@ -33,7 +33,7 @@ from ..rooms.planner import in_sight, plan_distance, plan_map, way_clearances, w
 # the task's parameters as the compiled step reads them (``task_params``)
 (MAX_SPEED, MAX_YAW_RATE, HALF_LENGTH, HALF_WIDTH, HUMAN_RADIUS, DT, HEADING_GAIN, SLOT_TOL, STOP_SPEED,
  HEADING_TOL, INTIMATE, BAND, MAX_STEPS, KEEP_OUT_EXTRA, TURN, PLAN_CLEARANCE, SIGHT_CLEARANCE, GEODESIC,
- N_TASK) = range(19)
+ BY_BEARING, N_TASK) = range(20)
 # per-copy flags of the last step (COLLISION: with anything; OBSTACLE_COLLISION: with a wall or an obstacle)
 TERMINATED, TRUNCATED, SUCCESS, VIOLATION, COLLISION, OBSTACLE_COLLISION, N_FLAGS = range(7)
 # per-copy room, columns of ``room``: size (m), index into ``fields`` (-1: no obstacles) and the field's first
@@ -47,8 +47,10 @@ TERMINATED, TRUNCATED, SUCCESS, VIOLATION, COLLISION, OBSTACLE_COLLISION, N_FLAG
  START_X, START_Y, STEP_LIMIT, DETOUR_ADDED, N_ROOM) = range(18)
 
 
-def task_params(world: WorldParams, robot: RobotParams, social: SocialParams, task: TaskParams) -> np.ndarray:
-    """The parameters ``step`` and ``observations`` read besides the base's and the SFFM's, packed."""
+def task_params(world: WorldParams, robot: RobotParams, social: SocialParams, task: TaskParams,
+                member_order: str = "nearest") -> np.ndarray:
+    """The parameters ``step`` and ``observations`` read besides the base's and the SFFM's, packed
+    (``member_order``: the observation's, ``observation.MEMBER_ORDERS``)."""
     p = np.zeros(N_TASK)
     for k, v in {MAX_SPEED: robot.max_speed, MAX_YAW_RATE: robot.max_yaw_rate, HALF_LENGTH: robot.length / 2,
                  HALF_WIDTH: robot.width / 2, HUMAN_RADIUS: social.human_radius, DT: world.dt,
@@ -57,7 +59,8 @@ def task_params(world: WorldParams, robot: RobotParams, social: SocialParams, ta
                  BAND: task.proximity_band, MAX_STEPS: task.max_steps,
                  KEEP_OUT_EXTRA: slot_keep(social, robot.reach, task.intimate_zone, task.route_margin),
                  TURN: float(task.turn), PLAN_CLEARANCE: way_clearances(robot.reach)[0],
-                 SIGHT_CLEARANCE: way_clearances(robot.reach)[1], GEODESIC: float(task.geodesic_route)}.items():
+                 SIGHT_CLEARANCE: way_clearances(robot.reach)[1], GEODESIC: float(task.geodesic_route),
+                 BY_BEARING: float(orders_by_bearing(member_order))}.items():
         p[k] = v
     return p
 
@@ -234,7 +237,8 @@ def observations(tp: np.ndarray, pose: np.ndarray, vel: np.ndarray, count: np.nd
         rx, ry = room[i, ROOM_X], room[i, ROOM_Y]
         fill_observation(out[i], x, y, yaw, vel[i, 0], vel[i, 1], vel[i, 2], pos[i, :n], mvel[i, :n], centre[i, 0],
                          centre[i, 1], gscal[i, RADIUS], slot[i, 0], slot[i, 1],
-                         (rx / 2 - x, x + rx / 2, ry / 2 - y, y + ry / 2), tp[MAX_SPEED], tp[MAX_YAW_RATE], frame)
+                         (rx / 2 - x, x + rx / 2, ry / 2 - y, y + ry / 2), tp[MAX_SPEED], tp[MAX_YAW_RATE], frame,
+                         tp[BY_BEARING] > 0)
         k = int(room[i, FIELD])
         if rays > 0:
             fill_scan(out[i], BASE_SIZE, rays, k >= 0, fields[max(k, 0)], room[i, FIELD_X0], room[i, FIELD_Y0], x,

@@ -68,6 +68,7 @@ class ApproachGroupEnv(gym.Env):
         waypoints: bool = False,
         waypoints_near_group: bool = False,
         perception: Any = None,
+        member_order: str = "nearest",
     ) -> None:
         """``record`` keeps every step's state in ``trajectory`` (metrics, plots; on when rendering).
         ``groups``: where members stand, ``"calibrated"`` (default: real groups' size and irregularity) or
@@ -81,13 +82,14 @@ class ApproachGroupEnv(gym.Env):
         ``waypoints_near_group``: right up to the group's keep-out disc (``planner.way_in_for_group``);
         ``perception``: the observation model (``perception.groups.observation_model``; off by default: the true
         state), true or a mapping of ``PerceptionParams``' fields: the policy sees the group as deploy's perception
-        would."""
+        would; ``member_order``: the order of the observation's member blocks, ``nearest`` first (default) or by
+        ``bearing`` (``core.observation``)."""
         if render_mode not in (None, "rgb_array"):
             raise UserError(f"render_mode {render_mode!r}: expected None or 'rgb_array'")
         if not isinstance(render_width, int) or not 64 <= render_width <= 4096:
             raise UserError(f"render width {render_width!r}: expected an integer in [64, 4096] pixels")
         self.sim = BatchedApproach(1, scenario, world, robot, social, reward, task, groups, groups_yaml, room_yaml,
-                                   furniture, scan, waypoints, waypoints_near_group, perception)
+                                   furniture, scan, waypoints, waypoints_near_group, perception, member_order)
         sim = self.sim
         self.scenario, self.world_params, self.robot_params = sim.scenario, sim.world_params, sim.robot_params
         self.social, self.task, self.groups = sim.social, sim.task, sim.groups
