@@ -3,7 +3,6 @@ the env, in deploy's observation and in a trained policy's recorded config."""
 
 from __future__ import annotations
 
-
 import numpy as np
 import pytest
 
@@ -47,7 +46,8 @@ def test_bearing_order_keeps_the_five_nearest():
 
 
 def test_env_orders_members_by_bearing_when_asked():
-    near, bear = ApproachGroupEnv(scenario="circular-4"), ApproachGroupEnv(scenario="circular-4", member_order="bearing")
+    near = ApproachGroupEnv(scenario="circular-4")
+    bear = ApproachGroupEnv(scenario="circular-4", member_order="bearing")
     a, _ = near.reset(seed=4)
     b, _ = bear.reset(seed=4)
     ma, mb = ob.decode_members(a)[0], ob.decode_members(b)[0]
