@@ -1,6 +1,7 @@
 """Training: a short smoke run, kill-and-resume, config validation, bad run directories and models."""
 
 import json
+import math
 import os
 import signal
 import subprocess
@@ -58,6 +59,14 @@ def test_smoke_run_writes_a_complete_run_dir(tmp_path):
     b = pol.model.policy.state_dict()
     assert all(np.allclose(a[k].numpy(), b[k].numpy()) for k in b)
     assert np.allclose(venv.obs_rms.mean, pol.normalizer.obs_rms.mean)
+    venv.close()
+    # ... and with ppo.restart_std its action std starts again there, the rest as the source's
+    venv = make_vec_env(cfg, 0)
+    again = build_model(cfg, venv, tmp_path / "tb")
+    _init_from(again, venv, out, 0.22)
+    c = again.policy.state_dict()
+    assert np.allclose(c["log_std"].numpy(), math.log(0.22))
+    assert all(np.allclose(c[k].numpy(), b[k].numpy()) for k in b if k != "log_std")
     venv.close()
 
 
@@ -232,6 +241,8 @@ def test_learning_rate_anneals_linearly_to_its_end_value(tmp_path):
     assert constant.lr_schedule(0.0) == pytest.approx(3e-4)
     with pytest.raises(ConfigError, match="learning_rate_end"):
         load_config(None, {"ppo": {"learning_rate_end": 2}})
+    with pytest.raises(ConfigError, match=r"ppo.restart_std = 0: expected a number in \(0, 1\] or null"):
+        load_config(None, {"ppo": {"restart_std": 0}})
 
 
 def test_fine_tuning_across_plain_and_bounded_heads_keeps_the_weights():

@@ -62,6 +62,9 @@ class PPOConfig:
     lstm_hidden_size: int = 128
     log_std_init: float = -0.5  # SB3 default 0 (std 1) saturates [-1, 1] actions and makes stopping rare
     bounded_mean: bool = True  # tanh on the Gaussian mean (training/policies.py): keeps saturated axes exploring
+    # with --init-from: the action std restarts at this (null: the source's). The shipped policy's has shrunk to
+    # 0.055 of the action range; fine-tunes from it hardly explore (docs/benchmarks_movenet.md)
+    restart_std: float | None = None
 
     def __post_init__(self) -> None:
         for name in ("learning_rate", "gamma", "gae_lambda", "clip_range"):
@@ -76,6 +79,9 @@ class PPOConfig:
         _check(all(isinstance(h, int) and h > 0 for h in self.net_arch), "ppo", "net_arch", self.net_arch,
                "a list of positive layer sizes")
         _check(isinstance(self.bounded_mean, bool), "ppo", "bounded_mean", self.bounded_mean, "true or false")
+        std = self.restart_std
+        _check(std is None or (isinstance(std, int | float) and 0 < std <= 1), "ppo", "restart_std", std,
+               "a number in (0, 1] or null (the source's)")
 
 
 @dataclasses.dataclass(frozen=True)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import functools
 import json
+import math
 import pickle
 import shutil
 import sys
@@ -294,7 +295,7 @@ def train(cfg: TrainConfig, run_dir: Path, overwrite: bool = False, init_from: P
     try:
         model = build_model(cfg, venv, run_dir / "tb")
         if init_from is not None:
-            venv = _init_from(model, venv, init_from)
+            venv = _init_from(model, venv, init_from, cfg.ppo.restart_std)
         if run_dir.is_dir():  # the old run (--overwrite), else the temporaries a run killed before config.yaml left
             (remove_run if overwrite else clean_temporaries)(run_dir)
         with output_dir(run_dir, "--out"):
@@ -312,8 +313,9 @@ def write_baselines(cfg: TrainConfig, run_dir: Path) -> None:
     write_text(run_dir / "baselines.json", json.dumps(baseline_returns(cfg), indent=2))
 
 
-def _init_from(model: Any, venv: Any, source: Path) -> Any:
-    """Copy a run's final policy weights and observation statistics into a fresh model and VecEnv."""
+def _init_from(model: Any, venv: Any, source: Path, restart_std: float | None = None) -> Any:
+    """Copy a run's final policy weights and observation statistics into a fresh model and VecEnv; with
+    ``restart_std``, the action std restarts at that value."""
     src_model, src_norm, _ = resolve_model(str(source))
     if src_norm is None:
         raise RunError(f"{source}: no vecnormalize.pkl to start from")
@@ -327,6 +329,9 @@ def _init_from(model: Any, venv: Any, source: Path) -> Any:
     inputs = (new.observation_space.shape, venv.venv.observation_space.shape)
     policy = _match_action_head(params["policy"], model.policy.state_dict(), *widened(*inputs))
     model.set_parameters({"policy": policy}, exact_match=False)
+    if restart_std is not None:
+        with torch.no_grad():
+            model.policy.log_std.fill_(math.log(restart_std))
     if widened(*inputs) != (0, 0):
         _widen_normalisation(new, venv.venv)
     if new.observation_space != venv.venv.observation_space:
