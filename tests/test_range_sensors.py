@@ -10,10 +10,10 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from ssbl_pb.core.range_sensors import LASERS, RANGES, SONARS
+from ssbl_pb.core.range_sensors import LASERS, RANGES, SONARS, lasers_see_body
 from ssbl_pb.core.shield import ShieldParams, brake_returns
 from ssbl_pb.core.task import TaskParams
-from ssbl_pb.deploy.frames import Frames
+from ssbl_pb.deploy.frames import Frames, inverse, transform_points
 from ssbl_pb.deploy.guards import UNSEEN_FAR, UNSEEN_MARGIN, UNSEEN_NEAR, guard_unseen, unseen_margin
 from ssbl_pb.deploy.ranges import KEYS, LASER_KEY, SONAR_KEY, scan_points
 from ssbl_pb.params import RobotParams, SocialParams
@@ -224,11 +224,51 @@ def test_someone_seen_walking_into_a_blind_sector_is_braked_for_where_they_could
     assert guards(np.array([0.0, 0.25, 0.0]), empty, [], np.zeros((0, 2)), pose, None, 1.0)[0][1] == 0.25  # left
     far = np.hypot(*(guards.memory.phantoms(pose, 2.0) - seen).T)  # two seconds on: up to 1.25 m further on
     assert PHANTOM_REACH == 1.25 and 1.0 + R < far.max() <= PHANTOM_REACH + R + 1e-9
-    assert not len(guards.memory.phantoms(pose, RANGE_MEMORY_S + 0.1))  # forgotten
+    assert guards.memory.phantoms(pose, RANGE_MEMORY_S + 0.1) == pytest.approx(seen)  # then where they were only
     # a leg by a tracked person is theirs (the member guard's), not remembered
     guards = Guards(SHIELD, 0.55, 0.45, Frames())
     guards(cmd, RangeScan(seen, 0.0), [SimpleNamespace(reach=0.0)], seen + [0.2, -0.2], pose, None, 0.0)
     assert not len(guards.memory.phantoms(pose, 1.0))
+
+
+def test_someone_who_stayed_in_a_blind_sector_is_remembered_there_until_a_laser_sees_the_place():
+    """Past ``RANGE_MEMORY_S`` a return whose place no laser sees stays a body to brake for, at that place only; a
+    laser seeing the place empty forgets it."""
+    from ssbl_pb.core.range_memory import RANGE_MEMORY_S
+    from ssbl_pb.core.range_sensors import in_laser_fields
+    from ssbl_pb.deploy.guards import Guards
+    from ssbl_pb.deploy.robot import RangeScan
+
+    guards = Guards(SHIELD, 0.55, 0.45, Frames())
+    seen = np.array([[0.0, -0.8]])  # 0.8 m to the right: in the right laser's field
+    facing = np.zeros(3)
+    assert in_laser_fields(seen)[0]
+    guards(np.zeros(3), RangeScan(seen, 0.0), [], np.zeros((0, 2)), facing, None, 0.0)
+    turned = np.array([0.0, 0.0, math.radians(-40)])  # turned 40 deg right: the place lies 50 deg right, unseen
+    assert not lasers_see_body(transform_points(inverse(turned), seen), R)[0]
+    empty = RangeScan(np.zeros((0, 2)), 0.0)
+    t = RANGE_MEMORY_S + 5.0
+    guards(np.zeros(3), empty, [], np.zeros((0, 2)), turned, None, t)
+    local = guards.memory.phantoms(turned, t)
+    assert local == pytest.approx(transform_points(inverse(turned), seen))  # where they stood, nowhere else
+    toward = 0.3 * local[0] / np.hypot(*local[0])
+    out, cols = guards(np.array([*toward, 0.0]), empty, [], np.zeros((0, 2)), turned, None, t + 0.1)
+    assert np.hypot(*out[:2]) < 0.1 * 0.3 and cols["range_guard"]["phantoms"]  # 0.23 m of clearance: braked
+    guards(np.zeros(3), empty, [], np.zeros((0, 2)), facing, None, t + 0.2)  # turned back, no return beyond it:
+    assert len(guards.memory.phantoms(facing, t + 0.3))  # the segments may pass either side of them; still there
+    wall = RangeScan(np.array([[0.02, -2.0]]), 0.0)  # a return 2 m beyond them, on their line: their place is empty
+    guards(np.zeros(3), wall, [], np.zeros((0, 2)), facing, None, t + 0.4)
+    assert np.hypot(*(guards.memory.points - seen).T).min() > 1.0  # forgotten (the wall's return is remembered)
+
+
+def test_seen_past_needs_a_return_beyond_the_place_on_its_line():
+    from ssbl_pb.core.range_memory import SEEN_PAST, seen_past
+
+    place = np.array([[1.0, 0.0]])
+    assert seen_past(place, np.array([[2.0, 0.05]])).tolist() == [True]  # the line passes 0.025 m from it
+    assert seen_past(place, np.array([[2.0, 0.3]])).tolist() == [False]  # 0.15 m aside: between two segments
+    assert seen_past(place, np.array([[1.0 + SEEN_PAST / 2, 0.0]])).tolist() == [False]  # that is the body itself
+    assert seen_past(place, np.zeros((0, 2))).tolist() == [False]
 
 
 @pytest.mark.slow

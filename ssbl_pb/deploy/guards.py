@@ -128,7 +128,8 @@ class Guards:
         local = transform_points(inverse(pose), odom)
         known = mapped(self.frames, odom)
         lasers = np.arange(len(odom)) < len(odom) - scan.sonars  # a sonar's echo is no place to remember
-        self.memory.update(odom, lasers & ~known & (np.hypot(*scan.points.T) <= MEMORY_REACH), now, pos)
+        self.memory.update(odom, lasers & ~known & (np.hypot(*scan.points.T) <= MEMORY_REACH), now, pos, pose,
+                           odom[lasers])
         before, clearance = out.copy(), self.stop_distance + RETURN_MARGIN
         out, row = guard_ranges(out, local, known, clearance, self.shield)
         phantoms = self.memory.phantoms(pose, now)

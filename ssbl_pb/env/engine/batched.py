@@ -367,7 +367,7 @@ class BatchedApproach:
         for i in range(self.num):
             n, memory, now = int(self.groups_state.count[i]), self._range_memory[i], float(self.steps[i]) * self.dt
             people = self.perceived.pos[i, :int(self.perceived.count[i])]
-            memory.update(self.groups_state.pos[i, :n], seen[i, :n], now, people)
+            memory.update(self.groups_state.pos[i, :n], seen[i, :n], now, people, self.pose[i])
             if len(memory.points):
                 found = memory.phantoms(self.pose[i], now)
                 if len(found):
