@@ -147,8 +147,9 @@ def test_deploy_brakes_for_a_person_beside_it_that_its_camera_cannot_see():
         right = np.array([0.0, -0.3, 0.1])  # sidestepping right, toward them
         out, cols = loop.guards(right, robot.ranges(), [], np.zeros((0, 2)), odo.pose, None, clock.now())
         assert out[1] > -1e-9 and out[2] == 0.1 and cols["range_guard"]["before"] == right.tolist()
-        ahead = np.array([0.3, 0.0, 0.0])  # straight on, past them: barely touched
-        assert loop.guards(ahead, robot.ranges(), [], np.zeros((0, 2)), odo.pose, None, clock.now())[0][0] > 0.25
+        ahead = np.array([0.3, 0.0, 0.0])  # straight on, past them: slowed a little (a body behind their returns'
+        #   edge, out of every field, could stand ahead of them: ``edge_bodies``), 0.24 m/s
+        assert loop.guards(ahead, robot.ranges(), [], np.zeros((0, 2)), odo.pose, None, clock.now())[0][0] > 0.2
         # the whole loop, its policy told to go right: the robot stops short of the stranger it never tracked
         loop.s.policy = _Right()
         loop.p = DeployParams(status_s=0, duration_s=4.0, settle_s=0.0)
@@ -200,7 +201,7 @@ def test_the_clearance_kept_from_members_out_of_view_grows_by_their_reach_capped
 
 
 def test_someone_seen_walking_into_a_blind_sector_is_braked_for_where_they_could_stand():
-    from ssbl_pb.core.range_memory import PHANTOM_REACH, RANGE_MEMORY_S
+    from ssbl_pb.core.range_memory import PHANTOM_REACH, RANGE_MEMORY_S, edge_bodies
     from ssbl_pb.core.range_sensors import in_laser_fields
     from ssbl_pb.deploy.guards import Guards
     from ssbl_pb.deploy.robot import RangeScan
@@ -215,6 +216,9 @@ def test_someone_seen_walking_into_a_blind_sector_is_braked_for_where_they_could
     empty = RangeScan(np.zeros((0, 2)), 0.0)
     phantoms = guards.memory.phantoms(pose, 1.0)  # a second later they may stand anywhere within 1.28 m, unseen
     assert len(phantoms) and not in_laser_fields(phantoms).any()
+    edge = edge_bodies(seen, R)  # (and a body the leg is the edge of, its middle out of the right laser's field)
+    assert len(edge) and all(np.hypot(*(phantoms - e).T).min() < 1e-9 for e in edge)
+    phantoms = phantoms[np.hypot(*(phantoms[:, None] - edge[None]).transpose(2, 0, 1)).min(axis=1) > 1e-9]
     assert np.hypot(*(phantoms - seen).T).max() <= WALK_SPEED * 1.0 + R + 1e-9
     bearing = np.degrees(np.arctan2(phantoms[:, 1], phantoms[:, 0]))
     wedge = (bearing < -30) & (bearing > -71)  # the blind sector between the front and right lasers' fields ...
@@ -259,6 +263,30 @@ def test_someone_who_stayed_in_a_blind_sector_is_remembered_there_until_a_laser_
     wall = RangeScan(np.array([[0.02, -2.0]]), 0.0)  # a return 2 m beyond them, on their line: their place is empty
     guards(np.zeros(3), wall, [], np.zeros((0, 2)), facing, None, t + 0.4)
     assert np.hypot(*(guards.memory.points - seen).T).min() > 1.0  # forgotten (the wall's return is remembered)
+
+
+def test_a_return_on_the_edge_of_a_body_in_a_blind_sector_is_braked_for_as_that_body():
+    """A member 40 deg to the right shows the front laser only the edge of their body (lockstep `mixed` 500013):
+    deploy's guard brakes for the body behind that edge, out of every field; the training env's memory (body
+    centres) adds nothing."""
+    from ssbl_pb.core.range_memory import RangeMemory, edge_bodies
+    from ssbl_pb.core.range_sensors import in_laser_fields
+    from ssbl_pb.deploy.guards import Guards
+    from ssbl_pb.deploy.robot import RangeScan
+
+    member, edge = np.array([0.79, -0.67]), np.array([[0.92, -0.46]])
+    assert in_laser_fields(edge)[0] and not in_laser_fields(member[None])[0]
+    bodies = edge_bodies(edge, R)
+    assert len(bodies) and not in_laser_fields(bodies).any()
+    assert np.hypot(*(bodies - member).T).min() < 0.05
+    assert np.hypot(*(bodies - edge).T) == pytest.approx(R)  # on the far half of a body through the return
+    guards, pose = Guards(SHIELD, 0.55, 0.45, Frames()), np.zeros(3)
+    toward = 0.3 * member / np.hypot(*member)
+    out, cols = guards(np.array([*toward, 0.0]), RangeScan(edge, 0.0), [], np.zeros((0, 2)), pose, None, 0.0)
+    assert np.hypot(*out[:2]) < 0.5 * 0.3 and cols["range_guard"]["phantoms"]
+    env_memory = RangeMemory(R)  # the env remembers body centres: a seen body is braked for by the env's guard itself
+    env_memory.update(member[None], np.array([True]), 0.0, np.zeros((0, 2)), pose)
+    assert not len(env_memory.phantoms(pose, 0.0))
 
 
 def test_seen_past_needs_a_return_beyond_the_place_on_its_line():

@@ -106,7 +106,7 @@ class Guards:
 
     def __init__(self, shield: ShieldParams, clearance: float, stop_distance: float, frames: Frames) -> None:
         self.shield, self.clearance, self.stop_distance, self.frames = shield, clearance, stop_distance, frames
-        self.memory = RangeMemory(shield.human_radius)
+        self.memory = RangeMemory(shield.human_radius, surface=True)
 
     def __call__(self, cmd: np.ndarray, scan: RangeScan | None, members: list[Any], pos: np.ndarray,
                  pose: np.ndarray, age: float | None, now: float, slot_distance: float = math.inf,
