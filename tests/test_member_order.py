@@ -67,7 +67,7 @@ def test_a_trained_policy_brings_its_member_order(tmp_path):
     """Deploy and evaluation read the order from the model's config (``trained.OBSERVATION_KEYS``)."""
     import yaml
 
-    from ssbl_pb.agents.trained import PolicyView, policy_env_kwargs, policy_view
+    from ssbl_pb.agents.trained import ModelError, PolicyView, policy_env_kwargs, policy_view
     from ssbl_pb.training.config import load_config
 
     assert policy_view("vector") == PolicyView(True, True, "nearest")  # the shipped policy's
@@ -80,3 +80,6 @@ def test_a_trained_policy_brings_its_member_order(tmp_path):
     assert policy_env_kwargs(str(run)) == {"member_order": "bearing"}
     assert policy_view(str(run)) == PolicyView(member_order="bearing")
     assert load_config(None, {"env": {"member_order": "bearing"}}).env["member_order"] == "bearing"
+    (run / "config.yaml").write_text(yaml.safe_dump({"obs_mode": "vector", "env": {"member_order": "random"}}))
+    with pytest.raises(ModelError, match=r"run/config.yaml: env.member_order 'random': expected one of \['nearest'"):
+        policy_view(str(run))

@@ -15,7 +15,7 @@ import yaml
 
 from ..core.actions import ActionStages
 from ..core.layouts import GroupModel as EnvGroups
-from ..core.observation import BASE_SIZE, OBS_SIZE
+from ..core.observation import BASE_SIZE, MEMBER_ORDERS, OBS_SIZE
 from ..core.shield import ShieldParams
 from ..core.task import TaskParams
 from ..errors import UserError
@@ -146,10 +146,14 @@ DEFAULT_VIEW = PolicyView()
 
 
 def policy_view(spec: str) -> PolicyView:
-    """The ``PolicyView`` of a trained model (a baseline's: the defaults)."""
+    """The ``PolicyView`` of a trained model (a baseline's: the defaults); a member order it does not know is
+    refused, naming the model's config."""
     seen = policy_env_kwargs(spec)
-    return PolicyView(bool(seen.get("waypoints", False)), bool(seen.get("waypoints_near_group", False)),
-                      str(seen.get("member_order", "nearest")))
+    order = seen.get("member_order", "nearest")
+    if order not in MEMBER_ORDERS:
+        raise ModelError(f"{resolve_model(spec)[0].parent / 'config.yaml'}: env.member_order {order!r}: expected one "
+                         f"of {list(MEMBER_ORDERS)}")
+    return PolicyView(bool(seen.get("waypoints", False)), bool(seen.get("waypoints_near_group", False)), order)
 
 
 def policy_env_kwargs(spec: str) -> dict[str, Any]:

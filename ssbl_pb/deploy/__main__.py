@@ -126,6 +126,7 @@ def _params(args: argparse.Namespace) -> Any:
     frames = Frames(load_room(args.map) if args.map else None, start)
     frames.check_start()
     policy = load_policy(args.policy, robot, social, task, params.stop_distance)
+    policy_view(args.policy)  # the observation it was trained on can be built here, checked before connecting
     if args.groups is None:
         args.groups = policy_groups(args.policy)
     return params, robot, social, task, policy, frames
